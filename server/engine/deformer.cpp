@@ -1,0 +1,359 @@
+#include "deformer.h"
+
+#include "guidance.h"
+#include "harmonic.h"
+#include "mesh_io.h"
+#include "solver.h"
+#include "validate.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <string>
+
+namespace hdeform {
+
+namespace {
+
+std::size_t sparse_bytes(const SparseMatrix& A) {
+  return static_cast<std::size_t>(A.nonZeros()) * (sizeof(double) + sizeof(int)) +
+         static_cast<std::size_t>(A.outerSize() + 1) * sizeof(int);
+}
+std::size_t sparse_bytes(const SparseMatrixR& A) {
+  return static_cast<std::size_t>(A.nonZeros()) * (sizeof(double) + sizeof(int)) +
+         static_cast<std::size_t>(A.outerSize() + 1) * sizeof(int);
+}
+
+// B₃ D₃ (3|E_int| × 3m): row 3e+d has +len at 3a+d and −len at 3b+d.
+SparseMatrix weighted_differences(const std::vector<InteriorEdge>& edges, Eigen::Index m) {
+  std::vector<Eigen::Triplet<double>> t;
+  t.reserve(6 * edges.size());
+  for (std::size_t e = 0; e < edges.size(); ++e)
+    for (int d = 0; d < 3; ++d) {
+      t.emplace_back(static_cast<int>(3 * e) + d, 3 * edges[e].tri[0] + d, edges[e].length);
+      t.emplace_back(static_cast<int>(3 * e) + d, 3 * edges[e].tri[1] + d, -edges[e].length);
+    }
+  SparseMatrix BD(3 * static_cast<Eigen::Index>(edges.size()), 3 * m);
+  BD.setFromTriplets(t.begin(), t.end());
+  return BD;
+}
+
+// Union-find over triangle corners: connected components by shared vertices.
+std::vector<int> vertex_components(int n, const Triangles& F, int& count) {
+  std::vector<int> parent(static_cast<std::size_t>(n));
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](int v) {
+    while (parent[v] != v) v = parent[v] = parent[parent[v]];
+    return v;
+  };
+  for (Eigen::Index l = 0; l < F.rows(); ++l)
+    for (int c = 1; c < 3; ++c) {
+      const int a = find(F(l, 0)), b = find(F(l, c));
+      if (a != b) parent[std::max(a, b)] = std::min(a, b);
+    }
+  std::vector<int> label(static_cast<std::size_t>(n), -1), comp(static_cast<std::size_t>(n));
+  count = 0;
+  for (int v = 0; v < n; ++v) {
+    const int r = find(v);
+    if (label[r] < 0) label[r] = count++;
+    comp[v] = label[r];
+  }
+  return comp;
+}
+
+// The rows of the free vertices / the (free, constrained) blocks of a symmetric matrix.
+struct Blocks {
+  SparseMatrix FF, FC;  // K_FF (full symmetric), K_FC
+  SparseMatrixR GtW_F;  // (Gᵀ W)_F, row-major: the right-hand side is one product
+};
+
+Blocks split(const SparseMatrix& K, const SparseMatrix& GtW, const std::vector<int>& region_of,
+             const std::vector<int>& block_index, Eigen::Index nF, Eigen::Index nC) {
+  std::vector<Eigen::Triplet<double>> ff, fc, gw;
+  ff.reserve(K.nonZeros());
+  for (Eigen::Index c = 0; c < K.outerSize(); ++c)
+    for (SparseMatrix::InnerIterator it(K, c); it; ++it) {
+      const int r = static_cast<int>(it.row());
+      if (region_of[r] >= 0) continue;
+      if (region_of[c] < 0)
+        ff.emplace_back(block_index[r], block_index[c], it.value());
+      else
+        fc.emplace_back(block_index[r], block_index[c], it.value());
+    }
+  for (Eigen::Index c = 0; c < GtW.outerSize(); ++c)
+    for (SparseMatrix::InnerIterator it(GtW, c); it; ++it) {
+      const int r = static_cast<int>(it.row());
+      if (region_of[r] < 0) gw.emplace_back(block_index[r], static_cast<int>(c), it.value());
+    }
+  Blocks b;
+  b.FF.resize(nF, nF);
+  b.FF.setFromTriplets(ff.begin(), ff.end());
+  b.FC.resize(nF, nC);
+  b.FC.setFromTriplets(fc.begin(), fc.end());
+  b.GtW_F.resize(nF, GtW.cols());
+  b.GtW_F.setFromTriplets(gw.begin(), gw.end());
+  return b;
+}
+
+// values(out) = a·values(x) + b·values(y) for matrices of identical structure.
+template <typename Sparse>
+Sparse combine(double a, const Sparse& x, double b, const Sparse& y) {
+  Sparse out = x;
+  Eigen::Map<Eigen::VectorXd>(out.valuePtr(), out.nonZeros()) =
+      a * Eigen::Map<const Eigen::VectorXd>(x.valuePtr(), x.nonZeros()) +
+      b * Eigen::Map<const Eigen::VectorXd>(y.valuePtr(), y.nonZeros());
+  return out;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------
+std::shared_ptr<const PreparedMesh> PreparedMesh::create(TriMesh mesh) {
+  const ValidationResult checked = validate_mesh(mesh);
+  std::shared_ptr<PreparedMesh> pm(new PreparedMesh());
+  pm->unreferenced_ = checked.unreferenced;
+  pm->mesh_ = std::move(mesh);
+  const Vertices& V = pm->mesh_.V;
+  const Triangles& F = pm->mesh_.F;
+
+  pm->areas_ = triangle_areas(V, F);
+  pm->total_area_ = pm->areas_.sum();
+  pm->normals_ = triangle_normals(V, F);
+  pm->G_ = grad(V, F);
+  pm->edges_ = interior_edges(V, F);
+
+  // A as a 3m vector, so Gᵀ A is a column scaling of Gᵀ.
+  Eigen::VectorXd a3(3 * F.rows());
+  for (Eigen::Index l = 0; l < F.rows(); ++l) a3.segment<3>(3 * l).setConstant(pm->areas_[l]);
+  const SparseMatrix Gt = pm->G_.transpose();
+  pm->GtA_ = Gt * a3.asDiagonal();
+  pm->L_ = (pm->GtA_ * pm->G_).pruned(0.0, 0.0);
+  const SparseMatrix DG = gradient_jumps(pm->G_, pm->edges_);
+  pm->GtDBD_ = SparseMatrix(DG.transpose()) * weighted_differences(pm->edges_, F.rows());
+  pm->Reg_ = pm->GtDBD_ * pm->G_;
+  pm->component_ = vertex_components(pm->n(), F, pm->num_components_);
+  return pm;
+}
+
+double PreparedMesh::raw_beta(Beta beta) const {
+  if (!std::isfinite(beta.value) || beta.value < 0.0 || beta.value >= 1.0)
+    throw InvalidInput("beta must be in [0, 1), got " + std::to_string(beta.value));
+  if (beta.units == BetaUnits::raw || beta.value == 0.0) return beta.value;
+  // s scales the mesh to unit area; β′/(1−β′) = β / ((1−β) s)  (SPEC.md, decision Units).
+  const double s = 1.0 / std::sqrt(total_area_);
+  const double ratio = beta.value / ((1.0 - beta.value) * s);
+  return ratio / (1.0 + ratio);
+}
+
+std::size_t PreparedMesh::memory_bytes() const {
+  return sizeof(*this) + static_cast<std::size_t>(mesh_.V.size()) * sizeof(double) +
+         static_cast<std::size_t>(mesh_.F.size()) * sizeof(int) + sparse_bytes(G_) +
+         sparse_bytes(L_) + sparse_bytes(Reg_) + sparse_bytes(GtA_) + sparse_bytes(GtDBD_) +
+         static_cast<std::size_t>(areas_.size() + normals_.size()) * sizeof(double) +
+         edges_.size() * sizeof(InteriorEdge) + component_.size() * sizeof(int);
+}
+
+// ---------------------------------------------------------------------------------------
+struct BetaSystem {
+  std::shared_ptr<const Factorization> factor;
+  SparseMatrix K_FC;
+  SparseMatrixR GtW_F;
+  std::size_t memory_bytes() const {
+    return factor->memory_bytes() + sparse_bytes(K_FC) + sparse_bytes(GtW_F);
+  }
+};
+
+struct ConstraintSet::WideBlocks {
+  Blocks area, reg;  // same structure: K_β = (1−β)·area + β·reg, likewise (GᵀW_β)_F
+};
+
+ConstraintSet::ConstraintSet(std::shared_ptr<const PreparedMesh> mesh, Constraints constraints)
+    : mesh_(std::move(mesh)), constraints_(std::move(constraints)) {
+  const int n = mesh_->n();
+  const int k = num_handles();
+  if (k == 0) throw InvalidInput("constraints: at least one handle region is required");
+  if (k == 1 && constraints_.fixed.empty())
+    throw InvalidInput(
+        "constraints: a single handle needs a fixed region (the harmonic field is undefined)");
+
+  region_of_.assign(static_cast<std::size_t>(n), -1);
+  auto claim = [&](const std::vector<int>& ids, int region, const std::string& what) {
+    if (ids.empty()) throw InvalidInput("constraints: " + what + " is empty");
+    for (int v : ids) {
+      if (v < 0 || v >= n)
+        throw InvalidInput("constraints: " + what + " has vertex id " + std::to_string(v) +
+                           " out of range [0, " + std::to_string(n) + ")");
+      if (region_of_[v] == region) continue;  // duplicate within one region: harmless
+      if (region_of_[v] != -1) {
+        const std::string other =
+            region_of_[v] == 0 ? "the fixed region" : "handle " + std::to_string(region_of_[v]);
+        throw InvalidInput("constraints: " + what + " overlaps " + other + " at vertex " +
+                           std::to_string(v));
+      }
+      region_of_[v] = region;
+    }
+  };
+  if (!constraints_.fixed.empty()) claim(constraints_.fixed, 0, "the fixed region");
+  for (int j = 0; j < k; ++j)
+    claim(constraints_.handles[j], j + 1, "handle " + std::to_string(j + 1));
+  for (int v : mesh_->unreferenced())
+    if (region_of_[v] == -1) region_of_[v] = 0;  // pinned at rest, ids stay stable
+
+  // Every component needs a constrained vertex, else K_FF is singular there.
+  std::vector<char> anchored(static_cast<std::size_t>(mesh_->num_components()), 0);
+  for (int v = 0; v < n; ++v)
+    if (region_of_[v] >= 0) anchored[mesh_->component()[v]] = 1;
+  for (int c = 0; c < mesh_->num_components(); ++c)
+    if (!anchored[c]) {
+      int first = 0, size = 0;
+      for (int v = n - 1; v >= 0; --v)
+        if (mesh_->component()[v] == c) first = v, ++size;
+      throw InvalidInput("constraints: mesh component " + std::to_string(c) + " (" +
+                         std::to_string(size) + " vertices, first vertex " +
+                         std::to_string(first) +
+                         ") has no constrained vertex; the system is singular there");
+    }
+
+  block_index_.assign(static_cast<std::size_t>(n), -1);
+  for (int v = 0; v < n; ++v) {
+    auto& block = region_of_[v] < 0 ? free_ : constrained_;
+    block_index_[v] = static_cast<int>(block.size());
+    block.push_back(v);
+  }
+
+  centroids_.resize(static_cast<std::size_t>(k));
+  for (int j = 0; j < k; ++j) {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (int v : constraints_.handles[j]) c += mesh_->mesh().V.row(v).transpose();
+    centroids_[j] = c / static_cast<double>(constraints_.handles[j].size());
+  }
+
+  // β = 0 is always needed: its factorization of L_FF also yields the harmonic basis.
+  const auto sys0 = system(0.0);
+  basis_ = hdeform::harmonic_basis(mesh_->L(), *sys0->factor, free_, constrained_, block_index_,
+                          region_of_, k);
+}
+
+ConstraintSet::~ConstraintSet() = default;
+
+Eigen::Vector3d ConstraintSet::centroid(int handle) const { return centroids_.at(handle); }
+
+std::shared_ptr<const BetaSystem> ConstraintSet::system(double raw_beta) const {
+  {
+    std::lock_guard lock(mutex_);
+    if (auto it = by_beta_.find(raw_beta); it != by_beta_.end()) return it->second;
+  }
+  std::lock_guard build(build_mutex_);
+  {
+    std::lock_guard lock(mutex_);  // another thread may have built it meanwhile
+    if (auto it = by_beta_.find(raw_beta); it != by_beta_.end()) return it->second;
+  }
+  const auto nF = static_cast<Eigen::Index>(free_.size());
+  const auto nC = static_cast<Eigen::Index>(constrained_.size());
+  auto sys = std::make_shared<BetaSystem>();
+  if (raw_beta == 0.0) {
+    // The Laplacian's own narrow pattern (SPEC: factoring β = 0 on the wide one is slower).
+    Blocks b = split(mesh_->L(), mesh_->GtA(), region_of_, block_index_, nF, nC);
+    sys->factor = std::make_shared<Factorization>(b.FF);
+    sys->K_FC = std::move(b.FC);
+    sys->GtW_F = std::move(b.GtW_F);
+  } else {
+    if (!wide_) {
+      // Same structure for both parts: each is the other plus explicit zeros.
+      const SparseMatrix Lw = mesh_->L() + 0.0 * mesh_->Reg();
+      const SparseMatrix Rw = mesh_->Reg() + 0.0 * mesh_->L();
+      const SparseMatrix Aw = mesh_->GtA() + 0.0 * mesh_->GtDBD();
+      const SparseMatrix Dw = mesh_->GtDBD() + 0.0 * mesh_->GtA();
+      auto w = std::make_shared<WideBlocks>();
+      w->area = split(Lw, Aw, region_of_, block_index_, nF, nC);
+      w->reg = split(Rw, Dw, region_of_, block_index_, nF, nC);
+      wide_ = std::move(w);
+    }
+    const SparseMatrix K_FF = combine(1.0 - raw_beta, wide_->area.FF, raw_beta, wide_->reg.FF);
+    if (!wide_symbolic_) {
+      sys->factor = std::make_shared<Factorization>(K_FF);
+      wide_symbolic_ = sys->factor;
+    } else {
+      sys->factor = std::make_shared<Factorization>(*wide_symbolic_, K_FF);
+    }
+    sys->K_FC = combine(1.0 - raw_beta, wide_->area.FC, raw_beta, wide_->reg.FC);
+    sys->GtW_F = combine(1.0 - raw_beta, wide_->area.GtW_F, raw_beta, wide_->reg.GtW_F);
+  }
+  std::lock_guard lock(mutex_);
+  by_beta_[raw_beta] = sys;
+  return sys;
+}
+
+void ConstraintSet::prepare(Beta beta) { system(mesh_->raw_beta(beta)); }
+
+void ConstraintSet::guidance(std::span<const HandleTransform> transforms, Eigen::MatrixX3d& g,
+                             std::vector<Eigen::Quaterniond>& R_l) const {
+  guidance_field(mesh_->mesh().F, mesh_->normals(), basis_, transforms, g, R_l);
+}
+
+Frame ConstraintSet::update(std::span<const HandleTransform> transforms, Beta beta,
+                            const UpdateOptions& options) const {
+  if (static_cast<int>(transforms.size()) != num_handles())
+    throw InvalidInput("expected " + std::to_string(num_handles()) +
+                       " handle transform(s), got " + std::to_string(transforms.size()));
+  for (const HandleTransform& t : transforms) t.validate();
+  const double raw = mesh_->raw_beta(beta);
+  const auto sys = system(raw);
+
+  Eigen::MatrixX3d g;
+  std::vector<Eigen::Quaterniond> R_l;
+  guidance(transforms, g, R_l);
+
+  const Vertices& X = mesh_->mesh().V;
+  Eigen::MatrixX3d x_C(static_cast<Eigen::Index>(constrained_.size()), 3);
+  for (std::size_t i = 0; i < constrained_.size(); ++i) {
+    const int v = constrained_[i], j = region_of_[v] - 1;
+    const Eigen::Vector3d x = X.row(v).transpose();
+    if (j < 0) {
+      x_C.row(i) = x.transpose();
+    } else {
+      const HandleTransform& t = transforms[j];
+      x_C.row(i) = t.apply(x, t.pivot.value_or(centroids_[j])).transpose();
+    }
+  }
+
+  Frame frame;
+  frame.positions.resize(X.rows(), 3);
+  if (!free_.empty()) {
+    const Eigen::MatrixXd rhs = sys->GtW_F * g - sys->K_FC * x_C;
+    const Eigen::MatrixXd x_F = sys->factor->solve(rhs);
+    for (std::size_t i = 0; i < free_.size(); ++i) frame.positions.row(free_[i]) = x_F.row(i);
+  }
+  for (std::size_t i = 0; i < constrained_.size(); ++i)
+    frame.positions.row(constrained_[i]) = x_C.row(i);
+
+  frame.measures = measure(*mesh_, frame.positions, g, R_l,
+                           options.energies ? &frame.energies : nullptr);
+  if (options.normals) frame.normals = vertex_normals(frame.positions, mesh_->mesh().F);
+  return frame;
+}
+
+std::size_t ConstraintSet::memory_bytes() const {
+  std::lock_guard lock(mutex_);
+  std::size_t bytes = sizeof(*this) + static_cast<std::size_t>(basis_.size()) * sizeof(double) +
+                      (free_.size() + constrained_.size() + 2 * region_of_.size()) * sizeof(int);
+  for (const auto& [b, sys] : by_beta_) bytes += sys->memory_bytes();
+  if (wide_)
+    bytes += 2 * (sparse_bytes(wide_->area.FF) + sparse_bytes(wide_->area.FC) +
+                  sparse_bytes(wide_->area.GtW_F));
+  return bytes;
+}
+
+std::size_t ConstraintSet::num_cached_factorizations() const {
+  std::lock_guard lock(mutex_);
+  return by_beta_.size();
+}
+
+void ConstraintSet::drop_factorization(Beta beta) {
+  const double raw = mesh_->raw_beta(beta);
+  if (raw == 0.0) return;  // the harmonic basis' own factorization stays
+  std::lock_guard lock(mutex_);
+  by_beta_.erase(raw);
+}
+
+}  // namespace hdeform

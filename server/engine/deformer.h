@@ -1,0 +1,144 @@
+// The engine's face (SPEC.md, all sections): an immutable PreparedMesh shared between
+// sessions, a ConstraintSet that owns its factorizations, and a cheap update().
+#pragma once
+
+#include "measures.h"
+#include "mesh.h"
+#include "operators.h"
+#include "transform.h"
+
+#include <cstddef>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <span>
+#include <vector>
+
+namespace hdeform {
+
+// SPEC (decision) Units: `area` builds the operators on the mesh scaled to unit total
+// area (scale-invariant β, the default); `raw` is the thesis's formula in model units.
+enum class BetaUnits { area, raw };
+
+struct Beta {
+  double value = 0;  // 0 ≤ value < 1
+  BetaUnits units = BetaUnits::area;
+};
+
+// Rest-pose operators of one mesh. Immutable after create(): share it freely.
+class PreparedMesh {
+ public:
+  // Validates the mesh (throws InvalidInput naming the problem) and builds G, A, L,
+  // the interior edges and the regularizer. Cost O(m) plus two sparse products.
+  static std::shared_ptr<const PreparedMesh> create(TriMesh mesh);
+
+  const TriMesh& mesh() const { return mesh_; }
+  int n() const { return mesh_.num_vertices(); }
+  int m() const { return mesh_.num_triangles(); }
+  const SparseMatrix& G() const { return G_; }
+  const Eigen::VectorXd& areas() const { return areas_; }        // a_l (units²)
+  const Vertices& normals() const { return normals_; }           // n_l at rest
+  const std::vector<InteriorEdge>& edges() const { return edges_; }
+  const SparseMatrix& L() const { return L_; }                   // Gᵀ A G
+  const SparseMatrix& Reg() const { return Reg_; }               // Gᵀ D₃ᵀ B₃ D₃ G
+  const SparseMatrix& GtA() const { return GtA_; }               // Gᵀ A (n × 3m)
+  const SparseMatrix& GtDBD() const { return GtDBD_; }           // Gᵀ D₃ᵀ B₃ D₃ (n × 3m)
+  double total_area() const { return total_area_; }
+  // Vertices no triangle uses: kept (ids stay stable) and pinned at rest.
+  const std::vector<int>& unreferenced() const { return unreferenced_; }
+  // Connected component of each vertex (triangle adjacency), and their count.
+  const std::vector<int>& component() const { return component_; }
+  int num_components() const { return num_components_; }
+
+  // The thesis's (raw) β′ for β in the given units: β′/(1−β′) = β/((1−β)·s), with s the
+  // factor that scales the mesh to unit area. Throws InvalidInput unless 0 ≤ β < 1.
+  double raw_beta(Beta beta) const;
+  std::size_t memory_bytes() const;
+
+ private:
+  PreparedMesh() = default;
+  TriMesh mesh_;
+  SparseMatrix G_, L_, Reg_, GtA_, GtDBD_;
+  Eigen::VectorXd areas_;
+  Vertices normals_;
+  std::vector<InteriorEdge> edges_;
+  double total_area_ = 0;
+  std::vector<int> unreferenced_;
+  std::vector<int> component_;
+  int num_components_ = 0;
+};
+
+// Fixed set F₀ and handle regions H₁..H_k by vertex id (SPEC.md §Constraints).
+struct Constraints {
+  std::vector<int> fixed;
+  std::vector<std::vector<int>> handles;
+};
+
+struct UpdateOptions {
+  bool energies = true;  // fill Frame::energies
+  bool normals = true;   // fill Frame::normals
+};
+
+struct Frame {
+  Vertices positions;        // X' (n×3), model units
+  Vertices normals;          // area-weighted vertex normals of X' (unit), if requested
+  Eigen::VectorXf energies;  // per-triangle ‖r_l‖²_F (e_f²), if requested
+  Measures measures;
+};
+
+class Factorization;  // solver.h
+struct BetaSystem;    // deformer.cpp: K_FF factorization, K_FC, (Gᵀ W_β)_F for one β
+
+// One constraint set on one mesh: validates it, solves the harmonic basis fields once,
+// and caches the factorization of K_FF per β. Thread-safe: update() may be called
+// concurrently (factorizations are built once under a lock).
+class ConstraintSet {
+ public:
+  // Throws InvalidInput: ids out of range, overlapping or empty regions, a single handle
+  // with no fixed vertex, a component without a constrained vertex.
+  ConstraintSet(std::shared_ptr<const PreparedMesh> mesh, Constraints constraints);
+  ~ConstraintSet();
+
+  const PreparedMesh& mesh() const { return *mesh_; }
+  const Constraints& constraints() const { return constraints_; }
+  int num_handles() const { return static_cast<int>(constraints_.handles.size()); }
+  // Centroid of H_j at rest: the default pivot.
+  Eigen::Vector3d centroid(int handle) const;
+  // Φ (n × k): Φ_j = 1 on H_j, 0 on the other constrained vertices, harmonic elsewhere.
+  const Eigen::MatrixXd& harmonic_basis() const { return basis_; }
+
+  // Builds (or finds) the factorization for β so a later update() is only a solve.
+  void prepare(Beta beta);
+  // Deformed mesh for one transform per handle. Cost: guidance O(m), one sparse
+  // product, one triangular-solve pair (plus a numeric factorization on a new β).
+  // Throws InvalidInput for a wrong transform count or an invalid transform.
+  Frame update(std::span<const HandleTransform> transforms, Beta beta,
+               const UpdateOptions& options = {}) const;
+
+  // Guidance per triangle (SPEC §Harmonic guidance field): g (3m×3) and R_l.
+  void guidance(std::span<const HandleTransform> transforms, Eigen::MatrixX3d& g,
+                std::vector<Eigen::Quaterniond>& R_l) const;
+
+  std::size_t memory_bytes() const;
+  std::size_t num_cached_factorizations() const;
+  void drop_factorization(Beta beta);
+
+ private:
+  std::shared_ptr<const BetaSystem> system(double raw_beta) const;
+  struct WideBlocks;  // the β > 0 pattern, split into its (1 − β) and β parts
+
+  std::shared_ptr<const PreparedMesh> mesh_;
+  Constraints constraints_;
+  std::vector<int> free_, constrained_;  // vertex ids of F and C, ascending
+  std::vector<int> block_index_;         // position of each vertex within F or C
+  std::vector<int> region_of_;           // −1 free, 0 fixed (F₀ or unreferenced), j+1 handle j
+  Eigen::MatrixXd basis_;
+  std::vector<Eigen::Vector3d> centroids_;
+  mutable std::mutex mutex_;
+  mutable std::mutex build_mutex_;  // one factorization at a time; lookups stay cheap
+  mutable std::map<double, std::shared_ptr<const BetaSystem>> by_beta_;
+  mutable std::shared_ptr<const WideBlocks> wide_;                 // built on first β > 0
+  mutable std::shared_ptr<const Factorization> wide_symbolic_;  // analysis shared by β > 0
+};
+
+}  // namespace hdeform

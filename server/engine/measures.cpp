@@ -1,0 +1,53 @@
+#include "measures.h"
+
+#include "deformer.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace hdeform {
+
+Measures measure(const PreparedMesh& pm, const Vertices& X, const Eigen::MatrixX3d& g,
+                 const std::vector<Eigen::Quaterniond>& R_l, Eigen::VectorXf* ef2) {
+  const Triangles& F = pm.mesh().F;
+  const Eigen::VectorXd& a = pm.areas();
+  const Eigen::Index m = F.rows();
+  const Eigen::MatrixX3d Y = pm.G() * X;  // Y'_l blocks
+  if (ef2) ef2->resize(m);
+
+  Measures out;
+  double iso_sum = 0, conf_sum = 0, area_deformed = 0;
+  for (Eigen::Index l = 0; l < m; ++l) {
+    const Eigen::Matrix3d Yl = Y.middleRows<3>(3 * l);
+    const double r2 = (Yl - g.middleRows<3>(3 * l)).squaredNorm();
+    out.E += a[l] * r2;
+    out.max_ef2 = std::max(out.max_ef2, r2);
+    if (ef2) (*ef2)[l] = static_cast<float>(r2);
+
+    const Eigen::Vector3d x0 = X.row(F(l, 0)).transpose();
+    const Eigen::Vector3d c = (X.row(F(l, 1)).transpose() - x0).cross(X.row(F(l, 2)).transpose() - x0);
+    const double a_def = 0.5 * c.norm();
+    area_deformed += a_def;
+
+    // Y'_l has rank 2: σ₁² + σ₂² = ‖Y'_l‖²_F and σ₁σ₂ = a'_l / a_l (area ratio).
+    const double sum_sq = Yl.squaredNorm();
+    const double prod = a_def / a[l];
+    const double sum = std::sqrt(std::max(0.0, sum_sq + 2 * prod));
+    const double e_iso = sum_sq - 2 * sum + 2;  // (σ₁−1)² + (σ₂−1)²
+    const double e_conf = 0.5 * std::max(0.0, sum_sq - 2 * prod);  // ½(σ₁−σ₂)²
+    iso_sum += a[l] * e_iso;
+    conf_sum += a[l] * e_conf;
+    out.max_e_iso = std::max(out.max_e_iso, e_iso);
+    out.max_e_conf = std::max(out.max_e_conf, e_conf);
+
+    const Eigen::Vector3d n_rest = pm.normals().row(l).transpose();
+    if (c.dot(R_l[l] * n_rest) < 0) ++out.flips;
+  }
+  const double total = pm.total_area();
+  out.E_iso_N = iso_sum / total;
+  out.E_conf_N = conf_sum / total;
+  out.E_area_pct = 100.0 * (area_deformed - total) / total;
+  return out;
+}
+
+}  // namespace hdeform

@@ -1,0 +1,29 @@
+// Triangle mesh as the engine sees it: rest positions X (n×3) and triangles (m×3).
+#pragma once
+
+#include <Eigen/Core>
+
+#include <stdexcept>
+#include <string>
+
+namespace hdeform {
+
+// One row per vertex, in the input file's vertex order (ids stay valid across I/O).
+using Vertices = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
+// One row per triangle (i, j, k), counter-clockwise seen from outside.
+using Triangles = Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor>;
+
+struct TriMesh {
+  Vertices V;
+  Triangles F;
+  int num_vertices() const { return static_cast<int>(V.rows()); }
+  int num_triangles() const { return static_cast<int>(F.rows()); }
+};
+
+// Input the engine refuses: the message names the element and the count.
+class InvalidInput : public std::invalid_argument {
+ public:
+  using std::invalid_argument::invalid_argument;
+};
+
+}  // namespace hdeform

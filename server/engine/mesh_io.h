@@ -1,0 +1,47 @@
+// Mesh files: OBJ/OFF/PLY/STL through OpenMesh, glTF/GLB through tinygltf.
+// Vertex ids are the file's vertex order. glTF vertices split only by attributes (same
+// position, e.g. UV seams) are welded into one surface; the map back keeps output in the
+// input's layout.
+#pragma once
+
+#include "mesh.h"
+
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace hdeform {
+
+struct LoadedMesh {
+  TriMesh mesh;                       // welded surface, what the engine deforms
+  // Input layout: one entry per input vertex → its engine vertex. Identity for
+  // OBJ/OFF/PLY/STL; the weld map for glTF.
+  std::vector<int> input_to_engine;
+  Triangles input_triangles;          // triangles in input-vertex ids (triangulated)
+  std::vector<std::string> warnings;  // e.g. polygons triangulated
+  bool identity_layout() const;
+  // Engine positions rearranged into the input layout (input vertex count × 3).
+  Vertices to_input_layout(const Vertices& engine_positions) const;
+};
+
+// Format from the extension (case-insensitive): .obj .off .ply .stl .gltf .glb.
+// Throws InvalidInput naming the file (and line, for text parse errors).
+LoadedMesh read_mesh(const std::string& path);
+// Same for an in-memory upload; `filename` only picks the format and names errors.
+LoadedMesh read_mesh_bytes(std::string_view bytes, const std::string& filename);
+
+enum class MeshFileFormat { glb, obj, off, ply };
+MeshFileFormat format_from_path(const std::string& path);  // throws InvalidInput
+
+// Serialises positions (+ optional per-vertex normals) and triangles. Text formats write
+// doubles with %.17g so they round-trip exactly. GLB carries float32 POSITION, NORMAL and
+// uint32 indices in one buffer (the base layout that service frames refer to).
+std::string write_mesh_bytes(MeshFileFormat format, const Vertices& V, const Triangles& F,
+                             const Vertices* N = nullptr);
+void write_mesh(const std::string& path, const Vertices& V, const Triangles& F,
+                const Vertices* N = nullptr);
+
+// Area-weighted unit vertex normals (n×3); vertices without triangles get zero.
+Vertices vertex_normals(const Vertices& V, const Triangles& F);
+
+}  // namespace hdeform

@@ -1,0 +1,53 @@
+// K_FF factorization (SPEC.md §Solve): CHOLMOD supernodal LLᵀ through Eigen's
+// CholmodSupport, METIS ordering, with the symbolic analysis shareable across β.
+#pragma once
+
+#include "operators.h"
+
+#include <Eigen/CholmodSupport>
+
+#include <memory>
+#include <mutex>
+
+namespace hdeform {
+
+// Eigen's CholmodSupernodalLLT plus one capability it lacks: starting a numeric
+// factorization from another object's symbolic analysis (cholmod_copy_factor), so a β
+// change costs one numeric factorization and never a new METIS analysis.
+class CholmodLLT : public Eigen::CholmodBase<SparseMatrix, Eigen::Lower, CholmodLLT> {
+  using Base = Eigen::CholmodBase<SparseMatrix, Eigen::Lower, CholmodLLT>;
+
+ public:
+  CholmodLLT();
+  // Adopts a copy of `other`'s analysis (which must be of the same pattern).
+  void adopt_analysis(const CholmodLLT& other);
+  // Nonzeros stored in the factor L.
+  std::size_t factor_nnz() const;
+
+ private:
+  using Base::m_cholmod;
+  using Base::m_cholmodFactor;
+};
+
+// One factorization of K_FF, symmetric positive definite. solve() is thread-safe.
+class Factorization {
+ public:
+  // Analyse (METIS) and factorize. Throws InvalidInput if K_FF is not positive definite
+  // (the constraint set leaves a part of the mesh unconstrained).
+  explicit Factorization(const SparseMatrix& K_FF);
+  // Numeric factorization of K_FF reusing `analysis`'s symbolic factor (same pattern).
+  Factorization(const Factorization& analysis, const SparseMatrix& K_FF);
+
+  // X = K_FF⁻¹ B, all columns in one supernodal solve.
+  Eigen::MatrixXd solve(const Eigen::MatrixXd& B) const;
+  int size() const { return size_; }
+  std::size_t memory_bytes() const;
+
+ private:
+  void check(const char* what) const;
+  mutable CholmodLLT llt_;
+  mutable std::mutex mutex_;  // CHOLMOD's common workspace is per object
+  int size_ = 0;
+};
+
+}  // namespace hdeform

@@ -1,0 +1,44 @@
+// hdeform-server's core, usable in-process (the CLI without --server) or listening on TCP.
+#pragma once
+
+#include <grpcpp/grpcpp.h>
+
+#include <chrono>
+#include <cstddef>
+#include <memory>
+#include <string>
+
+namespace hdeform::service {
+
+struct ServerOptions {
+  // "HOST:PORT" to listen on; empty = in-process only (no TCP port). Port 0 = any free port.
+  std::string listen_address = "127.0.0.1:50051";
+  std::string mesh_dir;                 // mesh library; empty = the bundled data/ folder
+  int workers = 2;                      // solver threads
+  std::size_t max_sessions = 64;
+  std::size_t max_vertices = 2'000'000;
+  std::size_t max_upload_bytes = 256u << 20;
+  std::size_t cache_bytes = 4ull << 30;  // prepared meshes + factorizations (LRU)
+  std::chrono::seconds session_ttl{3600};
+};
+
+class DeformService;  // deform_service.h
+
+class Server {
+ public:
+  explicit Server(const ServerOptions& options);  // starts serving; throws on bind failure
+  ~Server();                                      // graceful shutdown
+  Server(const Server&) = delete;
+  Server& operator=(const Server&) = delete;
+
+  int port() const;  // bound TCP port, or 0 when in-process only
+  std::shared_ptr<grpc::Channel> in_process_channel();
+  void shutdown(std::chrono::milliseconds deadline = std::chrono::milliseconds(2000));
+  void wait();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace hdeform::service
