@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <string>
 
@@ -269,19 +270,87 @@ std::shared_ptr<const BetaSystem> ConstraintSet::system(double raw_beta) const {
       w->reg = split(Rw, Dw, region_of_, block_index_, nF, nC);
       wide_ = std::move(w);
     }
-    const SparseMatrix K_FF = combine(1.0 - raw_beta, wide_->area.FF, raw_beta, wide_->reg.FF);
-    if (!wide_symbolic_) {
-      sys->factor = std::make_shared<Factorization>(K_FF);
-      wide_symbolic_ = sys->factor;
-    } else {
-      sys->factor = std::make_shared<Factorization>(*wide_symbolic_, K_FF);
-    }
+    sys->factor = factor_wide(combine(1.0 - raw_beta, wide_->area.FF, raw_beta, wide_->reg.FF));
     sys->K_FC = combine(1.0 - raw_beta, wide_->area.FC, raw_beta, wide_->reg.FC);
     sys->GtW_F = combine(1.0 - raw_beta, wide_->area.GtW_F, raw_beta, wide_->reg.GtW_F);
   }
   std::lock_guard lock(mutex_);
   by_beta_[raw_beta] = sys;
   return sys;
+}
+
+std::shared_ptr<const Factorization> ConstraintSet::factor_wide(const SparseMatrix& K_FF) const {
+  if (!wide_symbolic_) {
+    wide_symbolic_ = std::make_shared<Factorization>(K_FF);
+    return wide_symbolic_;
+  }
+  return std::make_shared<Factorization>(*wide_symbolic_, K_FF);
+}
+
+std::shared_ptr<const BetaSystem> ConstraintSet::local_system(const LocalBeta& field) const {
+  const PreparedMesh& pm = *mesh_;
+  if (field.beta.size() != pm.m())
+    throw InvalidInput("local beta: expected " + std::to_string(pm.m()) +
+                       " per-triangle values, got " + std::to_string(field.beta.size()));
+  for (Eigen::Index l = 0; l < field.beta.size(); ++l)
+    if (!std::isfinite(field.beta[l]) || field.beta[l] < 0 || field.beta[l] >= 1)
+      throw InvalidInput("local beta of triangle " + std::to_string(l) +
+                         " must be in [0, 1), got " + std::to_string(field.beta[l]));
+  // FNV-1a over the field's bytes and units: the cache key.
+  std::uint64_t key = 1469598103934665603ull ^ static_cast<std::uint64_t>(field.units);
+  const auto* bytes = reinterpret_cast<const unsigned char*>(field.beta.data());
+  for (std::size_t i = 0; i < static_cast<std::size_t>(field.beta.size()) * sizeof(double); ++i)
+    key = (key ^ bytes[i]) * 1099511628211ull;
+  {
+    std::lock_guard lock(mutex_);
+    if (auto it = by_field_.find(key); it != by_field_.end()) return it->second;
+  }
+  std::lock_guard build(build_mutex_);
+
+  // Area units: the unit-area problem is the raw one with edge weights β_e / s.
+  const double edge_scale = field.units == BetaUnits::area ? std::sqrt(pm.total_area()) : 1.0;
+  const Eigen::Index m = pm.m();
+  const auto E = static_cast<Eigen::Index>(pm.edges().size());
+  Eigen::VectorXd wA(3 * m), wB(3 * E);
+  for (Eigen::Index l = 0; l < m; ++l) wA.segment<3>(3 * l).setConstant(1.0 - field.beta[l]);
+  for (Eigen::Index e = 0; e < E; ++e) {
+    const InteriorEdge& edge = pm.edges()[e];
+    wB.segment<3>(3 * e).setConstant(
+        0.5 * (field.beta[edge.tri[0]] + field.beta[edge.tri[1]]) * edge_scale);
+  }
+  const SparseMatrix J = gradient_jumps(pm.G(), pm.edges());
+  const SparseMatrix GtW_reg =
+      SparseMatrix(J.transpose()) * (wB.asDiagonal() * weighted_differences(pm.edges(), m));
+  const SparseMatrix GtW = pm.GtA() * wA.asDiagonal() + GtW_reg;
+  // Onto the β > 0 pattern (explicit zeros kept), so the shared analysis applies.
+  const SparseMatrix K = (GtW * pm.G()) + 0.0 * (pm.L() + pm.Reg());
+  const auto nF = static_cast<Eigen::Index>(free_.size());
+  const auto nC = static_cast<Eigen::Index>(constrained_.size());
+  Blocks b = split(K, GtW, region_of_, block_index_, nF, nC);
+  auto sys = std::make_shared<BetaSystem>();
+  sys->factor = factor_wide(b.FF);
+  sys->K_FC = std::move(b.FC);
+  sys->GtW_F = std::move(b.GtW_F);
+  std::lock_guard lock(mutex_);
+  by_field_[key] = sys;
+  return sys;
+}
+
+Eigen::VectorXd falloff_beta(const PreparedMesh& pm, const std::vector<int>& around,
+                             double beta, double radius) {
+  if (!(beta >= 0 && beta < 1)) throw InvalidInput("falloff beta must be in [0, 1)");
+  if (!(radius > 0)) throw InvalidInput("falloff radius must be positive");
+  const Vertices& V = pm.mesh().V;
+  const Triangles& F = pm.mesh().F;
+  Eigen::VectorXd field(pm.m());
+  for (Eigen::Index l = 0; l < pm.m(); ++l) {
+    const Eigen::RowVector3d c = (V.row(F(l, 0)) + V.row(F(l, 1)) + V.row(F(l, 2))) / 3.0;
+    double d = std::numeric_limits<double>::infinity();
+    for (int v : around) d = std::min(d, (V.row(v) - c).norm());
+    const double t = std::max(0.0, 1.0 - d / radius);
+    field[l] = beta * t * t;
+  }
+  return field;
 }
 
 void ConstraintSet::prepare(Beta beta) { system(mesh_->raw_beta(beta)); }
@@ -291,15 +360,27 @@ void ConstraintSet::guidance(std::span<const HandleTransform> transforms, Eigen:
   guidance_field(mesh_->mesh().F, mesh_->normals(), basis_, transforms, g, R_l);
 }
 
-Frame ConstraintSet::update(std::span<const HandleTransform> transforms, Beta beta,
-                            const UpdateOptions& options) const {
+void ConstraintSet::check(std::span<const HandleTransform> transforms) const {
   if (static_cast<int>(transforms.size()) != num_handles())
     throw InvalidInput("expected " + std::to_string(num_handles()) +
                        " handle transform(s), got " + std::to_string(transforms.size()));
   for (const HandleTransform& t : transforms) t.validate();
-  const double raw = mesh_->raw_beta(beta);
-  const auto sys = system(raw);
+}
 
+Frame ConstraintSet::update(std::span<const HandleTransform> transforms, Beta beta,
+                            const UpdateOptions& options) const {
+  check(transforms);
+  return solve(*system(mesh_->raw_beta(beta)), transforms, options);
+}
+
+Frame ConstraintSet::update_local(std::span<const HandleTransform> transforms,
+                                  const LocalBeta& beta, const UpdateOptions& options) const {
+  check(transforms);
+  return solve(*local_system(beta), transforms, options);
+}
+
+Frame ConstraintSet::solve(const BetaSystem& sys, std::span<const HandleTransform> transforms,
+                           const UpdateOptions& options) const {
   Eigen::MatrixX3d g;
   std::vector<Eigen::Quaterniond> R_l;
   guidance(transforms, g, R_l);
@@ -320,8 +401,8 @@ Frame ConstraintSet::update(std::span<const HandleTransform> transforms, Beta be
   Frame frame;
   frame.positions.resize(X.rows(), 3);
   if (!free_.empty()) {
-    const Eigen::MatrixXd rhs = sys->GtW_F * g - sys->K_FC * x_C;
-    const Eigen::MatrixXd x_F = sys->factor->solve(rhs);
+    const Eigen::MatrixXd rhs = sys.GtW_F * g - sys.K_FC * x_C;
+    const Eigen::MatrixXd x_F = sys.factor->solve(rhs);
     for (std::size_t i = 0; i < free_.size(); ++i) frame.positions.row(free_[i]) = x_F.row(i);
   }
   for (std::size_t i = 0; i < constrained_.size(); ++i)
@@ -338,6 +419,7 @@ std::size_t ConstraintSet::memory_bytes() const {
   std::size_t bytes = sizeof(*this) + static_cast<std::size_t>(basis_.size()) * sizeof(double) +
                       (free_.size() + constrained_.size() + 2 * region_of_.size()) * sizeof(int);
   for (const auto& [b, sys] : by_beta_) bytes += sys->memory_bytes();
+  for (const auto& [key, sys] : by_field_) bytes += sys->memory_bytes();
   if (wide_)
     bytes += 2 * (sparse_bytes(wide_->area.FF) + sparse_bytes(wide_->area.FC) +
                   sparse_bytes(wide_->area.GtW_F));

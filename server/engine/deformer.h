@@ -8,6 +8,7 @@
 #include "transform.h"
 
 #include <cstddef>
+#include <cstdint>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -74,6 +75,20 @@ struct Constraints {
   std::vector<std::vector<int>> handles;
 };
 
+// Local regularization (beyond the thesis, its "future work"): a β per triangle,
+// W = diag(1 − β_l) A + D₃ᵀ diag(β_e) B₃ D₃ with β_e the mean of the edge's two triangles.
+// In `area` units each β_l means what a uniform β means (SPEC decision Units).
+struct LocalBeta {
+  Eigen::VectorXd beta;  // one per triangle, each in [0, 1)
+  BetaUnits units = BetaUnits::area;
+};
+
+// β_l = beta · max(0, 1 − d_l / radius)², d_l the distance from triangle l's centroid to
+// the nearest vertex of `around` (e.g. the handle vertices): strong near the handles,
+// exactly 0 beyond `radius` (model units).
+Eigen::VectorXd falloff_beta(const PreparedMesh& mesh, const std::vector<int>& around,
+                             double beta, double radius);
+
 struct UpdateOptions {
   bool energies = true;  // fill Frame::energies
   bool normals = true;   // fill Frame::normals
@@ -115,6 +130,10 @@ class ConstraintSet {
   Frame update(std::span<const HandleTransform> transforms, Beta beta,
                const UpdateOptions& options = {}) const;
 
+  // The same with a per-triangle β field (one factorization per distinct field, cached).
+  Frame update_local(std::span<const HandleTransform> transforms, const LocalBeta& beta,
+                     const UpdateOptions& options = {}) const;
+
   // Guidance per triangle (SPEC §Harmonic guidance field): g (3m×3) and R_l.
   void guidance(std::span<const HandleTransform> transforms, Eigen::MatrixX3d& g,
                 std::vector<Eigen::Quaterniond>& R_l) const;
@@ -125,6 +144,12 @@ class ConstraintSet {
 
  private:
   std::shared_ptr<const BetaSystem> system(double raw_beta) const;
+  std::shared_ptr<const BetaSystem> local_system(const LocalBeta& beta) const;
+  // Numeric factorization of a K_FF on the β > 0 pattern, sharing its symbolic analysis.
+  std::shared_ptr<const Factorization> factor_wide(const SparseMatrix& K_FF) const;
+  void check(std::span<const HandleTransform> transforms) const;  // count, validity
+  Frame solve(const BetaSystem& sys, std::span<const HandleTransform> transforms,
+              const UpdateOptions& options) const;
   struct WideBlocks;  // the β > 0 pattern, split into its (1 − β) and β parts
 
   std::shared_ptr<const PreparedMesh> mesh_;
@@ -137,6 +162,7 @@ class ConstraintSet {
   mutable std::mutex mutex_;
   mutable std::mutex build_mutex_;  // one factorization at a time; lookups stay cheap
   mutable std::map<double, std::shared_ptr<const BetaSystem>> by_beta_;
+  mutable std::map<std::uint64_t, std::shared_ptr<const BetaSystem>> by_field_;  // local β
   mutable std::shared_ptr<const WideBlocks> wide_;                 // built on first β > 0
   mutable std::shared_ptr<const Factorization> wide_symbolic_;  // analysis shared by β > 0
 };

@@ -1,0 +1,11 @@
+#!/usr/bin/env bash
+# The main job on the bundled data: installs, builds, deforms the cactus (Botsch–Sorkine
+# benchmark constraints), prints the measures and writes cactus-deformed.glb.
+source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
+install_deps
+configure -DHDEFORM_BUILD_TESTS=OFF -DHDEFORM_BUILD_BENCH=OFF
+build --target hdeform
+B="$ROOT/data/botsch-sorkine"
+"$BUILD/client-cli/hdeform" deform "$B/cactus.off" --sel "$B/cactus.sel" --def "$B/cactus.def" \
+  --beta "${BETA:-0.1}" -o "${OUT:-cactus-deformed.glb}"
+echo "wrote ${OUT:-cactus-deformed.glb}"

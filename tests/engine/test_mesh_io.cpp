@@ -1,0 +1,500 @@
+// Mesh file I/O: round trips, the data/ meshes, glTF welding, triangulation, errors.
+#include "mesh_io.h"
+#include "validate.h"
+
+#include <gtest/gtest.h>
+#include <tiny_gltf.h>
+
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <sstream>
+#include <string>
+
+namespace hdeform {
+namespace {
+
+const std::string kData = HDEFORM_TEST_DATA;
+
+// A tetrahedron with awkward doubles (not representable in float, extreme exponents).
+TriMesh awkward_tetra() {
+  TriMesh m;
+  m.V.resize(4, 3);
+  m.V << 0.1, 1.0 / 3.0, -2.5e17,             //
+      std::acos(-1.0), 1e-300, -0.0,            //
+      123456789.123456789, -7.0 / 9.0, 5e-324,  //
+      std::nextafter(1.0, 2.0), 2.0 / 3.0, -1.0 / 7.0;
+  m.F.resize(4, 3);
+  m.F << 0, 2, 1,  //
+      0, 1, 3,     //
+      1, 2, 3,     //
+      0, 3, 2;
+  return m;
+}
+
+void expect_bitwise_equal(const Vertices& a, const Vertices& b) {
+  ASSERT_EQ(a.rows(), b.rows());
+  for (Eigen::Index i = 0; i < a.rows(); ++i)
+    for (int k = 0; k < 3; ++k) {
+      uint64_t x, y;
+      double ax = a(i, k), bx = b(i, k);
+      std::memcpy(&x, &ax, 8);
+      std::memcpy(&y, &bx, 8);
+      EXPECT_EQ(x, y) << "vertex " << i << " coordinate " << k << ": " << ax << " vs " << bx;
+    }
+}
+
+std::string read_all(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const InvalidInput& e) {
+    return e.what();
+  }
+  return "(no InvalidInput thrown)";
+}
+
+class TextRoundTrip : public ::testing::TestWithParam<MeshFileFormat> {};
+
+TEST_P(TextRoundTrip, ExactDoublesAndSameTriangles) {
+  const TriMesh m = awkward_tetra();
+  const std::string name = GetParam() == MeshFileFormat::obj ? "t.obj" : GetParam() == MeshFileFormat::off ? "t.off" : "t.ply";
+  for (bool with_normals : {false, true}) {
+    const Vertices N = vertex_normals(m.V, m.F);
+    const std::string bytes = write_mesh_bytes(GetParam(), m.V, m.F, with_normals ? &N : nullptr);
+    const LoadedMesh r = read_mesh_bytes(bytes, name);
+    expect_bitwise_equal(r.mesh.V, m.V);
+    EXPECT_EQ(r.mesh.F, m.F);
+    EXPECT_EQ(r.input_triangles, m.F);
+    EXPECT_TRUE(r.identity_layout());
+    EXPECT_TRUE(r.warnings.empty());
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Formats, TextRoundTrip,
+                         ::testing::Values(MeshFileFormat::obj, MeshFileFormat::off, MeshFileFormat::ply));
+
+TEST(MeshIo, GlbRoundTripIsFloat32WithNormalsAndBounds) {
+  const TriMesh m = awkward_tetra();
+  const std::string bytes = write_mesh_bytes(MeshFileFormat::glb, m.V, m.F);
+  ASSERT_GE(bytes.size(), 12u);
+  EXPECT_EQ(bytes.substr(0, 4), "glTF");
+
+  const LoadedMesh r = read_mesh_bytes(bytes, "t.glb");
+  ASSERT_EQ(r.mesh.num_vertices(), 4);
+  EXPECT_EQ(r.mesh.V, m.V.cast<float>().cast<double>().eval());
+  EXPECT_EQ(r.mesh.F, m.F);
+  EXPECT_TRUE(r.identity_layout());
+
+  // The layout service frames rely on: POSITION (min/max), NORMAL, uint32 indices, one buffer.
+  tinygltf::TinyGLTF loader;
+  tinygltf::Model model;
+  std::string err, warn;
+  ASSERT_TRUE(loader.LoadBinaryFromMemory(&model, &err, &warn,
+                                          reinterpret_cast<const unsigned char*>(bytes.data()),
+                                          static_cast<unsigned int>(bytes.size())))
+      << err;
+  ASSERT_EQ(model.buffers.size(), 1u);
+  ASSERT_EQ(model.meshes.size(), 1u);
+  const auto& prim = model.meshes[0].primitives.at(0);
+  const auto& pos = model.accessors.at(static_cast<size_t>(prim.attributes.at("POSITION")));
+  const auto& nrm = model.accessors.at(static_cast<size_t>(prim.attributes.at("NORMAL")));
+  const auto& ind = model.accessors.at(static_cast<size_t>(prim.indices));
+  EXPECT_EQ(pos.componentType, TINYGLTF_COMPONENT_TYPE_FLOAT);
+  EXPECT_EQ(nrm.componentType, TINYGLTF_COMPONENT_TYPE_FLOAT);
+  EXPECT_EQ(ind.componentType, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT);
+  EXPECT_EQ(ind.count, 12u);
+  ASSERT_EQ(pos.minValues.size(), 3u);
+  ASSERT_EQ(pos.maxValues.size(), 3u);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(pos.minValues[static_cast<size_t>(k)], static_cast<double>(static_cast<float>(m.V.col(k).minCoeff())));
+    EXPECT_EQ(pos.maxValues[static_cast<size_t>(k)], static_cast<double>(static_cast<float>(m.V.col(k).maxCoeff())));
+  }
+  // Normals written are the area-weighted ones.
+  const auto& bv = model.bufferViews.at(static_cast<size_t>(nrm.bufferView));
+  const float* nf = reinterpret_cast<const float*>(model.buffers[0].data.data() + bv.byteOffset + nrm.byteOffset);
+  const Vertices N = vertex_normals(m.V, m.F);
+  for (int i = 0; i < 4; ++i)
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(nf[3 * i + k], static_cast<float>(N(i, k)));
+}
+
+TEST(MeshIo, WriteAndReadFiles) {
+  const TriMesh m = awkward_tetra();
+  const auto dir = std::filesystem::temp_directory_path() / ("hdeform_io_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  for (const char* ext : {"obj", "off", "ply", "glb", "OFF"}) {
+    const std::string path = (dir / (std::string("tetra.") + ext)).string();
+    write_mesh(path, m.V, m.F);
+    const LoadedMesh r = read_mesh(path);
+    EXPECT_EQ(r.mesh.F, m.F) << ext;
+    if (std::string(ext) == "glb")
+      EXPECT_EQ(r.mesh.V, m.V.cast<float>().cast<double>().eval());
+    else
+      expect_bitwise_equal(r.mesh.V, m.V);
+    // In-memory read of the same bytes gives the same mesh.
+    const LoadedMesh b = read_mesh_bytes(read_all(path), path);
+    EXPECT_EQ(b.mesh.V, r.mesh.V);
+    EXPECT_EQ(b.mesh.F, r.mesh.F);
+  }
+  EXPECT_NE(error_of([&] { write_mesh((dir / "x.stl").string(), m.V, m.F); }).find("x.stl"), std::string::npos);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(MeshIo, FormatFromPath) {
+  EXPECT_EQ(format_from_path("a/b.GLB"), MeshFileFormat::glb);
+  EXPECT_EQ(format_from_path("b.obj"), MeshFileFormat::obj);
+  EXPECT_EQ(format_from_path("b.Off"), MeshFileFormat::off);
+  EXPECT_EQ(format_from_path("b.ply"), MeshFileFormat::ply);
+  EXPECT_THROW(format_from_path("b.gltf"), InvalidInput);
+  EXPECT_THROW(format_from_path("noext"), InvalidInput);
+}
+
+struct Expected {
+  const char* file;
+  int vertices;
+  int triangles;
+};
+
+TEST(MeshIo, ReadsEveryDataMesh) {
+  // Counts from the files' own headers / data/README.md; horse.obj counted with grep.
+  const std::map<std::string, std::pair<int, int>> expected = {
+      {"botsch-sorkine/bar.off", {6084, 12106}},   {"botsch-sorkine/cactus.off", {5261, 10518}},
+      {"botsch-sorkine/cylinder.off", {4802, 9600}}, {"botsch-sorkine/plane.off", {40401, 80000}},
+      {"models/bunny.off", {3485, 6966}},          {"models/cow.off", {2762, 5520}},
+      {"models/hand.off", {14347, 28690}},         {"models/horse.obj", {9926, 19848}},
+      {"models/knight.off", {502, 1000}},
+  };
+  size_t seen = 0;
+  for (const auto& dir : {"botsch-sorkine", "models"})
+    for (const auto& entry : std::filesystem::directory_iterator(kData + "/" + dir)) {
+      const std::string ext = entry.path().extension().string();
+      if (ext == ".sel" || ext == ".def" || ext == ".md") continue;
+      const std::string rel = std::string(dir) + "/" + entry.path().filename().string();
+      SCOPED_TRACE(rel);
+      auto it = expected.find(rel);
+      ASSERT_NE(it, expected.end()) << "new mesh in data/: add its counts to this test";
+      const LoadedMesh r = read_mesh(entry.path().string());
+      EXPECT_EQ(r.mesh.num_vertices(), it->second.first);
+      EXPECT_EQ(r.mesh.num_triangles(), it->second.second);
+      EXPECT_TRUE(r.identity_layout());
+      EXPECT_EQ(r.input_triangles, r.mesh.F);
+      EXPECT_TRUE(r.warnings.empty());
+      // data/README.md: all 2-manifold, no unreferenced vertices.
+      const ValidationResult v = validate_mesh(r.mesh);
+      EXPECT_TRUE(v.unreferenced.empty());
+      ++seen;
+    }
+  EXPECT_EQ(seen, expected.size());
+}
+
+TEST(MeshIo, CactusFirstAndLastValues) {
+  const LoadedMesh r = read_mesh(kData + "/botsch-sorkine/cactus.off");
+  ASSERT_EQ(r.mesh.num_vertices(), 5261);
+  ASSERT_EQ(r.mesh.num_triangles(), 10518);
+  // Compare against the text of the file itself (first vertex line, last face line).
+  const std::string text = read_all(kData + "/botsch-sorkine/cactus.off");
+  std::istringstream in(text);
+  std::string line;
+  std::getline(in, line);  // OFF
+  std::getline(in, line);  // counts
+  double x, y, z;
+  in >> x >> y >> z;
+  EXPECT_EQ(r.mesh.V(0, 0), x);
+  EXPECT_EQ(r.mesh.V(0, 1), y);
+  EXPECT_EQ(r.mesh.V(0, 2), z);
+  const size_t last = text.find_last_of('\n', text.size() - 2);
+  std::istringstream tail(text.substr(last + 1));
+  int k, a, b, c;
+  tail >> k >> a >> b >> c;
+  EXPECT_EQ(k, 3);
+  EXPECT_EQ(r.mesh.F(10517, 0), a);
+  EXPECT_EQ(r.mesh.F(10517, 1), b);
+  EXPECT_EQ(r.mesh.F(10517, 2), c);
+}
+
+TEST(MeshIo, InMemoryReadEqualsFileRead) {
+  for (const char* f : {"/botsch-sorkine/cactus.off", "/models/horse.obj"}) {
+    const std::string path = kData + f;
+    const LoadedMesh a = read_mesh(path);
+    const LoadedMesh b = read_mesh_bytes(read_all(path), std::filesystem::path(path).filename().string());
+    EXPECT_EQ(a.mesh.V, b.mesh.V) << f;
+    EXPECT_EQ(a.mesh.F, b.mesh.F) << f;
+    EXPECT_EQ(a.input_to_engine, b.input_to_engine) << f;
+  }
+}
+
+// A unit square (4 positions) as two triangles that each carry their own 3 vertices with
+// different UVs: 6 glTF vertices, a seam along the diagonal and at every shared corner.
+tinygltf::Model seam_model() {
+  const float pos[6][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0},   // triangle 0
+                           {0, 0, 0}, {1, 1, 0}, {0, 1, 0}};  // triangle 1
+  const float uv[6][2] = {{0, 0}, {1, 0}, {1, 1}, {0.5f, 0}, {1, 0.5f}, {0, 1}};
+  const uint16_t idx[6] = {0, 1, 2, 3, 4, 5};
+  tinygltf::Model model;
+  model.asset.version = "2.0";
+  tinygltf::Buffer buf;
+  buf.data.resize(sizeof pos + sizeof uv + sizeof idx);
+  std::memcpy(buf.data.data(), pos, sizeof pos);
+  std::memcpy(buf.data.data() + sizeof pos, uv, sizeof uv);
+  std::memcpy(buf.data.data() + sizeof pos + sizeof uv, idx, sizeof idx);
+  model.buffers.push_back(buf);
+  auto view = [&](size_t off, size_t len) {
+    tinygltf::BufferView bv;
+    bv.buffer = 0;
+    bv.byteOffset = off;
+    bv.byteLength = len;
+    model.bufferViews.push_back(bv);
+  };
+  view(0, sizeof pos);
+  view(sizeof pos, sizeof uv);
+  view(sizeof pos + sizeof uv, sizeof idx);
+  tinygltf::Accessor a;
+  a.bufferView = 0;
+  a.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
+  a.type = TINYGLTF_TYPE_VEC3;
+  a.count = 6;
+  a.minValues = {0, 0, 0};
+  a.maxValues = {1, 1, 0};
+  model.accessors.push_back(a);
+  tinygltf::Accessor t;
+  t.bufferView = 1;
+  t.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
+  t.type = TINYGLTF_TYPE_VEC2;
+  t.count = 6;
+  model.accessors.push_back(t);
+  tinygltf::Accessor i;
+  i.bufferView = 2;
+  i.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT;
+  i.type = TINYGLTF_TYPE_SCALAR;
+  i.count = 6;
+  model.accessors.push_back(i);
+  tinygltf::Primitive p;
+  p.attributes["POSITION"] = 0;
+  p.attributes["TEXCOORD_0"] = 1;
+  p.indices = 2;
+  p.mode = TINYGLTF_MODE_TRIANGLES;
+  tinygltf::Mesh mesh;
+  mesh.primitives.push_back(p);
+  model.meshes.push_back(mesh);
+  tinygltf::Node node;
+  node.mesh = 0;
+  model.nodes.push_back(node);
+  tinygltf::Scene scene;
+  scene.nodes = {0};
+  model.scenes.push_back(scene);
+  model.defaultScene = 0;
+  return model;
+}
+
+std::string serialise(const tinygltf::Model& model, bool binary) {
+  tinygltf::TinyGLTF w;
+  std::ostringstream os;
+  EXPECT_TRUE(w.WriteGltfSceneToStream(&model, os, false, binary));
+  return os.str();
+}
+
+TEST(MeshIo, GltfUvSeamWeldsAndMapsBack) {
+  for (bool binary : {true, false}) {
+    SCOPED_TRACE(binary ? "glb" : "gltf");
+    const std::string bytes = serialise(seam_model(), binary);
+    const LoadedMesh r = read_mesh_bytes(bytes, binary ? "seam.glb" : "seam.gltf");
+    ASSERT_EQ(r.mesh.num_vertices(), 4);  // 6 glTF vertices, 4 positions
+    ASSERT_EQ(r.mesh.num_triangles(), 2);
+    EXPECT_FALSE(r.identity_layout());
+    EXPECT_EQ(r.input_to_engine, (std::vector<int>{0, 1, 2, 0, 2, 3}));
+    Triangles in_tris(2, 3), eng_tris(2, 3);
+    in_tris << 0, 1, 2, 3, 4, 5;
+    eng_tris << 0, 1, 2, 0, 2, 3;
+    EXPECT_EQ(r.input_triangles, in_tris);
+    EXPECT_EQ(r.mesh.F, eng_tris);
+    ASSERT_FALSE(r.warnings.empty());
+    EXPECT_NE(r.warnings.back().find("welded 6"), std::string::npos) << r.warnings.back();
+    // The welded mesh is one valid surface (the unwelded one would be two triangles).
+    EXPECT_NO_THROW(validate_mesh(r.mesh));
+
+    // Deformed engine positions go back into the 6-vertex input layout.
+    Vertices moved = r.mesh.V;
+    moved.col(2).setConstant(0);
+    moved(2, 2) = 5;  // engine vertex 2 = position (1,1,0) = input vertices 2 and 4
+    const Vertices back = r.to_input_layout(moved);
+    ASSERT_EQ(back.rows(), 6);
+    for (int v = 0; v < 6; ++v) EXPECT_EQ(back(v, 2), (v == 2 || v == 4) ? 5.0 : 0.0) << v;
+    EXPECT_EQ(back.row(5), r.mesh.V.row(3));
+  }
+}
+
+TEST(MeshIo, GltfNodeTransformIsIgnoredWithWarning) {
+  tinygltf::Model model = seam_model();
+  model.nodes[0].translation = {10, 0, 0};
+  const LoadedMesh r = read_mesh_bytes(serialise(model, true), "moved.glb");
+  EXPECT_EQ(r.mesh.V.col(0).maxCoeff(), 1.0);  // mesh-local coordinates
+  bool warned = false;
+  for (const auto& w : r.warnings) warned |= w.find("node transforms are ignored") != std::string::npos;
+  EXPECT_TRUE(warned);
+}
+
+TEST(MeshIo, GltfUploadMayNotReadExternalFiles) {
+  const std::string gltf = R"({"asset":{"version":"2.0"},
+    "buffers":[{"uri":"/etc/hostname","byteLength":12}],
+    "bufferViews":[{"buffer":0,"byteLength":12}],
+    "accessors":[{"bufferView":0,"componentType":5126,"count":1,"type":"VEC3"}],
+    "meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}]})";
+  const std::string msg = error_of([&] { read_mesh_bytes(gltf, "upload.gltf"); });
+  EXPECT_NE(msg.find("upload.gltf"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("invalid glTF"), std::string::npos) << msg;
+}
+
+TEST(MeshIo, GltfIndexOutOfRangeNamesPrimitive) {
+  tinygltf::Model model = seam_model();
+  uint16_t bad = 9;
+  std::memcpy(model.buffers[0].data.data() + 6 * 12 + 6 * 8 + 2, &bad, 2);
+  const std::string msg = error_of([&] { read_mesh_bytes(serialise(model, true), "bad.glb"); });
+  EXPECT_NE(msg.find("bad.glb: mesh 0 primitive 0: index 9 out of range"), std::string::npos) << msg;
+}
+
+TEST(MeshIo, QuadsAreFanTriangulatedWithWarning) {
+  const std::string obj = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0.5 2 0\nf 1 2 3 4\nf 4/1/1 3/2/2 5/3/3\n";
+  const LoadedMesh r = read_mesh_bytes(obj, "quad.obj");
+  Triangles expected(3, 3);
+  expected << 0, 1, 2, 0, 2, 3, 3, 2, 4;
+  EXPECT_EQ(r.mesh.F, expected);
+  ASSERT_EQ(r.warnings.size(), 1u);
+  EXPECT_NE(r.warnings[0].find("1 polygon"), std::string::npos) << r.warnings[0];
+  EXPECT_NE(r.warnings[0].find("triangulated"), std::string::npos) << r.warnings[0];
+
+  const std::string off = "OFF\n# a pentagon\n5 1 0\n0 0 0\n1 0 0\n2 1 0\n1 2 0\n0 1 0\n5 0 1 2 3 4 255 0 0\n";
+  const LoadedMesh o = read_mesh_bytes(off, "penta.off");
+  Triangles fan(3, 3);
+  fan << 0, 1, 2, 0, 2, 3, 0, 3, 4;
+  EXPECT_EQ(o.mesh.F, fan);
+  EXPECT_EQ(o.warnings.size(), 1u);
+}
+
+TEST(MeshIo, ObjNegativeIndicesAndComments) {
+  const std::string obj = "# c\no thing\nv 0 0 0 # origin\nv 1 0 0\nvt 0 0\nvn 0 0 1\nv 0 1 0\ns off\nf -3 -2 -1\n";
+  const LoadedMesh r = read_mesh_bytes(obj, "neg.obj");
+  ASSERT_EQ(r.mesh.num_triangles(), 1);
+  EXPECT_EQ(r.mesh.F.row(0), Eigen::RowVector3i(0, 1, 2));
+}
+
+TEST(MeshIo, NonManifoldFacesAreKeptForValidation) {
+  // Three triangles on edge 0–1: a halfedge structure would drop one; the reader keeps all.
+  const std::string obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n";
+  const LoadedMesh r = read_mesh_bytes(obj, "fin.obj");
+  EXPECT_EQ(r.mesh.num_triangles(), 3);
+  EXPECT_THROW(validate_mesh(r.mesh), InvalidInput);
+}
+
+TEST(MeshIo, StlThroughOpenMeshMergesCorners) {
+  // Binary STL: two triangles of a square sharing the diagonal.
+  std::string stl(80, ' ');
+  auto put = [&](const void* p, size_t n) { stl.append(static_cast<const char*>(p), n); };
+  uint32_t count = 2;
+  put(&count, 4);
+  const float tris[2][4][3] = {{{0, 0, 1}, {0, 0, 0}, {1, 0, 0}, {1, 1, 0}},
+                               {{0, 0, 1}, {0, 0, 0}, {1, 1, 0}, {0, 1, 0}}};
+  for (const auto& t : tris) {
+    put(t, sizeof t);
+    uint16_t attr = 0;
+    put(&attr, 2);
+  }
+  const LoadedMesh b = read_mesh_bytes(stl, "square.stl");
+  EXPECT_EQ(b.mesh.num_vertices(), 4);
+  EXPECT_EQ(b.mesh.num_triangles(), 2);
+  EXPECT_NO_THROW(validate_mesh(b.mesh));
+
+  const std::string ascii =
+      "solid sq\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 1 1 0\nendloop\nendfacet\n"
+      "facet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 1 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid sq\n";
+  const LoadedMesh a = read_mesh_bytes(ascii, "square.STL");
+  EXPECT_EQ(a.mesh.num_vertices(), 4);
+  EXPECT_EQ(a.mesh.num_triangles(), 2);
+}
+
+TEST(MeshIo, BinaryPly) {
+  std::string ply =
+      "ply\nformat binary_little_endian 1.0\ncomment x\nelement vertex 3\nproperty float x\n"
+      "property float y\nproperty float z\nproperty uchar red\nelement face 1\n"
+      "property list uchar uint vertex_indices\nend_header\n";
+  const float v[3][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+  for (const auto& p : v) {
+    ply.append(reinterpret_cast<const char*>(p), 12);
+    ply.push_back('\x07');
+  }
+  ply.push_back('\x03');
+  const uint32_t f[3] = {0, 1, 2};
+  ply.append(reinterpret_cast<const char*>(f), 12);
+  const LoadedMesh r = read_mesh_bytes(ply, "b.ply");
+  ASSERT_EQ(r.mesh.num_vertices(), 3);
+  EXPECT_EQ(r.mesh.V(1, 0), 1.0);
+  EXPECT_EQ(r.mesh.V(2, 1), 1.0);
+  EXPECT_EQ(r.mesh.F.row(0), Eigen::RowVector3i(0, 1, 2));
+  // Truncated binary data.
+  const std::string msg = error_of([&] { read_mesh_bytes(ply.substr(0, ply.size() - 4), "b.ply"); });
+  EXPECT_NE(msg.find("b.ply: unexpected end of binary data in face element 0"), std::string::npos) << msg;
+}
+
+TEST(MeshIo, ErrorsNameFileAndLine) {
+  auto msg = [](std::string_view bytes, const std::string& name) {
+    return error_of([&] { read_mesh_bytes(bytes, name); });
+  };
+  EXPECT_EQ(msg("OFF\n4 1 0\n0 0 0\n1 0 0\n0 1\n0 0 1\n3 0 1 2\n", "cube.off"),
+            "cube.off:5: expected 3 coordinates, found 2");
+  EXPECT_EQ(msg("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n", "t.off"),
+            "t.off:6: vertex index 7 out of range (file has 3 vertices)");
+  EXPECT_EQ(msg("OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "short.off"),
+            "short.off:6: unexpected end of file: expected 2 faces, found 1");
+  EXPECT_EQ(msg("OFF\n3 1 0\n0 0 0\n1 x 0\n0 1 0\n3 0 1 2\n", "x.off"), "x.off:4: bad coordinate 'x'");
+  EXPECT_EQ(msg("PLOT\n", "y.off"), "y.off:1: not an OFF file (header 'PLOT')");
+  EXPECT_EQ(msg("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2\n", "two.obj"), "two.obj:4: face with 2 vertices (need at least 3)");
+  EXPECT_EQ(msg("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n", "far.obj"), "far.obj:4: vertex index 4 out of range (file has 3 vertices)");
+  EXPECT_EQ(msg("v 0 0 0\nf 0 1 2\n", "zero.obj"), "zero.obj:2: vertex index 0 (OBJ indices start at 1)");
+  EXPECT_EQ(msg("ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
+                "end_header\n0 0 zz\n",
+                "a.ply"),
+            "a.ply:8: bad number 'zz' for z");
+  EXPECT_EQ(msg("", "empty.obj"), "empty.obj: empty file");
+  EXPECT_NE(msg("solid", "m.dae").find("m.dae: unknown mesh format '.dae'"), std::string::npos);
+  EXPECT_NE(msg("not json", "j.gltf").find("j.gltf: invalid glTF"), std::string::npos);
+  EXPECT_NE(msg("nope", "j.glb").find("j.glb: invalid GLB"), std::string::npos);
+
+  const std::string missing = error_of([] { read_mesh("/nonexistent/dir/cube.off"); });
+  EXPECT_NE(missing.find("/nonexistent/dir/cube.off: cannot open file"), std::string::npos) << missing;
+  const std::string dir = error_of([] { read_mesh(kData + "/models.off"); });
+  EXPECT_NE(dir.find("cannot open"), std::string::npos) << dir;
+  const std::string ext = error_of([] { read_mesh(kData + "/README.md"); });
+  EXPECT_NE(ext.find("unknown mesh format '.md'"), std::string::npos) << ext;
+}
+
+TEST(MeshIo, VertexNormalsAreAreaWeightedUnitVectors) {
+  // Vertex 0 is shared by a big triangle in the z = 0 plane and a small one in the x = 0 plane.
+  Vertices V(5, 3);
+  V << 0, 0, 0, 10, 0, 0, 0, 10, 0, 0, 0, 1, 0, -1, 0;
+  Triangles F(2, 3);
+  F << 0, 1, 2,  // area 50, normal +z
+      0, 3, 4;   // area 0.5, normal (0,0,1)×(0,-1,0) = +x
+  const Vertices N = vertex_normals(V, F);
+  const Eigen::RowVector3d expected = Eigen::RowVector3d(0.5, 0, 50).normalized();
+  EXPECT_NEAR((N.row(0) - expected).norm(), 0, 1e-15);
+  EXPECT_NEAR((N.row(1) - Eigen::RowVector3d(0, 0, 1)).norm(), 0, 1e-15);
+  EXPECT_NEAR((N.row(3) - Eigen::RowVector3d(1, 0, 0)).norm(), 0, 1e-15);
+
+  Vertices V2(4, 3);
+  V2 << 0, 0, 0, 1, 0, 0, 0, 1, 0, 7, 7, 7;  // vertex 3 unused
+  Triangles F2(1, 3);
+  F2 << 0, 1, 2;
+  EXPECT_EQ(vertex_normals(V2, F2).row(3), Eigen::RowVector3d::Zero());
+}
+
+}  // namespace
+}  // namespace hdeform
