@@ -1,0 +1,322 @@
+// End-to-end test of the web viewer in real headless Chromium (Debian's /usr/bin/chromium,
+// driven by playwright-core; no browser downloads) against a real hdeform-server.
+//
+//   node e2e.mjs --server PATH/hdeform-server --viewer PATH/web-viewer --artifacts DIR
+//
+// Flow: open the cactus from the library; select a fixed region (bottom) and a handle (top)
+// through the page's test hook (window.hdeform.selectBox — the same assign() path the
+// brush / box tools use); Apply constraints with a real click; switch to Move with a real
+// click and drag the TransformControls gizmo with real mouse events; check the mesh moved
+// (handle moved, fixed region still) and the measures changed; open the share link in a
+// second page and compare positions; drag again and check the second page follows live
+// (WatchSession); open the watch-only link (no editing tools); upload a broken file and
+// check the error banner; check the gateway's 413 for an oversized body.
+import { spawn } from "node:child_process";
+import { mkdirSync, mkdtempSync, rmSync, writeFileSync } from "node:fs";
+import http from "node:http";
+import { createRequire } from "node:module";
+import { tmpdir } from "node:os";
+import { join, resolve } from "node:path";
+
+const args = Object.fromEntries(
+  process.argv.slice(2).reduce((acc, a, i, all) => (a.startsWith("--") ? [...acc, [a.slice(2), all[i + 1]]] : acc), []),
+);
+const serverBin = args.server ?? process.env.HDEFORM_SERVER;
+const viewerDir = resolve(args.viewer ?? process.env.HDEFORM_VIEWER ?? "web-viewer");
+const artifacts = resolve(args.artifacts ?? process.env.HDEFORM_ARTIFACTS ?? "test-artifacts");
+const chromiumPath = args.chromium ?? process.env.HDEFORM_CHROMIUM ?? "/usr/bin/chromium";
+if (!serverBin) throw new Error("--server PATH/hdeform-server is required");
+mkdirSync(artifacts, { recursive: true });
+
+const require = createRequire(join(viewerDir, "package.json"));
+const { chromium } = require("playwright-core");
+
+const log = (...a) => console.log(`[e2e ${new Date().toISOString().slice(11, 23)}]`, ...a);
+let failures = 0;
+function check(cond, what) {
+  if (cond) log(`ok   ${what}`);
+  else {
+    failures++;
+    log(`FAIL ${what}`);
+  }
+  return cond;
+}
+const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+
+// ---- server ---------------------------------------------------------------------------------
+function startServer() {
+  const extra = process.env.HDEFORM_SERVER_ARGS ? process.env.HDEFORM_SERVER_ARGS.split(" ").filter(Boolean) : [];
+  const proc = spawn(serverBin, ["--port", "0", "--http-port", "0", ...extra], { stdio: ["ignore", "pipe", "pipe"] });
+  const output = [];
+  const port = new Promise((resolvePort, reject) => {
+    const timer = setTimeout(() => reject(new Error(`no HTTP port printed within 60 s:\n${output.join("")}`)), 60_000);
+    const onData = (buf) => {
+      const text = buf.toString();
+      output.push(text);
+      process.stdout.write(`[server] ${text}`);
+      const m =
+        /hdeform-server http on \S+:(\d+)/.exec(output.join("")) ??
+        /hdeform-gateway listening on \S+:(\d+)/.exec(output.join(""));
+      if (m) {
+        clearTimeout(timer);
+        resolvePort(Number(m[1]));
+      }
+    };
+    proc.stdout.on("data", onData);
+    proc.stderr.on("data", onData);
+    proc.on("exit", (code) => {
+      clearTimeout(timer);
+      reject(new Error(`hdeform-server exited (${code}) before listening:\n${output.join("")}`));
+    });
+  });
+  return { proc, port };
+}
+
+function rawRequest(port, path, headers, body = "") {
+  return new Promise((resolveReq, reject) => {
+    const req = http.request({ host: "127.0.0.1", port, path, method: "POST", headers }, (res) => {
+      let data = "";
+      res.on("data", (d) => (data += d));
+      res.on("end", () => resolveReq({ status: res.statusCode, body: data }));
+    });
+    req.on("error", reject);
+    req.end(body);
+  });
+}
+
+// ---- helpers in the page ----------------------------------------------------------------------
+async function waitLoaded(page, what) {
+  await page.waitForFunction(() => window.hdeform && window.hdeform.loaded, null, { timeout: 60_000 });
+  log(`${what}: loaded ${await page.evaluate(() => window.hdeform.sessionName)}`);
+}
+async function waitIdle(page) {
+  await page.waitForFunction(() => !window.hdeform.busy, null, { timeout: 30_000 });
+  await sleep(100);
+  await page.waitForFunction(() => !window.hdeform.busy, null, { timeout: 30_000 });
+}
+const positions = (page) => page.evaluate(() => window.hdeform.positions());
+function maxDiff(a, b) {
+  if (a.length !== b.length) return Infinity;
+  let m = 0;
+  for (let i = 0; i < a.length; i++) m = Math.max(m, Math.abs(a[i] - b[i]));
+  return m;
+}
+async function waitSame(page, ref, what, tol = 1e-4) {
+  const t0 = Date.now();
+  let d = Infinity;
+  while (Date.now() - t0 < 15_000) {
+    d = maxDiff(await positions(page), ref);
+    if (d <= tol) break;
+    await sleep(200);
+  }
+  return check(d <= tol, `${what} (max |Δ| = ${d.toExponential(2)})`);
+}
+/** Fraction of canvas pixels that differ from the background: the canvas is not blank. */
+async function nonBackgroundFraction(page) {
+  return page.evaluate(() => {
+    const src = document.querySelector("#viewport canvas");
+    const c = document.createElement("canvas");
+    c.width = 200;
+    c.height = 150;
+    const ctx = c.getContext("2d");
+    ctx.drawImage(src, 0, 0, c.width, c.height);
+    const d = ctx.getImageData(0, 0, c.width, c.height).data;
+    const bg = [d[0], d[1], d[2]];
+    let differ = 0;
+    for (let i = 0; i < d.length; i += 4) {
+      if (Math.abs(d[i] - bg[0]) + Math.abs(d[i + 1] - bg[1]) + Math.abs(d[i + 2] - bg[2]) > 24) differ++;
+    }
+    return differ / (c.width * c.height);
+  });
+}
+async function dragGizmo(page, axis, dx, dy) {
+  const p = await page.evaluate((a) => window.hdeform.gizmoScreenPoint(a), axis);
+  if (!p) throw new Error("the gizmo is not attached");
+  await page.mouse.move(p.x, p.y);
+  await sleep(50);
+  await page.mouse.down();
+  const steps = 12;
+  for (let i = 1; i <= steps; i++) {
+    await page.mouse.move(p.x + (dx * i) / steps, p.y + (dy * i) / steps);
+    await sleep(40); // a few animation frames: updates are coalesced, one in flight
+  }
+  await page.mouse.up();
+  await waitIdle(page);
+}
+
+// ---- the test -----------------------------------------------------------------------------------
+const { proc: server, port: portPromise } = startServer();
+const userDataDir = mkdtempSync(join(tmpdir(), "hdeform-chromium-"));
+let context;
+try {
+  const port = await portPromise;
+  const base = `http://127.0.0.1:${port}/`;
+  log(`server HTTP at ${base}`);
+
+  const tooBig = await rawRequest(port, "/upload?filename=huge.obj", { "Content-Length": String(1e12) });
+  check(tooBig.status === 413 && /limit/.test(tooBig.body), `oversized body → HTTP 413 (${tooBig.status}: ${tooBig.body.trim()})`);
+
+  context = await chromium.launchPersistentContext(userDataDir, {
+    executablePath: chromiumPath,
+    headless: true,
+    viewport: { width: 1280, height: 800 },
+    args: [
+      "--no-sandbox",
+      "--disable-gpu",
+      "--disable-quic",
+      "--no-first-run",
+      "--disable-background-networking",
+      "--disable-component-update",
+      "--disable-sync",
+      "--use-angle=swiftshader",
+      "--enable-unsafe-swiftshader",
+    ],
+  });
+  const consoleLines = [];
+  const watchPage = (page, name) => {
+    page.on("console", (m) => consoleLines.push(`[${name}] ${m.type()}: ${m.text()}`));
+    page.on("pageerror", (e) => consoleLines.push(`[${name}] pageerror: ${e.message}`));
+  };
+  const shot = (page, name) => page.screenshot({ path: join(artifacts, `${name}.png`) });
+
+  // 1. Open the cactus from the library.
+  const page1 = context.pages()[0] ?? (await context.newPage());
+  watchPage(page1, "editor");
+  await page1.goto(base);
+  await page1.waitForSelector('#library option[value="cactus"]', { state: "attached", timeout: 30_000 });
+  await page1.selectOption("#library", "cactus");
+  await page1.click("#open-library");
+  await waitLoaded(page1, "editor");
+  await sleep(300);
+  const filled = await nonBackgroundFraction(page1);
+  check(filled > 0.02, `the canvas shows the mesh (${(filled * 100).toFixed(1)} % of pixels drawn)`);
+  await shot(page1, "01-cactus-loaded");
+
+  // 2. Regions: fixed at the bottom, handle at the top (test hook → the UI's assign()).
+  const [bmin, bmax] = await page1.evaluate(() => window.hdeform.bbox());
+  const up = bmax[2] - bmin[2] >= bmax[1] - bmin[1] ? 2 : 1;
+  const h = bmax[up] - bmin[up];
+  const lo = [...bmin].map((v) => v - 1);
+  const hi = [...bmax].map((v) => v + 1);
+  const fixedMax = [...hi];
+  fixedMax[up] = bmin[up] + 0.1 * h;
+  const handleMin = [...lo];
+  handleMin[up] = bmax[up] - 0.1 * h;
+  const nFixed = await page1.evaluate(([a, b]) => window.hdeform.selectBox(a, b, 0), [lo, fixedMax]);
+  const nHandle = await page1.evaluate(([a, b]) => window.hdeform.selectBox(a, b, 1), [handleMin, hi]);
+  check(nFixed > 10 && nHandle > 10, `selected ${nFixed} fixed and ${nHandle} handle vertices`);
+  await page1.click("#apply");
+  await page1.waitForFunction(() => window.hdeform.constraintsApplied && window.hdeform.framesApplied > 0, null, { timeout: 60_000 });
+  await waitIdle(page1);
+  const labels = await page1.evaluate(() => window.hdeform.labels());
+  const rest = await page1.evaluate(() => window.hdeform.restPositions());
+  const m0 = await page1.evaluate(() => window.hdeform.measures());
+  const p0 = await positions(page1);
+  check(m0 !== null, `measures shown after applying constraints (E = ${m0?.e})`);
+  await shot(page1, "02-regions");
+
+  // 3. Drag the gizmo with real mouse events.
+  await page1.click('button[data-mode="move"]');
+  await sleep(200);
+  const g = await page1.evaluate(() => window.hdeform.gizmoScreenPoint());
+  check(g !== null, `gizmo attached at (${g?.x.toFixed(0)}, ${g?.y.toFixed(0)})`);
+  await dragGizmo(page1, "x", 140, 0); // the X arrow, along world x
+  const p1 = await positions(page1);
+  const m1 = await page1.evaluate(() => window.hdeform.measures());
+  let handleMove = 0;
+  let fixedMove = 0;
+  for (let v = 0; v < labels.length; v++) {
+    const d = Math.hypot(p1[3 * v] - rest[3 * v], p1[3 * v + 1] - rest[3 * v + 1], p1[3 * v + 2] - rest[3 * v + 2]);
+    if (labels[v] === 1) handleMove = Math.max(handleMove, d);
+    if (labels[v] === 0) fixedMove = Math.max(fixedMove, d);
+  }
+  const diag = Math.hypot(bmax[0] - bmin[0], bmax[1] - bmin[1], bmax[2] - bmin[2]);
+  check(handleMove > 0.02 * diag, `the handle moved (${handleMove.toFixed(4)}, diagonal ${diag.toFixed(3)})`);
+  check(fixedMove < 1e-4 * diag, `the fixed region stayed (${fixedMove.toExponential(2)})`);
+  check(maxDiff(p0, p1) > 0, "the mesh moved");
+  check(m1 && m0 && m1.e !== m0.e && m1.e > 0, `measures changed (E ${m0?.e} → ${m1?.e}, E_iso,n ${m1?.eIsoN})`);
+  const measuresText = await page1.textContent("#m-e");
+  check(measuresText && measuresText !== "–", `measures panel shows E = ${measuresText}`);
+  await shot(page1, "03-after-drag");
+
+  // 4. The share link opens the same session with the same positions.
+  const share = await page1.evaluate(() => window.hdeform.shareLink(false));
+  const page2 = await context.newPage();
+  watchPage(page2, "share");
+  await page2.goto(share);
+  await waitLoaded(page2, "share link");
+  await waitSame(page2, p1, "the share link shows the same positions");
+  await shot(page2, "04-share-link");
+
+  // 5. Live: another drag on page 1 reaches page 2 through WatchSession.
+  await page1.bringToFront();
+  await dragGizmo(page1, "y", 0, -70); // the Y arrow (screen up)
+  const p2 = await positions(page1);
+  check(maxDiff(p1, p2) > 1e-3, "second drag moved the mesh again");
+  await waitSame(page2, p2, "the second viewer followed the edit live");
+  await shot(page2, "05-live-follow");
+
+  // 6. Watch-only link: no editing tools, same shape.
+  const page3 = await context.newPage();
+  watchPage(page3, "watch");
+  await page3.goto(await page1.evaluate(() => window.hdeform.shareLink(true)));
+  await waitLoaded(page3, "watch link");
+  check(!(await page3.isVisible("#tools")), "watch-only page hides the editing tools");
+  check(!(await page3.isVisible("#upload-input + progress")) && !(await page3.isVisible("#open-library")), "watch-only page hides open/upload");
+  await waitSame(page3, p2, "the watch-only page shows the same positions");
+  await shot(page3, "06-watch-only");
+
+  // 7. Energy colour map and sweep chart render (no errors).
+  await page1.bringToFront();
+  await page1.selectOption("#energy-map", "linear");
+  await waitIdle(page1);
+  await sleep(300);
+  check(await page1.isVisible("#legend"), "energy legend shown");
+  await page1.click("#sweep");
+  await page1.waitForFunction(() => document.querySelector("#sweep").textContent === "Sweep β", null, { timeout: 120_000 });
+  check((await page1.evaluate(() => window.hdeform.lastError)) === "", "sweep and energies without errors");
+  await shot(page1, "07-energy-sweep");
+
+  // 8. A bad upload shows its error in the banner.
+  await page1.setInputFiles("#upload-input", {
+    name: "broken.obj",
+    mimeType: "text/plain",
+    buffer: Buffer.from("this is not a mesh\nf 1 2 99\n"),
+  });
+  await page1.waitForSelector("#banner:not(.hidden)", { timeout: 30_000 });
+  const banner = await page1.textContent("#banner-text");
+  check(/upload|rejected|invalid|parse|mesh/i.test(banner ?? ""), `bad upload shows an error: "${banner}"`);
+  await shot(page1, "08-bad-upload");
+
+  // 9. An unknown session in the link: a plain error, not a blank page.
+  const page4 = await context.newPage();
+  watchPage(page4, "missing");
+  await page4.goto(`${base}?session=sessions/does-not-exist`);
+  await page4.waitForSelector("#banner:not(.hidden)", { timeout: 30_000 });
+  check(/does-not-exist|not found|NotFound/i.test((await page4.textContent("#banner-text")) ?? ""), "unknown session link shows an error");
+  await shot(page4, "09-missing-session");
+
+  // 10. Lost server: stop the server; the editor shows a banner.
+  server.kill("SIGTERM");
+  await page1.evaluate(() => document.querySelector("#banner-close").click());
+  await page2.waitForFunction(() => /lost|connection|reconnect/i.test(window.hdeform.lastError), null, { timeout: 30_000 }).then(
+    () => check(true, "lost server shows an error banner"),
+    () => check(false, "lost server shows an error banner"),
+  );
+  await shot(page2, "10-lost-server");
+
+  writeFileSync(join(artifacts, "console.log"), consoleLines.join("\n") + "\n");
+} catch (err) {
+  failures++;
+  log(`FAIL exception: ${err.stack ?? err}`);
+} finally {
+  if (context) await context.close().catch(() => {});
+  rmSync(userDataDir, { recursive: true, force: true });
+  if (server.exitCode === null) {
+    server.kill("SIGTERM");
+    await Promise.race([new Promise((r) => server.once("exit", r)), sleep(5000)]);
+    if (server.exitCode === null) server.kill("SIGKILL");
+  }
+}
+log(failures === 0 ? "PASSED" : `${failures} check(s) FAILED; screenshots in ${artifacts}`);
+process.exit(failures === 0 ? 0 : 1);
