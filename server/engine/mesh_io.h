@@ -1,7 +1,9 @@
 // Mesh files: OBJ/OFF/PLY/STL through OpenMesh, glTF/GLB through tinygltf.
 // Vertex ids are the file's vertex order. glTF vertices split only by attributes (same
 // position, e.g. UV seams) are welded into one surface; the map back keeps output in the
-// input's layout.
+// input's layout. glTF: all triangle primitives of all meshes, in mesh-local coordinates
+// (node transforms are not applied; a warning says so); see mesh_io.cpp for details.
+// Every face of a text file is kept (even non-manifold ones) so validate_mesh can name them.
 #pragma once
 
 #include "mesh.h"
@@ -34,8 +36,11 @@ enum class MeshFileFormat { glb, obj, off, ply };
 MeshFileFormat format_from_path(const std::string& path);  // throws InvalidInput
 
 // Serialises positions (+ optional per-vertex normals) and triangles. Text formats write
-// doubles with %.17g so they round-trip exactly. GLB carries float32 POSITION, NORMAL and
-// uint32 indices in one buffer (the base layout that service frames refer to).
+// doubles in their shortest round-trip form (std::to_chars; reads back bit-identical, like
+// %.17g). GLB carries float32 POSITION, NORMAL (vertex_normals() when N is null) and uint32
+// indices in one buffer laid out [POSITION n×12 B | NORMAL n×12 B | indices m×12 B] (the
+// base layout that service frames refer to). format_from_path throws InvalidInput; a file
+// that cannot be written throws std::runtime_error.
 std::string write_mesh_bytes(MeshFileFormat format, const Vertices& V, const Triangles& F,
                              const Vertices* N = nullptr);
 void write_mesh(const std::string& path, const Vertices& V, const Triangles& F,

@@ -10,10 +10,13 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <map>
 #include <sstream>
 #include <string>
+
+#include <unistd.h>
 
 namespace hdeform {
 namespace {
@@ -158,12 +161,6 @@ TEST(MeshIo, FormatFromPath) {
   EXPECT_THROW(format_from_path("b.gltf"), InvalidInput);
   EXPECT_THROW(format_from_path("noext"), InvalidInput);
 }
-
-struct Expected {
-  const char* file;
-  int vertices;
-  int triangles;
-};
 
 TEST(MeshIo, ReadsEveryDataMesh) {
   // Counts from the files' own headers / data/README.md; horse.obj counted with grep.
@@ -470,8 +467,11 @@ TEST(MeshIo, ErrorsNameFileAndLine) {
 
   const std::string missing = error_of([] { read_mesh("/nonexistent/dir/cube.off"); });
   EXPECT_NE(missing.find("/nonexistent/dir/cube.off: cannot open file"), std::string::npos) << missing;
-  const std::string dir = error_of([] { read_mesh(kData + "/models.off"); });
-  EXPECT_NE(dir.find("cannot open"), std::string::npos) << dir;
+  const auto dir_path = std::filesystem::temp_directory_path() / ("hdeform_dir_" + std::to_string(::getpid()) + ".off");
+  std::filesystem::create_directories(dir_path);
+  const std::string dir = error_of([&] { read_mesh(dir_path.string()); });
+  std::filesystem::remove(dir_path);
+  EXPECT_NE(dir.find("is a directory"), std::string::npos) << dir;
   const std::string ext = error_of([] { read_mesh(kData + "/README.md"); });
   EXPECT_NE(ext.find("unknown mesh format '.md'"), std::string::npos) << ext;
 }
