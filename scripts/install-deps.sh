@@ -8,7 +8,7 @@ packages=(
   build-essential cmake pkg-config clang
   # engine
   libopenmesh-dev libeigen3-dev libsuitesparse-dev libopenblas0-pthread
-  libtinygltf-dev
+  libtinygltf-dev libstb-dev
   # service and clients
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
   libspdlog-dev libcli11-dev libboost-dev nlohmann-json3-dev

@@ -10,9 +10,9 @@
 namespace hdeform {
 
 struct AutoBetaParams {
-  // Sampled β values (in `units`), ascending; the thesis's useful range is 0–0.25.
-  std::vector<double> grid{0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 0.75};
-  BetaUnits units = BetaUnits::raw;
+  // Sampled β values (in `units`), ascending, roughly geometric where β acts most.
+  std::vector<double> grid{0.0, 0.01, 0.025, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 0.75};
+  BetaUnits units = BetaUnits::area;
   double global_weight = 2.0;  // λ
   double tolerance = 0.1;      // τ, in the cost's log units (≈ 10 % of the best artifact level)
 };
