@@ -1,10 +1,8 @@
 #!/usr/bin/env bash
-# The whole test suite: installs, builds everything (viewer included), runs ctest.
+# The whole test suite: installs, builds everything, runs ctest (the viewer's npm build
+# and its browser tests run as ctest cases).
 source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 install_deps
-if [ -f "$ROOT/web-viewer/package.json" ]; then
-  (cd "$ROOT/web-viewer" && npm ci --no-audit --no-fund && npm run build)
-fi
 configure -DHDEFORM_BUILD_TESTS=ON -DHDEFORM_BUILD_BENCH=ON
 build
 cd "$BUILD"

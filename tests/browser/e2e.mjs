@@ -129,6 +129,12 @@ async function nonBackgroundFraction(page) {
     return differ / (c.width * c.height);
   });
 }
+/** Screen direction of a gizmo arrow (unit vector) and its on-screen length. */
+async function arrow(page, axis) {
+  const [c, a] = await page.evaluate((ax) => [window.hdeform.gizmoScreenPoint(), window.hdeform.gizmoScreenPoint(ax)], axis);
+  const len = Math.hypot(a.x - c.x, a.y - c.y);
+  return { x: (a.x - c.x) / len, y: (a.y - c.y) / len, len };
+}
 async function dragGizmo(page, axis, dx, dy) {
   const p = await page.evaluate((a) => window.hdeform.gizmoScreenPoint(a), axis);
   if (!p) throw new Error("the gizmo is not attached");
@@ -202,9 +208,61 @@ try {
   fixedMax[up] = bmin[up] + 0.1 * h;
   const handleMin = [...lo];
   handleMin[up] = bmax[up] - 0.1 * h;
-  const nFixed = await page1.evaluate(([a, b]) => window.hdeform.selectBox(a, b, 0), [lo, fixedMax]);
+  const countLabel = (label) => page1.evaluate((l) => window.hdeform.labels().filter((x) => x === l).length, label);
+  // Fixed: a real screen-rectangle drag in Box mode around the bottom 10 % of the model.
+  await page1.click('button[data-mode="box"]');
+  await page1.selectOption("#label-select", "0");
+  const corners = [];
+  for (const x of [bmin[0], bmax[0]])
+    for (const y of [bmin[1], up === 1 ? fixedMax[1] : bmax[1]])
+      for (const z of [bmin[2], up === 2 ? fixedMax[2] : bmax[2]])
+        corners.push(await page1.evaluate(([a, b, c]) => window.hdeform.screenPoint(a, b, c), [x, y, z]));
+  const x0 = Math.min(...corners.map((c) => c.x)) - 4, x1 = Math.max(...corners.map((c) => c.x)) + 4;
+  const y0 = Math.min(...corners.map((c) => c.y)) - 4, y1 = Math.max(...corners.map((c) => c.y)) + 4;
+  await page1.mouse.move(x0, y0);
+  await page1.mouse.down();
+  await page1.mouse.move((x0 + x1) / 2, (y0 + y1) / 2, { steps: 3 });
+  await page1.mouse.move(x1, y1, { steps: 3 });
+  await page1.mouse.up();
+  const nFixed = await countLabel(0);
+  const fixedTooHigh = await page1.evaluate(
+    ([upAxis, limit]) => {
+      const L = window.hdeform.labels(), R = window.hdeform.restPositions();
+      return L.filter((l, v) => l === 0 && R[3 * v + upAxis] > limit).length;
+    },
+    [up, bmin[up] + 0.2 * h],
+  );
+  check(nFixed > 10 && fixedTooHigh === 0, `box select (real mouse drag) marked ${nFixed} fixed vertices, all near the bottom`);
+  // Handle: the page's test hook (model-space box → the same assign() the tools use).
   const nHandle = await page1.evaluate(([a, b]) => window.hdeform.selectBox(a, b, 1), [handleMin, hi]);
-  check(nFixed > 10 && nHandle > 10, `selected ${nFixed} fixed and ${nHandle} handle vertices`);
+  check(nHandle > 10, `selected ${nHandle} handle vertices`);
+  // Vertex mode: a real click on the middle of the trunk adds one fixed vertex; Erase removes it.
+  await page1.click('button[data-mode="vertex"]');
+  const mid = [(bmin[0] + bmax[0]) / 2, (bmin[1] + bmax[1]) / 2, (bmin[2] + bmax[2]) / 2];
+  mid[up] = bmin[up] + 0.35 * h;
+  const midScreen = await page1.evaluate(([a, b, c]) => window.hdeform.screenPoint(a, b, c), mid);
+  await page1.mouse.click(midScreen.x, midScreen.y);
+  const afterClick = await countLabel(0);
+  await page1.selectOption("#label-select", "-1");
+  await page1.mouse.click(midScreen.x, midScreen.y);
+  const afterErase = await countLabel(0);
+  check(afterClick === nFixed + 1 && afterErase === nFixed, `vertex click adds one vertex (${nFixed} → ${afterClick}) and Erase removes it (${afterErase})`);
+  // Brush mode: a real stroke paints several vertices; an Erase stroke over it removes them.
+  await page1.click('button[data-mode="brush"]');
+  const stroke = async () => {
+    await page1.mouse.move(midScreen.x, midScreen.y - 6);
+    await page1.mouse.down();
+    await page1.mouse.move(midScreen.x, midScreen.y + 6, { steps: 4 });
+    await page1.mouse.up();
+  };
+  await page1.selectOption("#label-select", "0");
+  await stroke();
+  const afterBrush = await countLabel(0);
+  await page1.selectOption("#label-select", "-1");
+  await stroke();
+  const afterBrushErase = await countLabel(0);
+  check(afterBrush > nFixed + 3 && afterBrushErase === nFixed, `brush stroke paints ${afterBrush - nFixed} vertices; an Erase stroke removes them`);
+  await page1.selectOption("#label-select", "0");
   await page1.click("#apply");
   await page1.waitForFunction(() => window.hdeform.constraintsApplied && window.hdeform.framesApplied > 0, null, { timeout: 60_000 });
   await waitIdle(page1);
@@ -220,7 +278,12 @@ try {
   await sleep(200);
   const g = await page1.evaluate(() => window.hdeform.gizmoScreenPoint());
   check(g !== null, `gizmo attached at (${g?.x.toFixed(0)}, ${g?.y.toFixed(0)})`);
-  await dragGizmo(page1, "x", 140, 0); // the X arrow, along world x
+  // Grab the horizontal arrow that is longest on screen and pull along it.
+  const ax = await arrow(page1, "x");
+  const az = await arrow(page1, "z");
+  const [axis, dir] = ax.len >= az.len ? ["x", ax] : ["z", az];
+  log(`dragging the ${axis} arrow (${dir.len.toFixed(0)} px from the centre)`);
+  await dragGizmo(page1, axis, 140 * dir.x, 140 * dir.y);
   const p1 = await positions(page1);
   const m1 = await page1.evaluate(() => window.hdeform.measures());
   let handleMove = 0;
@@ -250,7 +313,8 @@ try {
 
   // 5. Live: another drag on page 1 reaches page 2 through WatchSession.
   await page1.bringToFront();
-  await dragGizmo(page1, "y", 0, -70); // the Y arrow (screen up)
+  const ay = await arrow(page1, "y"); // the up arrow
+  await dragGizmo(page1, "y", 70 * ay.x, 70 * ay.y);
   const p2 = await positions(page1);
   check(maxDiff(p1, p2) > 1e-3, "second drag moved the mesh again");
   await waitSame(page2, p2, "the second viewer followed the edit live");
@@ -264,6 +328,10 @@ try {
   check(!(await page3.isVisible("#tools")), "watch-only page hides the editing tools");
   check(!(await page3.isVisible("#upload-input + progress")) && !(await page3.isVisible("#open-library")), "watch-only page hides open/upload");
   await waitSame(page3, p2, "the watch-only page shows the same positions");
+  await page3.waitForFunction(() => window.hdeform.measures() !== null, null, { timeout: 15_000 }).catch(() => {});
+  const m3 = await page3.evaluate(() => window.hdeform.measures());
+  const m2 = await page1.evaluate(() => window.hdeform.measures());
+  check(m3 && Math.abs(m3.e - m2.e) <= 1e-9 * Math.max(1, Math.abs(m2.e)), `the watch-only page shows the same measures (E ${m3?.e} vs ${m2?.e})`);
   await shot(page3, "06-watch-only");
 
   // 7. Energy colour map and sweep chart render (no errors).
@@ -275,7 +343,10 @@ try {
   await page1.click("#sweep");
   await page1.waitForFunction(() => document.querySelector("#sweep").textContent === "Sweep β", null, { timeout: 120_000 });
   check((await page1.evaluate(() => window.hdeform.lastError)) === "", "sweep and energies without errors");
+  check((await page1.evaluate(() => window.hdeform.sweepRows)) >= 5, "sweep returned rows for the chart");
   await shot(page1, "07-energy-sweep");
+  await page1.locator("#chart").scrollIntoViewIfNeeded();
+  await page1.locator("#chart").screenshot({ path: join(artifacts, "07b-sweep-chart.png") });
 
   // 8. A bad upload shows its error in the banner.
   await page1.setInputFiles("#upload-input", {
@@ -287,6 +358,14 @@ try {
   const banner = await page1.textContent("#banner-text");
   check(/upload|rejected|invalid|parse|mesh/i.test(banner ?? ""), `bad upload shows an error: "${banner}"`);
   await shot(page1, "08-bad-upload");
+
+  // 8b. A good upload (OFF from the repository's data) opens a new session.
+  const before = await page1.evaluate(() => window.hdeform.sessionName);
+  await page1.evaluate(() => document.querySelector("#banner-close").click());
+  await page1.setInputFiles("#upload-input", resolve(viewerDir, "../data/models/knight.off"));
+  await page1.waitForFunction((b) => window.hdeform.loaded && window.hdeform.sessionName !== b && window.hdeform.meshName !== "", before, { timeout: 60_000 });
+  check((await page1.evaluate(() => window.hdeform.lastError)) === "", `upload of knight.off opened ${await page1.evaluate(() => window.hdeform.sessionName)}`);
+  await shot(page1, "08b-upload-knight");
 
   // 9. An unknown session in the link: a plain error, not a blank page.
   const page4 = await context.newPage();

@@ -1,0 +1,88 @@
+// hdeform deform MESH <constraints> [--beta B] [-o OUT]: one deformation, its measures, a file.
+#include "commands.h"
+#include "constraint_options.h"
+#include "output.h"
+#include "work_session.h"
+
+#include <spdlog/spdlog.h>
+
+#include <iostream>
+#include <memory>
+
+namespace hdeform::cli {
+
+namespace {
+
+struct DeformOptions {
+  std::string mesh;
+  std::string output;
+  bool keep = false;
+  ConstraintOptions c;
+};
+
+}  // namespace
+
+Command add_deform_command(CLI::App& app, const GlobalOptions& global) {
+  auto opts = std::make_shared<DeformOptions>();
+  auto* cmd = app.add_subcommand(
+      "deform", "deform a mesh once: print the seven measures and flips, write the result");
+  cmd->add_option("MESH", opts->mesh, "mesh file (.obj .off .ply .stl .glb .gltf) or library name");
+  add_constraint_options(*cmd, opts->c);
+  add_beta_options(*cmd, opts->c, true);
+  cmd->add_option("-o,--output", opts->output, "write the deformed mesh (.glb .obj .off .ply)");
+  cmd->add_flag("--keep", opts->keep, "keep the session on the server and print its name");
+  auto* beta_opt = cmd->get_option("--beta");
+
+  return [opts, &global, beta_opt]() -> int {
+    const auto& o = *opts;
+    check_mesh_or_session(o.mesh, o.c, global);
+    pb::MeshFormat format = pb::MESH_FORMAT_GLB;
+    if (!o.output.empty()) format = mesh_format_for(o.output);
+    const pb::BetaUnits units = parse_beta_units(o.c.beta_units);
+    std::unique_ptr<ConstraintSpec> spec;
+    if (has_constraints(o.c)) spec = std::make_unique<ConstraintSpec>(build_constraint_spec(o.c));
+
+    Connection conn(global);
+    WorkSession w = open_work_session(conn, o.mesh, o.c);
+    SessionClient& s = *w.client;
+    try {
+      if (spec) s.set_constraints(spec->constraints);
+      if (w.created || beta_opt->count() > 0 || o.c.beta_units != "area")
+        s.set_beta(o.c.beta, units);
+      const auto transforms = transforms_for(o.c, s, spec.get());
+      const pb::Frame frame = s.update(transforms, 1);
+      const pb::Session& info = s.info();
+
+      std::cout << (info.mesh_name().empty() ? o.mesh : info.mesh_name()) << ": "
+                << info.vertex_count() << " vertices, " << info.triangle_count()
+                << " triangles, " << info.constraints().fixed().ids_size() << " fixed, "
+                << info.constraints().handles_size() << " handle(s); beta "
+                << g6(frame.beta().value())
+                << (frame.beta().units() == pb::BETA_UNITS_RAW ? " (raw)" : " (area)")
+                << "; solve " << g6(frame.solve_ms()) << " ms\n";
+      print_measures(std::cout, frame.measures());
+      if (!o.output.empty()) {
+        const std::size_t bytes = s.download(o.output, format);
+        std::cout << "wrote " << o.output << " (" << bytes << " bytes)\n";
+      }
+      if (w.created && conn.remote()) {  // in-process sessions end with the process
+        if (o.keep)
+          std::cout << "session " << s.name() << "\n";
+        else
+          s.remove();
+      }
+    } catch (...) {
+      if (w.created && conn.remote() && !o.keep) {
+        try {
+          s.remove();
+        } catch (...) {
+        }
+      }
+      throw;
+    }
+    std::cout.flush();
+    return 0;
+  };
+}
+
+}  // namespace hdeform::cli

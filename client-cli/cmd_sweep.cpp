@@ -1,0 +1,94 @@
+// hdeform sweep MESH <constraints> --betas 0,0.1,0.25 [--csv F] [--svg F]: the measures
+// against β (one Sweep call), as a table, a CSV and an SVG chart of small multiples.
+#include "commands.h"
+#include "constraint_options.h"
+#include "output.h"
+#include "work_session.h"
+
+#include <iostream>
+#include <memory>
+
+namespace hdeform::cli {
+
+namespace {
+
+struct SweepOptions {
+  std::string mesh;
+  std::string betas;
+  std::string csv;
+  std::string svg;
+  std::string title;
+  bool keep = false;
+  ConstraintOptions c;
+};
+
+}  // namespace
+
+Command add_sweep_command(CLI::App& app, const GlobalOptions& global) {
+  auto opts = std::make_shared<SweepOptions>();
+  auto* cmd = app.add_subcommand("sweep", "the seven measures and flips for a list of beta");
+  cmd->add_option("MESH", opts->mesh, "mesh file or library name");
+  add_constraint_options(*cmd, opts->c);
+  add_beta_options(*cmd, opts->c, false);
+  cmd->add_option("--betas", opts->betas, "comma-separated beta values, e.g. 0,0.1,0.25")
+      ->required();
+  cmd->add_option("--csv", opts->csv, "write the rows as CSV ('-' = stdout instead of the table)");
+  cmd->add_option("--svg", opts->svg, "write an SVG chart: one panel per measure against beta");
+  cmd->add_option("--title", opts->title, "chart title (default: MESH)");
+  cmd->add_flag("--keep", opts->keep, "keep the session on the server and print its name");
+
+  return [opts, &global]() -> int {
+    const auto& o = *opts;
+    check_mesh_or_session(o.mesh, o.c, global);
+    const auto betas = parse_numbers(o.betas, "--betas");
+    if (betas.empty()) throw CliError("--betas: no values");
+    for (double b : betas)
+      if (b < 0 || b >= 1) throw CliError("--betas: " + g6(b) + " is outside [0, 1)");
+    const pb::BetaUnits units = parse_beta_units(o.c.beta_units);
+    std::unique_ptr<ConstraintSpec> spec;
+    if (has_constraints(o.c)) spec = std::make_unique<ConstraintSpec>(build_constraint_spec(o.c));
+
+    Connection conn(global);
+    WorkSession w = open_work_session(conn, o.mesh, o.c);
+    SessionClient& s = *w.client;
+    std::vector<SweepPoint> rows;
+    try {
+      if (spec) s.set_constraints(spec->constraints);
+      const auto transforms = transforms_for(o.c, s, spec.get());
+      const pb::SweepResponse resp = s.sweep(betas, units, transforms);
+      for (const auto& r : resp.rows()) rows.push_back({r.beta(), r.measures()});
+      if (w.created && conn.remote()) {
+        if (o.keep)
+          std::cerr << "session " << s.name() << "\n";
+        else
+          s.remove();
+      }
+    } catch (...) {
+      if (w.created && conn.remote() && !o.keep) {
+        try {
+          s.remove();
+        } catch (...) {
+        }
+      }
+      throw;
+    }
+
+    const std::string mesh_name =
+        s.info().mesh_name().empty() ? o.mesh : s.info().mesh_name();
+    if (o.csv == "-") {
+      std::cout << sweep_csv(rows);
+    } else {
+      print_sweep_table(std::cout, rows);
+      if (!o.csv.empty()) write_file(o.csv, sweep_csv(rows));
+    }
+    if (!o.svg.empty()) {
+      const std::string title =
+          !o.title.empty() ? o.title : mesh_name + ": measures against \u03b2";
+      write_file(o.svg, sweep_svg(rows, title, o.c.beta_units));
+    }
+    std::cout.flush();
+    return 0;
+  };
+}
+
+}  // namespace hdeform::cli

@@ -1,0 +1,123 @@
+// hdeform watch SESSION: one line per frame and state change of a live session.
+#include "commands.h"
+#include "output.h"
+
+#include <spdlog/spdlog.h>
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <iostream>
+#include <memory>
+#include <mutex>
+#include <sstream>
+#include <thread>
+
+namespace hdeform::cli {
+
+namespace {
+
+struct WatchOptions {
+  std::string session;
+  long count = 0;         // stop after this many events (0 = until the session ends)
+  double duration = 0;    // stop after this many seconds (0 = no limit)
+};
+
+std::string frame_line(const pb::Frame& f) {
+  std::ostringstream s;
+  s << "frame seq=" << f.sequence() << " version=" << f.version() << " beta=" << g6(f.beta().value())
+    << (f.beta().units() == pb::BETA_UNITS_RAW ? "(raw)" : "");
+  for (const auto& c : measure_columns()) {
+    const double v = c.get(f.measures());
+    s << " " << c.csv << "=" << (c.integer ? std::to_string(static_cast<long long>(v)) : g6(v));
+  }
+  s << " solve_ms=" << g6(f.solve_ms());
+  return s.str();
+}
+
+std::string state_line(const pb::Session& st) {
+  std::ostringstream s;
+  s << "state " << st.name() << " version=" << st.version() << " mesh=" << st.mesh_name()
+    << " vertices=" << st.vertex_count() << " triangles=" << st.triangle_count()
+    << " fixed=" << st.constraints().fixed().ids_size()
+    << " handles=" << st.constraints().handles_size() << " beta=" << g6(st.beta().value())
+    << (st.beta().units() == pb::BETA_UNITS_RAW ? "(raw)" : "") << " observers=" << st.observers();
+  return s.str();
+}
+
+}  // namespace
+
+Command add_watch_command(CLI::App& app, const GlobalOptions& global) {
+  auto opts = std::make_shared<WatchOptions>();
+  auto* cmd = app.add_subcommand(
+      "watch", "print the frames and state changes of a live session (needs --server)");
+  cmd->add_option("SESSION", opts->session, "sessions/ID or ID")->required();
+  cmd->add_option("--count", opts->count, "stop after N events (default: until the session ends)");
+  cmd->add_option("--for", opts->duration, "stop after S seconds");
+
+  return [opts, &global]() -> int {
+    const auto& o = *opts;
+    if (global.server.empty())
+      throw CliError("watch needs --server HOST:PORT (an in-process service has no sessions)");
+    Connection conn(global);
+    const std::string name = session_name_of(o.session);
+
+    grpc::ClientContext ctx;
+    prepare(ctx, session_id_of(name), 0);  // a stream: no deadline
+    pb::WatchSessionRequest req;
+    req.set_name(name);
+    auto reader = conn.stub().WatchSession(&ctx, req);
+
+    // --for: cancel the stream from a timer thread.
+    std::atomic<bool> timed_out{false};
+    std::mutex mu;
+    std::condition_variable cv;
+    bool done = false;
+    std::thread timer;
+    if (o.duration > 0) {
+      timer = std::thread([&] {
+        std::unique_lock lock(mu);
+        if (!cv.wait_for(lock, std::chrono::duration<double>(o.duration), [&] { return done; })) {
+          timed_out = true;
+          ctx.TryCancel();
+        }
+      });
+    }
+    auto stop_timer = [&] {
+      {
+        std::lock_guard lock(mu);
+        done = true;
+      }
+      cv.notify_all();
+      if (timer.joinable()) timer.join();
+    };
+
+    long events = 0;
+    bool deleted = false;
+    pb::SessionEvent ev;
+    while (reader->Read(&ev)) {
+      switch (ev.event_case()) {
+        case pb::SessionEvent::kFrame: std::cout << frame_line(ev.frame()) << std::endl; break;
+        case pb::SessionEvent::kState: std::cout << state_line(ev.state()) << std::endl; break;
+        case pb::SessionEvent::kDeleted:
+          std::cout << "deleted " << ev.deleted() << std::endl;
+          deleted = true;
+          break;
+        default: break;
+      }
+      ++events;
+      if (deleted || (o.count > 0 && events >= o.count)) {
+        ctx.TryCancel();
+        break;
+      }
+    }
+    grpc::Status status = reader->Finish();
+    stop_timer();
+    if (!status.ok() && !(status.error_code() == grpc::StatusCode::CANCELLED &&
+                          (timed_out || deleted || (o.count > 0 && events >= o.count))))
+      throw RpcError("WatchSession", status);
+    return 0;
+  };
+}
+
+}  // namespace hdeform::cli

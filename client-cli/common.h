@@ -1,0 +1,129 @@
+// Shared pieces of the hdeform CLI: errors, the connection (remote or in-process) and a
+// small session client that adds the x-session-id routing header to every call.
+#pragma once
+
+#include "hdeform/v1/deform.grpc.pb.h"
+
+#include <grpcpp/grpcpp.h>
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace hdeform::service {
+class Server;
+}
+
+namespace hdeform::cli {
+
+namespace pb = ::hdeform::v1;
+
+// A user-facing error: main() prints what() as the single line on stderr and exits 1.
+struct CliError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// A parse error in an input file: main() prints it bare, "FILE:LINE: problem".
+struct FileError : CliError {
+  using CliError::CliError;
+};
+// "FILE:LINE: problem" (LINE 0: "FILE: problem").
+FileError parse_error(const std::string& file, int line, const std::string& problem);
+
+// "RPC: CODE: server message".
+struct RpcError : CliError {
+  RpcError(const std::string& rpc, const grpc::Status& status);
+  grpc::StatusCode code;
+};
+
+const char* status_code_name(grpc::StatusCode code);
+
+struct GlobalOptions {
+  std::string server;            // HOST:PORT; empty = in-process service
+  std::string log_level = "warn";
+  double connect_timeout_s = 10;
+  double call_timeout_s = 600;   // per unary call (a factorization of a big mesh takes a while)
+};
+
+// A channel to hdeform-server: remote (--server) or an in-process Server.
+class Connection {
+ public:
+  explicit Connection(const GlobalOptions& options);
+  ~Connection();
+  Connection(const Connection&) = delete;
+  Connection& operator=(const Connection&) = delete;
+
+  pb::Deformation::Stub& stub() { return *stub_; }
+  bool remote() const { return remote_; }
+  const GlobalOptions& options() const { return options_; }
+
+ private:
+  GlobalOptions options_;
+  bool remote_ = false;
+  std::shared_ptr<hdeform::service::Server> server_;  // declared first: destroyed last
+  std::shared_ptr<grpc::Channel> channel_;
+  std::unique_ptr<pb::Deformation::Stub> stub_;
+};
+
+// Prepares a call: the x-session-id routing header (when the key is known) and a deadline.
+void prepare(grpc::ClientContext& ctx, const std::string& route_key, double timeout_s);
+
+// "sessions/abc" → "abc"; "abc" → "abc".
+std::string session_id_of(const std::string& name);
+std::string session_name_of(const std::string& id_or_name);
+// 16 random lowercase hex characters.
+std::string random_session_id();
+
+// One session on the server, with its routing key (= its id; see docs/deployment.md).
+class SessionClient {
+ public:
+  SessionClient(Connection& conn, std::string name);
+
+  // MESH is an existing file (uploaded in 1 MiB chunks) or else a library mesh name.
+  static SessionClient create(Connection& conn, const std::string& mesh);
+  static SessionClient import(Connection& conn, const pb::Snapshot& snapshot);
+  // Re-creates a session under a chosen id (e.g. its old one, after a replica was lost).
+  static SessionClient import(Connection& conn, const pb::Snapshot& snapshot,
+                              const std::string& session_id);
+
+  const std::string& name() const { return name_; }
+  const std::string& route_key() const { return key_; }
+  const pb::Session& info() const { return info_; }
+
+  pb::Session get();
+  pb::Session set_constraints(const pb::Constraints& constraints);
+  pb::Session set_beta(double value, pb::BetaUnits units);
+  pb::Frame update(const std::vector<pb::HandleTransform>& transforms, std::int64_t sequence,
+                   bool energies = false);
+  pb::SweepResponse sweep(const std::vector<double>& betas, pb::BetaUnits units,
+                          const std::vector<pb::HandleTransform>& transforms);
+  // Downloads the current (or rest) mesh into `path`; returns the number of bytes.
+  std::size_t download(const std::string& path, pb::MeshFormat format, bool rest = false);
+  pb::Snapshot export_snapshot(bool include_mesh);
+  void remove();
+
+ private:
+  SessionClient(Connection& conn, std::string name, std::string key, pb::Session info);
+  double timeout() const { return conn_->options().call_timeout_s; }
+
+  Connection* conn_;
+  std::string name_;
+  std::string key_;
+  pb::Session info_;
+};
+
+// Files.
+std::string read_file(const std::string& path);
+void write_file(const std::string& path, const std::string& bytes);
+// Output format from a file name's extension (.glb .obj .off .ply); throws CliError.
+pb::MeshFormat mesh_format_for(const std::string& path);
+std::string mesh_format_extension(pb::MeshFormat format);
+pb::BetaUnits parse_beta_units(const std::string& text);
+
+// Wall-clock milliseconds since `start`.
+double ms_since(std::chrono::steady_clock::time_point start);
+
+}  // namespace hdeform::cli

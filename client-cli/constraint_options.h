@@ -1,0 +1,66 @@
+// Constraint options shared by `deform` and `sweep` (and the parsers `run` reuses):
+// selectors, .sel/.def files, one handle transform, β.
+#pragma once
+
+#include "common.h"
+
+#include <CLI/CLI.hpp>
+
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace hdeform::cli {
+
+struct ConstraintOptions {
+  std::string sel_file;                // Botsch–Sorkine .sel: label 0 fixed, label 2 handle
+  std::string def_file;                // Botsch–Sorkine .def: the handles' 4×4 matrix
+  std::vector<std::string> fixed;      // selectors; all united into the fixed region
+  std::vector<std::string> handles;    // one handle region per occurrence
+  std::string rotate, translate, scale, pivot;
+  double beta = 0;
+  std::string beta_units = "area";
+  std::string session;                 // use this existing session instead of creating one
+};
+
+void add_constraint_options(CLI::App& cmd, ConstraintOptions& options);
+void add_beta_options(CLI::App& cmd, ConstraintOptions& options, bool with_beta_value);
+
+struct ConstraintSpec {
+  pb::Constraints constraints;
+  std::vector<pb::HandleTransform> transforms;  // one per handle
+};
+
+// True when the options name any region (else an existing --session keeps its own).
+bool has_constraints(const ConstraintOptions& options);
+ConstraintSpec build_constraint_spec(const ConstraintOptions& options);
+
+// --- parsers (`where` prefixes error messages, e.g. "--handle" or "job.json: transforms[0]")
+
+// Comma-separated numbers; `count` > 0 demands exactly that many.
+std::vector<double> parse_numbers(const std::string& text, const std::string& where,
+                                  std::size_t count = 0);
+// One selector: ids:… box:… sphere:… half:… sel:FILE:LABEL (FILE relative to base_dir).
+pb::Selector parse_selector(const std::string& text, const std::string& where,
+                            const std::string& base_dir = "");
+// Selectors joined by '|' → one region (their union).
+void add_selectors(pb::Region& region, const std::string& text, const std::string& where,
+                   const std::string& base_dir = "");
+
+struct TransformText {
+  std::string rotate;     // "AXIS,DEG": AXIS = x|y|z or "AX,AY,AZ"
+  std::string translate;  // "X,Y,Z"
+  std::string scale;      // "S" or "SX,SY,SZ"
+  std::string pivot;      // "X,Y,Z"
+  std::string def_file;   // a .def file (replaces rotate/scale/translate)
+};
+pb::HandleTransform parse_transform(const TransformText& text, const std::string& where,
+                                    const std::string& base_dir = "");
+
+// A .def file's 4×4 row-major matrix; errors are "FILE:LINE: problem".
+std::array<double, 16> parse_def(const std::string& content, const std::string& file);
+
+std::string resolve_path(const std::string& path, const std::string& base_dir);
+
+}  // namespace hdeform::cli

@@ -1,0 +1,48 @@
+#include "work_session.h"
+
+#include <filesystem>
+
+namespace hdeform::cli {
+
+WorkSession open_work_session(Connection& conn, const std::string& mesh,
+                              const ConstraintOptions& c) {
+  WorkSession w;
+  if (!c.session.empty()) {
+    w.client = std::make_unique<SessionClient>(conn, c.session);
+    w.client->get();
+  } else {
+    w.client = std::make_unique<SessionClient>(SessionClient::create(conn, mesh));
+    w.created = true;
+  }
+  return w;
+}
+
+void check_mesh_or_session(const std::string& mesh, const ConstraintOptions& c,
+                           const GlobalOptions& global) {
+  if (!c.session.empty()) {
+    if (!mesh.empty()) throw CliError("give either MESH or --session, not both");
+    if (global.server.empty()) throw CliError("--session needs --server HOST:PORT");
+  } else {
+    if (mesh.empty()) throw CliError("MESH is required (a file or a library name like cactus)");
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(mesh, ec) &&
+        (mesh.find('/') != std::string::npos || std::filesystem::path(mesh).has_extension()))
+      throw CliError(mesh + ": no such file");
+    if (!has_constraints(c))
+      throw CliError("no constraints: give --sel F.sel [--def F.def] or --fixed SEL --handle SEL");
+  }
+}
+
+// Transforms for the session's handles: the spec's when regions were given, else the
+// options' transform for each of the existing session's handles.
+std::vector<pb::HandleTransform> transforms_for(const ConstraintOptions& c, SessionClient& s,
+                                                const ConstraintSpec* spec) {
+  if (spec) return spec->transforms;
+  const int handles = s.info().constraints().handles_size();
+  if (handles == 0) throw CliError(s.name() + " has no constraints: give --sel or --handle");
+  TransformText text{c.rotate, c.translate, c.scale, c.pivot, c.def_file};
+  return std::vector<pb::HandleTransform>(static_cast<std::size_t>(handles),
+                                          parse_transform(text, "transform"));
+}
+
+}  // namespace hdeform::cli

@@ -1,0 +1,105 @@
+#include "grpc_web.h"
+
+#include <array>
+#include <cctype>
+
+namespace hdeform::gateway::grpc_web {
+
+std::array<char, 5> frame_prefix(std::uint8_t flag, std::uint32_t length) {
+  return {static_cast<char>(flag), static_cast<char>((length >> 24) & 0xFF),
+          static_cast<char>((length >> 16) & 0xFF), static_cast<char>((length >> 8) & 0xFF),
+          static_cast<char>(length & 0xFF)};
+}
+
+ParsedBody parse_frames(std::string_view body) {
+  ParsedBody out;
+  std::size_t at = 0;
+  while (at < body.size()) {
+    if (body.size() - at < 5) {
+      out.error = "truncated gRPC-Web frame header";
+      return out;
+    }
+    const auto flag = static_cast<std::uint8_t>(body[at]);
+    const std::uint32_t length = (std::uint32_t(std::uint8_t(body[at + 1])) << 24) |
+                                 (std::uint32_t(std::uint8_t(body[at + 2])) << 16) |
+                                 (std::uint32_t(std::uint8_t(body[at + 3])) << 8) |
+                                 std::uint32_t(std::uint8_t(body[at + 4]));
+    at += 5;
+    if (body.size() - at < length) {
+      out.error = "truncated gRPC-Web frame";
+      return out;
+    }
+    if (flag & kCompressedBit) {
+      out.error = "compressed gRPC-Web frames are not supported";
+      return out;
+    }
+    if (!(flag & kTrailerFlag)) out.messages.push_back(body.substr(at, length));
+    at += length;
+  }
+  return out;
+}
+
+std::string percent_encode(std::string_view text) {
+  static constexpr char kHex[] = "0123456789ABCDEF";
+  std::string out;
+  out.reserve(text.size());
+  for (const char ch : text) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (c < 0x20 || c > 0x7E || c == '%') {
+      out += '%';
+      out += kHex[c >> 4];
+      out += kHex[c & 0xF];
+    } else {
+      out += ch;
+    }
+  }
+  return out;
+}
+
+std::string trailers_frame(const grpc::Status& status) {
+  std::string text = "grpc-status:" + std::to_string(static_cast<int>(status.error_code())) +
+                     "\r\ngrpc-message:" + percent_encode(status.error_message()) + "\r\n";
+  const auto prefix = frame_prefix(kTrailerFlag, static_cast<std::uint32_t>(text.size()));
+  return std::string(prefix.data(), prefix.size()) + text;
+}
+
+std::optional<std::chrono::nanoseconds> parse_timeout(std::string_view value) {
+  if (value.size() < 2 || value.size() > 9) return std::nullopt;
+  std::int64_t n = 0;
+  for (std::size_t i = 0; i + 1 < value.size(); ++i) {
+    if (!std::isdigit(static_cast<unsigned char>(value[i]))) return std::nullopt;
+    n = n * 10 + (value[i] - '0');
+  }
+  using namespace std::chrono;
+  switch (value.back()) {
+    case 'H': return duration_cast<nanoseconds>(hours(n));
+    case 'M': return duration_cast<nanoseconds>(minutes(n));
+    case 'S': return duration_cast<nanoseconds>(seconds(n));
+    case 'm': return duration_cast<nanoseconds>(milliseconds(n));
+    case 'u': return duration_cast<nanoseconds>(microseconds(n));
+    case 'n': return nanoseconds(n);
+    default: return std::nullopt;
+  }
+}
+
+int http_status_for(grpc::StatusCode code) {
+  switch (code) {
+    case grpc::StatusCode::OK: return 200;
+    case grpc::StatusCode::INVALID_ARGUMENT:
+    case grpc::StatusCode::FAILED_PRECONDITION:
+    case grpc::StatusCode::OUT_OF_RANGE: return 400;
+    case grpc::StatusCode::UNAUTHENTICATED: return 401;
+    case grpc::StatusCode::PERMISSION_DENIED: return 403;
+    case grpc::StatusCode::NOT_FOUND: return 404;
+    case grpc::StatusCode::ALREADY_EXISTS:
+    case grpc::StatusCode::ABORTED: return 409;
+    case grpc::StatusCode::RESOURCE_EXHAUSTED: return 413;
+    case grpc::StatusCode::UNIMPLEMENTED: return 501;
+    case grpc::StatusCode::UNAVAILABLE: return 503;
+    case grpc::StatusCode::DEADLINE_EXCEEDED: return 504;
+    case grpc::StatusCode::CANCELLED: return 499;
+    default: return 500;
+  }
+}
+
+}  // namespace hdeform::gateway::grpc_web

@@ -1,0 +1,331 @@
+// The gRPC-Web gateway against a fake Deformation service (no engine): framing of unary,
+// error and streaming calls, /upload → client-streaming CreateSession, the 413 limit, static
+// files, cancellation when the browser goes away, and stop() during a stream.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <boost/asio.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include "grpc_web.h"
+#include "hdeform/v1/deform.grpc.pb.h"
+#include "http_gateway.h"
+
+namespace {
+
+namespace asio = boost::asio;
+namespace beast = boost::beast;
+namespace http = beast::http;
+using tcp = asio::ip::tcp;
+using namespace hdeform::v1;
+using namespace std::chrono_literals;
+
+class FakeService final : public Deformation::Service {
+ public:
+  std::atomic<bool> watch_cancelled{false};
+  std::atomic<int> watch_running{0};
+
+  grpc::Status ListMeshes(grpc::ServerContext*, const ListMeshesRequest*,
+                          ListMeshesResponse* out) override {
+    out->add_meshes()->set_name("cactus");
+    out->add_meshes()->set_name("bar");
+    return grpc::Status::OK;
+  }
+  grpc::Status GetSession(grpc::ServerContext*, const GetSessionRequest* req,
+                          Session* out) override {
+    if (req->name() == "sessions/missing")
+      return {grpc::StatusCode::NOT_FOUND, "no session 'sessions/missing' — 100%"};
+    out->set_name(req->name());
+    return grpc::Status::OK;
+  }
+  grpc::Status CreateSession(grpc::ServerContext*, grpc::ServerReader<CreateSessionRequest>* in,
+                             Session* out) override {
+    CreateSessionRequest msg;
+    std::string source, id;
+    std::size_t bytes = 0;
+    int messages = 0;
+    while (in->Read(&msg)) {
+      ++messages;
+      if (msg.has_header()) {
+        source = msg.header().has_filename() ? msg.header().filename() : msg.header().library_mesh();
+        id = msg.header().session_id();
+      } else {
+        bytes += msg.chunk().size();
+      }
+    }
+    if (source.ends_with(".bad")) return {grpc::StatusCode::INVALID_ARGUMENT, "cannot parse " + source};
+    out->set_name("sessions/" + (id.empty() ? std::string("x") : id));
+    out->set_mesh_name(source);
+    out->set_vertex_count(static_cast<int>(bytes));
+    out->set_triangle_count(messages);
+    return grpc::Status::OK;
+  }
+  grpc::Status WatchSession(grpc::ServerContext* ctx, const WatchSessionRequest* req,
+                            grpc::ServerWriter<SessionEvent>* out) override {
+    ++watch_running;
+    for (int i = 0; i < 10000 && !ctx->IsCancelled(); ++i) {
+      SessionEvent ev;
+      ev.mutable_frame()->set_session(req->name());
+      ev.mutable_frame()->set_sequence(i);
+      if (!out->Write(ev)) break;
+      std::this_thread::sleep_for(20ms);
+    }
+    watch_cancelled = ctx->IsCancelled();
+    --watch_running;
+    return grpc::Status::OK;
+  }
+};
+
+struct Frame {
+  std::uint8_t flag;
+  std::string bytes;
+};
+
+// Splits a complete gRPC-Web response body into frames.
+std::vector<Frame> frames_of(std::string_view body) {
+  std::vector<Frame> out;
+  std::size_t at = 0;
+  while (at + 5 <= body.size()) {
+    const std::uint32_t len = (std::uint32_t(std::uint8_t(body[at + 1])) << 24) |
+                              (std::uint32_t(std::uint8_t(body[at + 2])) << 16) |
+                              (std::uint32_t(std::uint8_t(body[at + 3])) << 8) |
+                              std::uint32_t(std::uint8_t(body[at + 4]));
+    if (at + 5 + len > body.size()) break;
+    out.push_back({std::uint8_t(body[at]), std::string(body.substr(at + 5, len))});
+    at += 5 + len;
+  }
+  return out;
+}
+
+std::string grpc_web_body(const google::protobuf::Message& msg) {
+  const std::string bytes = msg.SerializeAsString();
+  const auto prefix = hdeform::gateway::grpc_web::frame_prefix(0, static_cast<std::uint32_t>(bytes.size()));
+  return std::string(prefix.data(), prefix.size()) + bytes;
+}
+
+class GatewayTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    root_ = std::filesystem::temp_directory_path() /
+            ("hdeform-gw-" + std::to_string(::getpid()) + "-" +
+             ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::create_directories(root_ / "assets");
+    std::ofstream(root_ / "index.html") << "<!doctype html><title>viewer</title>";
+    std::ofstream(root_ / "assets" / "app-123.js") << "console.log(1)";
+    grpc::ServerBuilder builder;
+    builder.RegisterService(&service_);
+    server_ = builder.BuildAndStart();
+    hdeform::gateway::GatewayOptions options;
+    options.port = 0;
+    options.web_root = root_.string();
+    options.max_body_bytes = 1u << 20;
+    gateway_ = std::make_unique<hdeform::gateway::HttpGateway>(options, server_->InProcessChannel({}));
+  }
+  void TearDown() override {
+    gateway_.reset();
+    server_->Shutdown(std::chrono::system_clock::now() + 1s);
+    std::filesystem::remove_all(root_);
+  }
+
+  tcp::socket connect() {
+    tcp::socket s(ioc_);
+    s.connect({asio::ip::make_address("127.0.0.1"), static_cast<unsigned short>(gateway_->port())});
+    return s;
+  }
+
+  http::response<http::string_body> request(http::verb verb, const std::string& target,
+                                            std::string body = {},
+                                            const std::string& content_type = "application/grpc-web+proto") {
+    auto s = connect();
+    http::request<http::string_body> req{verb, target, 11};
+    req.set(http::field::host, "127.0.0.1");
+    if (!content_type.empty()) req.set(http::field::content_type, content_type);
+    req.body() = std::move(body);
+    req.prepare_payload();
+    http::write(s, req);
+    beast::flat_buffer buffer;
+    http::response<http::string_body> res;
+    http::read(s, buffer, res);
+    return res;
+  }
+
+  http::response<http::string_body> call(const std::string& method, const google::protobuf::Message& msg) {
+    return request(http::verb::post, "/hdeform.v1.Deformation/" + method, grpc_web_body(msg));
+  }
+
+  asio::io_context ioc_;
+  FakeService service_;
+  std::unique_ptr<grpc::Server> server_;
+  std::unique_ptr<hdeform::gateway::HttpGateway> gateway_;
+  std::filesystem::path root_;
+};
+
+TEST_F(GatewayTest, UnaryCallIsFramedWithTrailers) {
+  const auto res = call("ListMeshes", ListMeshesRequest());
+  EXPECT_EQ(res.result(), http::status::ok);
+  EXPECT_EQ(res[http::field::content_type], "application/grpc-web+proto");
+  const auto frames = frames_of(res.body());
+  ASSERT_EQ(frames.size(), 2u);
+  EXPECT_EQ(frames[0].flag, 0x00);
+  ListMeshesResponse reply;
+  ASSERT_TRUE(reply.ParseFromString(frames[0].bytes));
+  ASSERT_EQ(reply.meshes_size(), 2);
+  EXPECT_EQ(reply.meshes(0).name(), "cactus");
+  EXPECT_EQ(frames[1].flag, 0x80);
+  EXPECT_NE(frames[1].bytes.find("grpc-status:0\r\n"), std::string::npos);
+}
+
+TEST_F(GatewayTest, ErrorsTravelInTheTrailersPercentEncoded) {
+  GetSessionRequest req;
+  req.set_name("sessions/missing");
+  const auto frames = frames_of(call("GetSession", req).body());
+  ASSERT_EQ(frames.size(), 1u);
+  EXPECT_EQ(frames[0].flag, 0x80);
+  EXPECT_NE(frames[0].bytes.find("grpc-status:5\r\n"), std::string::npos);
+  EXPECT_NE(frames[0].bytes.find("grpc-message:no session 'sessions/missing' %E2%80%94 100%25\r\n"),
+            std::string::npos)
+      << frames[0].bytes;
+}
+
+TEST_F(GatewayTest, UnknownMethodIsUnimplemented) {
+  const auto frames = frames_of(call("NoSuchMethod", ListMeshesRequest()).body());
+  ASSERT_EQ(frames.size(), 1u);
+  EXPECT_NE(frames[0].bytes.find("grpc-status:12\r\n"), std::string::npos);
+}
+
+TEST_F(GatewayTest, RejectsOtherContentTypesAndPaths) {
+  EXPECT_EQ(request(http::verb::post, "/hdeform.v1.Deformation/ListMeshes", "", "application/json").result(),
+            http::status::unsupported_media_type);
+  EXPECT_EQ(request(http::verb::get, "/hdeform.v1.Deformation/ListMeshes").result(),
+            http::status::method_not_allowed);
+}
+
+TEST_F(GatewayTest, UploadBecomesClientStreamingCreateSession) {
+  const std::string file(3'500'000, 'v');  // > 1 MiB chunk, < 4 MiB gRPC limit per message
+  // The fixture's limit is 1 MiB: raise it for this test with a fresh gateway.
+  gateway_.reset();
+  hdeform::gateway::GatewayOptions options;
+  options.port = 0;
+  options.max_body_bytes = 8u << 20;
+  gateway_ = std::make_unique<hdeform::gateway::HttpGateway>(options, server_->InProcessChannel({}));
+
+  auto res = request(http::verb::post, "/upload?filename=my%20mesh.obj&session_id=abc", file,
+                     "application/octet-stream");
+  ASSERT_EQ(res.result(), http::status::ok) << res.body();
+  EXPECT_EQ(res[http::field::content_type], "application/x-protobuf");
+  Session s;
+  ASSERT_TRUE(s.ParseFromString(res.body()));
+  EXPECT_EQ(s.name(), "sessions/abc");
+  EXPECT_EQ(s.mesh_name(), "my mesh.obj");
+  EXPECT_EQ(s.vertex_count(), static_cast<int>(file.size()));  // every byte arrived
+  EXPECT_GE(s.triangle_count(), 1 + 4);                         // header + ≥ 4 chunks
+
+  res = request(http::verb::post, "/upload?library=cactus", "", "");
+  ASSERT_EQ(res.result(), http::status::ok);
+  ASSERT_TRUE(s.ParseFromString(res.body()));
+  EXPECT_EQ(s.mesh_name(), "cactus");
+
+  res = request(http::verb::post, "/upload?filename=broken.bad", "xx", "application/octet-stream");
+  EXPECT_EQ(res.result(), http::status::bad_request);
+  EXPECT_EQ(res.body(), "cannot parse broken.bad\n");
+  EXPECT_EQ(res["grpc-status"], "3");
+
+  res = request(http::verb::post, "/upload", "xx", "application/octet-stream");
+  EXPECT_EQ(res.result(), http::status::bad_request);
+}
+
+TEST_F(GatewayTest, BodyAboveTheLimitGets413) {
+  const auto res = request(http::verb::post, "/upload?filename=big.obj", std::string(2u << 20, 'x'),
+                           "application/octet-stream");
+  EXPECT_EQ(res.result(), http::status::payload_too_large);
+  EXPECT_NE(res.body().find("the limit is 1048576 bytes"), std::string::npos) << res.body();
+}
+
+TEST_F(GatewayTest, StaticFilesWithContentTypes) {
+  auto res = request(http::verb::get, "/", "", "");
+  EXPECT_EQ(res.result(), http::status::ok);
+  EXPECT_EQ(res[http::field::content_type], "text/html; charset=utf-8");
+  EXPECT_EQ(res[http::field::cache_control], "no-cache");
+  res = request(http::verb::get, "/assets/app-123.js?v=1", "", "");
+  EXPECT_EQ(res.result(), http::status::ok);
+  EXPECT_EQ(res[http::field::content_type], "text/javascript; charset=utf-8");
+  EXPECT_EQ(res.body(), "console.log(1)");
+  EXPECT_NE(res[http::field::cache_control].find("immutable"), beast::string_view::npos);
+  EXPECT_EQ(request(http::verb::get, "/nope.css", "", "").result(), http::status::not_found);
+  EXPECT_EQ(request(http::verb::get, "/../etc/passwd", "", "").result(), http::status::bad_request);
+  EXPECT_EQ(request(http::verb::get, "/%2e%2e/etc/passwd", "", "").result(), http::status::bad_request);
+  EXPECT_EQ(request(http::verb::get, "/healthz", "", "").body(), "ok\n");
+}
+
+// Reads a chunked streaming response until `count` data frames arrived.
+std::string read_frames(tcp::socket& s, beast::flat_buffer& buffer,
+                        http::response_parser<http::buffer_body>& parser, std::size_t count) {
+  std::string body;
+  char chunk[4096];
+  while (frames_of(body).size() < count && !parser.is_done()) {
+    parser.get().body().data = chunk;
+    parser.get().body().size = sizeof chunk;
+    beast::error_code ec;
+    http::read_some(s, buffer, parser, ec);  // returns as soon as some body arrived
+    if (ec && ec != http::error::need_buffer) break;
+    body.append(chunk, sizeof chunk - parser.get().body().size);
+  }
+  return body;
+}
+
+TEST_F(GatewayTest, ServerStreamIsRelayedAndCancelledWhenTheBrowserLeaves) {
+  auto s = connect();
+  WatchSessionRequest req;
+  req.set_name("sessions/w");
+  http::request<http::string_body> r{http::verb::post, "/hdeform.v1.Deformation/WatchSession", 11};
+  r.set(http::field::content_type, "application/grpc-web+proto");
+  r.body() = grpc_web_body(req);
+  r.prepare_payload();
+  http::write(s, r);
+  beast::flat_buffer buffer;
+  http::response_parser<http::buffer_body> parser;
+  http::read_header(s, buffer, parser);
+  EXPECT_TRUE(parser.get().chunked());
+  const auto frames = frames_of(read_frames(s, buffer, parser, 3));
+  ASSERT_GE(frames.size(), 3u);
+  SessionEvent ev;
+  ASSERT_TRUE(ev.ParseFromString(frames[2].bytes));
+  EXPECT_EQ(ev.frame().sequence(), 2);
+  EXPECT_EQ(ev.frame().session(), "sessions/w");
+
+  s.close();  // the browser goes away
+  for (int i = 0; i < 300 && service_.watch_running > 0; ++i) std::this_thread::sleep_for(10ms);
+  EXPECT_EQ(service_.watch_running, 0);
+  EXPECT_TRUE(service_.watch_cancelled);
+}
+
+TEST_F(GatewayTest, StopEndsStreamsWithUnavailable) {
+  auto s = connect();
+  WatchSessionRequest req;
+  req.set_name("sessions/w");
+  http::request<http::string_body> r{http::verb::post, "/hdeform.v1.Deformation/WatchSession", 11};
+  r.set(http::field::content_type, "application/grpc-web+proto");
+  r.body() = grpc_web_body(req);
+  r.prepare_payload();
+  http::write(s, r);
+  beast::flat_buffer buffer;
+  http::response_parser<http::buffer_body> parser;
+  http::read_header(s, buffer, parser);
+  read_frames(s, buffer, parser, 1);
+  auto idle = connect();  // an idle keep-alive connection must not block stop()
+
+  const auto t0 = std::chrono::steady_clock::now();
+  std::thread stopper([&] { gateway_->stop(); });
+  const std::string rest = read_frames(s, buffer, parser, 1u << 30);
+  stopper.join();
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, 3s);
+  EXPECT_NE(rest.find("grpc-status:14\r\n"), std::string::npos);
+  EXPECT_TRUE(parser.is_done());
+}
+
+}  // namespace

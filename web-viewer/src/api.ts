@@ -1,0 +1,138 @@
+// The API client: gRPC-Web (binary) to hdeform-server's own HTTP port, same origin as the page.
+import { fromBinary } from "@bufbuild/protobuf";
+import { Code, ConnectError, createClient, type Client } from "@connectrpc/connect";
+import { createGrpcWebTransport } from "@connectrpc/connect-web";
+import {
+  Deformation,
+  MeshFormat,
+  SessionSchema,
+  type Session,
+} from "./gen/hdeform/v1/deform_pb";
+
+export type DeformationClient = Client<typeof Deformation>;
+
+// Every call carries x-session-id (the {id} of sessions/{id}) so that a load balancer in
+// front of several replicas can hash it to the replica that owns the session.
+let routingId = "";
+export function setRoutingSession(name: string): void {
+  routingId = name.startsWith("sessions/") ? name.slice("sessions/".length) : name;
+}
+/** A fresh client-chosen session id (CreateSessionHeader.session_id). */
+export function newSessionId(): string {
+  const bytes = crypto.getRandomValues(new Uint8Array(12));
+  return Array.from(bytes, (b) => b.toString(16).padStart(2, "0")).join("");
+}
+
+export function makeClient(baseUrl: string = window.location.origin): DeformationClient {
+  const transport = createGrpcWebTransport({
+    baseUrl,
+    useBinaryFormat: true,
+    interceptors: [
+      (next) => async (req) => {
+        if (routingId) req.header.set("x-session-id", routingId);
+        return next(req);
+      },
+    ],
+  });
+  return createClient(Deformation, transport);
+}
+
+/** A readable one-line message for any error thrown by a call. */
+export function describeError(err: unknown): string {
+  if (err instanceof ConnectError) {
+    const code = Code[err.code] ?? String(err.code);
+    if (err.code === Code.Unavailable || err.code === Code.Unknown) {
+      if (/fetch|network|Failed/i.test(err.rawMessage)) {
+        return `Lost connection to the server (${err.rawMessage})`;
+      }
+    }
+    return `${err.rawMessage || "request failed"} [${code}]`;
+  }
+  if (err instanceof Error) return err.message;
+  return String(err);
+}
+
+export function isAbort(err: unknown): boolean {
+  return (
+    (err instanceof ConnectError && err.code === Code.Canceled) ||
+    (err instanceof DOMException && err.name === "AbortError")
+  );
+}
+
+/** GetMesh is server-streaming: concatenate its chunks. */
+export async function fetchMesh(
+  client: DeformationClient,
+  name: string,
+  rest: boolean,
+  format: MeshFormat,
+  signal?: AbortSignal,
+): Promise<Uint8Array> {
+  const parts: Uint8Array[] = [];
+  let total = 0;
+  for await (const chunk of client.getMesh({ name, rest, format }, { signal })) {
+    parts.push(chunk.data);
+    total += chunk.data.byteLength;
+  }
+  const out = new Uint8Array(total);
+  let at = 0;
+  for (const p of parts) {
+    out.set(p, at);
+    at += p.byteLength;
+  }
+  return out;
+}
+
+/**
+ * CreateSession is client-streaming, which browsers cannot do over gRPC-Web; the gateway's
+ * POST /upload turns the raw request body into that call. XMLHttpRequest gives upload
+ * progress (fetch does not).
+ */
+export function createSessionViaUpload(
+  query: { filename: string; body: Blob } | { library: string },
+  onProgress?: (loaded: number, total: number) => void,
+): Promise<Session> {
+  return new Promise((resolve, reject) => {
+    const xhr = new XMLHttpRequest();
+    const id = newSessionId();
+    const q =
+      ("library" in query
+        ? `library=${encodeURIComponent(query.library)}`
+        : `filename=${encodeURIComponent(query.filename)}`) + `&session_id=${id}`;
+    xhr.open("POST", `upload?${q}`);
+    xhr.setRequestHeader("x-session-id", id);
+    xhr.responseType = "arraybuffer";
+    if (onProgress) {
+      xhr.upload.onprogress = (e) => onProgress(e.loaded, e.lengthComputable ? e.total : 0);
+    }
+    xhr.onload = () => {
+      if (xhr.status === 200) {
+        try {
+          resolve(fromBinary(SessionSchema, new Uint8Array(xhr.response as ArrayBuffer)));
+        } catch (e) {
+          reject(new Error(`upload: unreadable reply (${(e as Error).message})`));
+        }
+      } else {
+        const text = new TextDecoder().decode(xhr.response as ArrayBuffer).trim();
+        reject(new Error(`Upload rejected (HTTP ${xhr.status}): ${text || xhr.statusText}`));
+      }
+    };
+    xhr.onerror = () => reject(new Error("Upload failed: lost connection to the server"));
+    xhr.onabort = () => reject(new Error("Upload cancelled"));
+    if ("library" in query) {
+      xhr.send();
+    } else {
+      xhr.setRequestHeader("Content-Type", "application/octet-stream");
+      xhr.send(query.body);
+    }
+  });
+}
+
+/** float32 LE bytes → Float32Array (copies only when the bytes are not 4-aligned). */
+export function floats(bytes: Uint8Array): Float32Array {
+  if (bytes.byteOffset % 4 === 0) {
+    return new Float32Array(bytes.buffer, bytes.byteOffset, bytes.byteLength >>> 2);
+  }
+  return new Float32Array(bytes.slice().buffer);
+}
+
+

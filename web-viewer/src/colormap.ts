@@ -1,0 +1,61 @@
+// Energy colour maps: viridis-like ramp, linear in [0, max] or truncated linear in [0, t].
+const STOPS: [number, number, number][] = [
+  [0.267, 0.005, 0.329],
+  [0.231, 0.322, 0.545],
+  [0.129, 0.569, 0.549],
+  [0.369, 0.788, 0.384],
+  [0.993, 0.906, 0.144],
+];
+
+export function ramp(t: number, out: Float32Array, at: number): void {
+  const x = Math.min(1, Math.max(0, Number.isFinite(t) ? t : 1)) * (STOPS.length - 1);
+  const i = Math.min(STOPS.length - 2, Math.floor(x));
+  const f = x - i;
+  const a = STOPS[i];
+  const b = STOPS[i + 1];
+  out[at] = a[0] + (b[0] - a[0]) * f;
+  out[at + 1] = a[1] + (b[1] - a[1]) * f;
+  out[at + 2] = a[2] + (b[2] - a[2]) * f;
+}
+
+export type EnergyMapping = "off" | "linear" | "truncated";
+
+/** The top of the scale: max energy (linear) or the chosen value (truncated). */
+export function scaleTop(mapping: EnergyMapping, energies: Float32Array, truncateAt: number): number {
+  if (mapping === "truncated") return truncateAt > 0 ? truncateAt : 1;
+  let max = 0;
+  for (let i = 0; i < energies.length; i++) if (energies[i] > max) max = energies[i];
+  return max > 0 ? max : 1;
+}
+
+export function drawLegend(canvas: HTMLCanvasElement, top: number, mapping: EnergyMapping): void {
+  const ctx = canvas.getContext("2d");
+  if (!ctx) return;
+  const w = canvas.width;
+  const h = canvas.height;
+  ctx.clearRect(0, 0, w, h);
+  const rgb = new Float32Array(3);
+  const barH = 14;
+  for (let x = 0; x < w; x++) {
+    ramp(x / (w - 1), rgb, 0);
+    ctx.fillStyle = `rgb(${(rgb[0] * 255) | 0},${(rgb[1] * 255) | 0},${(rgb[2] * 255) | 0})`;
+    ctx.fillRect(x, 0, 1, barH);
+  }
+  ctx.fillStyle = "#ddd";
+  ctx.font = "11px system-ui, sans-serif";
+  ctx.textBaseline = "top";
+  ctx.textAlign = "left";
+  ctx.fillText("0", 0, barH + 2);
+  ctx.textAlign = "right";
+  ctx.fillText((mapping === "truncated" ? "≥ " : "") + fmt(top), w, barH + 2);
+  ctx.textAlign = "center";
+  ctx.fillText(fmt(top / 2), w / 2, barH + 2);
+}
+
+export function fmt(v: number): string {
+  if (!Number.isFinite(v)) return String(v);
+  const a = Math.abs(v);
+  if (a === 0) return "0";
+  if (a >= 1e4 || a < 1e-3) return v.toExponential(2);
+  return v.toPrecision(4).replace(/\.?0+$/, "");
+}
