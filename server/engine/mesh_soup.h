@@ -1,0 +1,139 @@
+// Internal header of the mesh readers (namespace detail), not part of the public API: use mesh_io.h.
+// The polygon soup every reader produces, error helpers, and the line/token cursor the
+// text parsers (OBJ, OFF, PLY) share.
+#pragma once
+
+#include "mesh_io.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cstddef>
+#include <cstring>
+#include <string>
+#include <string_view>
+#include <system_error>
+#include <vector>
+
+namespace hdeform::detail {
+
+// Throw InvalidInput(msg) / InvalidInput("NAME:LINE: msg").
+[[noreturn]] void fail(const std::string& msg);
+[[noreturn]] void fail_line(const std::string& name, int line, const std::string& msg);
+
+// "Mesh.OBJ" → "obj"; "" without an extension.
+std::string lower_extension(const std::string& path);
+// "1 vertex", "2 vertices".
+std::string plural(size_t n, const char* one, const char* many);
+// 't' for error messages, cut after 40 characters.
+std::string quoted(std::string_view t);
+
+// ---------------------------------------------------------------------------------------
+// Polygon soup: what every reader produces before it becomes a LoadedMesh.
+struct Soup {
+  std::vector<double> xyz;  // 3 per vertex
+  std::vector<int> tri;     // 3 per triangle
+  size_t polygons = 0;      // faces with more than 3 corners (fan-triangulated)
+
+  int num_vertices() const { return static_cast<int>(xyz.size() / 3); }
+  void add_vertex(double x, double y, double z) {
+    xyz.push_back(x);
+    xyz.push_back(y);
+    xyz.push_back(z);
+  }
+  // Fan triangulation around the first corner.
+  void add_polygon(const int* idx, size_t k) {
+    if (k > 3) ++polygons;
+    for (size_t c = 1; c + 1 < k; ++c) {
+      tri.push_back(idx[0]);
+      tri.push_back(idx[c]);
+      tri.push_back(idx[c + 1]);
+    }
+  }
+};
+
+// Identity input layout; warns when polygons were triangulated.
+LoadedMesh to_loaded(Soup&& s, const std::string& name);
+
+// ---------------------------------------------------------------------------------------
+// Line and token helpers for the text formats.
+class Lines {
+ public:
+  explicit Lines(std::string_view s) : s_(s) {}
+  bool next(std::string_view& line) {
+    if (pos_ >= s_.size()) return false;
+    size_t e = s_.find('\n', pos_);
+    if (e == std::string_view::npos) e = s_.size();
+    line = s_.substr(pos_, e - pos_);
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    pos_ = e + 1;
+    ++lineno_;
+    return true;
+  }
+  int lineno() const { return lineno_; }
+  size_t pos() const { return pos_; }
+
+ private:
+  std::string_view s_;
+  size_t pos_ = 0;
+  int lineno_ = 0;
+};
+
+inline bool is_space(char c) { return c == ' ' || c == '\t' || c == '\v' || c == '\f' || c == '\r'; }
+
+struct Cursor {
+  const char* p;
+  const char* e;
+  explicit Cursor(std::string_view s) : p(s.data()), e(s.data() + s.size()) {}
+  void skip_ws() {
+    while (p < e && is_space(*p)) ++p;
+  }
+  bool at_end() {
+    skip_ws();
+    return p == e;
+  }
+  std::string_view token() {
+    skip_ws();
+    const char* b = p;
+    while (p < e && !is_space(*p)) ++p;
+    return {b, static_cast<size_t>(p - b)};
+  }
+  std::string_view peek_token() {
+    Cursor c = *this;
+    return c.token();
+  }
+  // A whole whitespace-delimited token that is a number.
+  bool read_double(double& v) {
+    skip_ws();
+    const char* q = p;
+    if (q < e && *q == '+') ++q;
+    auto r = std::from_chars(q, e, v);
+    if (r.ec != std::errc() || (r.ptr < e && !is_space(*r.ptr))) return false;
+    p = r.ptr;
+    return true;
+  }
+  bool read_int(long long& v) {
+    skip_ws();
+    const char* q = p;
+    if (q < e && *q == '+') ++q;
+    auto r = std::from_chars(q, e, v);
+    if (r.ec != std::errc() || (r.ptr < e && !is_space(*r.ptr))) return false;
+    p = r.ptr;
+    return true;
+  }
+};
+
+// Reads 3 coordinates from `c`, or throws "NAME:LINE: expected 3 coordinates ...".
+void read_xyz(Cursor& c, const std::string& name, int line, double out[3]);
+
+// A T stored at p (unaligned), byte-swapped when `swap`.
+template <class T>
+T load_raw(const unsigned char* p, bool swap) {
+  unsigned char b[sizeof(T)];
+  std::memcpy(b, p, sizeof(T));
+  if (swap) std::reverse(b, b + sizeof(T));
+  T v;
+  std::memcpy(&v, b, sizeof(T));
+  return v;
+}
+
+}  // namespace hdeform::detail

@@ -1,0 +1,17 @@
+// Internal header of the mesh writers (namespace detail), not part of the public API: use mesh_io.h.
+// Each serialises V (+ optional per-vertex normals N) and F, already checked by write_mesh_bytes.
+#pragma once
+
+#include "mesh.h"
+
+#include <string>
+
+namespace hdeform::detail {
+
+std::string write_obj(const Vertices& V, const Triangles& F, const Vertices* N);
+std::string write_off(const Vertices& V, const Triangles& F, const Vertices* N);
+std::string write_ply(const Vertices& V, const Triangles& F, const Vertices* N);
+// N null: vertex_normals(V, F).
+std::string write_glb(const Vertices& V, const Triangles& F, const Vertices* N);
+
+}  // namespace hdeform::detail

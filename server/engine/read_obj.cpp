@@ -1,0 +1,77 @@
+// OBJ reader. Own text parser rather than OpenMesh's: doubles round-trip (OpenMesh goes
+// through float), every face is kept, and errors name the line. See mesh_readers.h.
+
+#include "mesh_readers.h"
+
+#include <charconv>
+#include <limits>
+#include <utility>
+
+namespace hdeform::detail {
+
+Soup parse_obj(std::string_view text, const std::string& name, std::vector<std::string>& warnings) {
+  Soup s;
+  Lines lines(text);
+  std::string_view line;
+  std::vector<int> corners;
+  std::vector<std::pair<long long, int>> forward;  // (0-based index, line) ≥ count at the time
+  size_t lines_points = 0;
+  while (lines.next(line)) {
+    const int ln = lines.lineno();
+    if (size_t h = line.find('#'); h != std::string_view::npos) line = line.substr(0, h);
+    Cursor c(line);
+    std::string_view kw = c.token();
+    if (kw.empty()) continue;
+    if (kw == "v") {
+      double x[3];
+      read_xyz(c, name, ln, x);
+      s.add_vertex(x[0], x[1], x[2]);
+    } else if (kw == "f") {
+      corners.clear();
+      while (!c.at_end()) {
+        std::string_view tok = c.token();
+        std::string_view vtok = tok.substr(0, tok.find('/'));
+        long long idx = 0;
+        const char* b = vtok.data();
+        const char* e = b + vtok.size();
+        if (b < e && *b == '+') ++b;
+        auto r = std::from_chars(b, e, idx);
+        if (vtok.empty() || r.ec != std::errc() || r.ptr != e)
+          fail_line(name, ln, "bad face corner " + quoted(tok));
+        const long long nv = s.num_vertices();
+        long long zero_based;
+        if (idx > 0) {
+          zero_based = idx - 1;
+        } else if (idx < 0) {
+          zero_based = nv + idx;
+          if (zero_based < 0)
+            fail_line(name, ln, "relative vertex index " + std::to_string(idx) + " but only " +
+                                    plural(static_cast<size_t>(nv), "vertex", "vertices") +
+                                    " so far");
+        } else {
+          fail_line(name, ln, "vertex index 0 (OBJ indices start at 1)");
+        }
+        if (zero_based > std::numeric_limits<int>::max() - 1)
+          fail_line(name, ln, "vertex index " + std::to_string(idx) + " too large");
+        if (zero_based >= nv) forward.emplace_back(zero_based, ln);
+        corners.push_back(static_cast<int>(zero_based));
+      }
+      if (corners.size() < 3)
+        fail_line(name, ln, "face with " + std::to_string(corners.size()) +
+                                " vertices (need at least 3)");
+      s.add_polygon(corners.data(), corners.size());
+    } else if (kw == "l" || kw == "p") {
+      ++lines_points;
+    }
+  }
+  for (const auto& [idx, ln] : forward)
+    if (idx >= s.num_vertices())
+      fail_line(name, ln, "vertex index " + std::to_string(idx + 1) + " out of range (file has " +
+                              plural(static_cast<size_t>(s.num_vertices()), "vertex", "vertices") + ")");
+  if (lines_points > 0)
+    warnings.push_back(name + ": " + plural(lines_points, "line/point element", "line/point elements") +
+                       " ignored");
+  return s;
+}
+
+}  // namespace hdeform::detail
