@@ -1,0 +1,693 @@
+// hdeform engine benchmarks (Google Benchmark). How to run and the measured numbers:
+// docs/benchmarks.md.
+//
+// Names: FAMILY/N/... with N the nominal vertex count of the procedural capsule (10000,
+// 100000, 1000000), e.g. `--benchmark_filter=Update/100000/`, or BS/MODEL/... for the
+// Botsch–Sorkine models. Benchmarks are registered size-major so that one size's fixtures
+// (mesh, PreparedMesh, warm ConstraintSet, K_FF matrices, factors) are built once and
+// freed before the next size is built.
+//
+// Extra flag (ours): --hdeform_smoke  one repetition everywhere (ctest bench-smoke).
+#include "deformer.h"
+#include "measures.h"
+#include "mesh_io.h"
+#include "procedural.h"
+#include "selection.h"
+#include "solver.h"
+
+#include <benchmark/benchmark.h>
+
+#include <Eigen/SparseCholesky>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace {
+
+using namespace hdeform;
+
+constexpr int kSizes[] = {10000, 100000, 1000000};
+constexpr double kBetas[] = {0.0, 0.5};  // area units (the engine's default)
+constexpr double kFraction = 0.05;       // fixed base / cap handle: 5 % of the height each
+bool g_smoke = false;
+
+// ---------------------------------------------------------------------------------------
+// Memory: /proc/self/status (kB), and resetting the peak (Linux ≥ 4.0: "5" > clear_refs).
+double status_mb(const char* key) {
+  std::ifstream f("/proc/self/status");
+  std::string line;
+  const std::size_t len = std::strlen(key);
+  while (std::getline(f, line))
+    if (line.compare(0, len, key) == 0 && line.size() > len && line[len] == ':')
+      return std::stod(line.substr(len + 1)) / 1024.0;
+  return -1;
+}
+bool reset_peak() {
+  std::ofstream f("/proc/self/clear_refs");
+  f << "5";
+  f.flush();
+  return f.good();
+}
+double mb(std::size_t bytes) { return static_cast<double>(bytes) / (1024.0 * 1024.0); }
+
+// ---------------------------------------------------------------------------------------
+// K_FF, K_FC and (Gᵀ W_β)_F built here from PreparedMesh::L()/Reg()/GtA()/GtDBD(), the
+// same way the engine builds them, for the solver comparison and the phase breakdown.
+struct System {
+  double raw_beta = 0;
+  SparseMatrix K_FF, K_FC;  // K_FF stored full (both triangles), as the engine does
+  SparseMatrixR GtW_F;      // row-major, like the engine
+  std::shared_ptr<const Factorization> cholmod;  // analysed + factored (METIS, supernodal)
+  using Simplicial = Eigen::SimplicialLLT<SparseMatrix, Eigen::Lower, Eigen::AMDOrdering<int>>;
+  std::unique_ptr<Simplicial> simplicial;  // analysed + factored (AMD)
+};
+
+struct Case {
+  std::string name;
+  TriMesh mesh;
+  Constraints constraints;
+  std::shared_ptr<const PreparedMesh> pm;
+  std::shared_ptr<ConstraintSet> cs;  // warm: β = 0 and β = 0.5 factored
+  std::vector<int> region_of, block_index, free_, constrained;
+  std::map<double, System> systems;
+  std::optional<Eigen::Matrix4d> def;  // Botsch–Sorkine .def, if any
+  // Memory while building: MB.
+  double rss_before = 0, hwm_open = 0, hwm_beta = 0, rss_after = 0;
+  std::size_t pm_bytes = 0, cs_bytes_open = 0, cs_bytes_beta = 0;
+  double open_seconds = 0, beta_seconds = 0;
+};
+
+std::unique_ptr<Case> g_case;  // one at a time
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void finish_case(Case& c) {
+  const int n = c.mesh.num_vertices();
+  c.region_of.assign(n, -1);
+  for (int v : c.constraints.fixed) c.region_of[v] = 0;
+  for (std::size_t j = 0; j < c.constraints.handles.size(); ++j)
+    for (int v : c.constraints.handles[j]) c.region_of[v] = static_cast<int>(j) + 1;
+  c.block_index.assign(n, -1);
+  for (int v = 0; v < n; ++v) {
+    auto& block = c.region_of[v] < 0 ? c.free_ : c.constrained;
+    c.block_index[v] = static_cast<int>(block.size());
+    block.push_back(v);
+  }
+  // Build the session, measuring memory: peak during open (operators + analysis + β = 0
+  // factorization + harmonic basis), then during the first β > 0 (wide blocks + METIS on
+  // the wide pattern + numeric factorization).
+  c.rss_before = status_mb("VmRSS");
+  reset_peak();
+  auto t0 = std::chrono::steady_clock::now();
+  c.pm = PreparedMesh::create(c.mesh);
+  c.cs = std::make_shared<ConstraintSet>(c.pm, c.constraints);
+  c.open_seconds = seconds_since(t0);
+  c.hwm_open = status_mb("VmHWM");
+  c.pm_bytes = c.pm->memory_bytes();
+  c.cs_bytes_open = c.cs->memory_bytes();
+  reset_peak();
+  t0 = std::chrono::steady_clock::now();
+  c.cs->prepare(Beta{0.5});
+  c.beta_seconds = seconds_since(t0);
+  c.hwm_beta = status_mb("VmHWM");
+  c.cs_bytes_beta = c.cs->memory_bytes();
+  c.rss_after = status_mb("VmRSS");
+}
+
+std::string case_name(int nominal) { return "capsule" + std::to_string(nominal); }
+
+Case& capsule(int nominal) {
+  const std::string name = case_name(nominal);
+  if (g_case && g_case->name == name) return *g_case;
+  g_case.reset();  // free the previous size first
+  auto c = std::make_unique<Case>();
+  c->name = name;
+  procedural::CapsuleCase cc = procedural::capsule_case(nominal, kFraction);
+  c->mesh = std::move(cc.mesh);
+  c->constraints.fixed = std::move(cc.base);
+  c->constraints.handles = {std::move(cc.cap)};
+  finish_case(*c);
+  g_case = std::move(c);
+  return *g_case;
+}
+
+std::string slurp(const std::string& path) {
+  std::ifstream f(path);
+  if (!f) throw std::runtime_error("cannot read " + path);
+  std::stringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+Case& botsch_sorkine(const std::string& model) {
+  const std::string name = "bs-" + model;
+  if (g_case && g_case->name == name) return *g_case;
+  g_case.reset();
+  auto c = std::make_unique<Case>();
+  c->name = name;
+  const std::string base = std::string(HDEFORM_BENCH_DATA) + "/botsch-sorkine/" + model;
+  c->mesh = read_mesh(base + ".off").mesh;
+  const auto labels = parse_sel(slurp(base + ".sel"), c->mesh.num_vertices(), model + ".sel");
+  c->constraints.fixed = select_label(labels, 0);
+  c->constraints.handles = {select_label(labels, 2)};
+  c->def = parse_def(slurp(base + ".def"), model + ".def");
+  finish_case(*c);
+  g_case = std::move(c);
+  return *g_case;
+}
+
+// The (free, ·) blocks of K and GtW (same as the engine's split()).
+void split(const Case& c, const SparseMatrix& K, const SparseMatrix& GtW, System& s) {
+  const auto nF = static_cast<Eigen::Index>(c.free_.size());
+  const auto nC = static_cast<Eigen::Index>(c.constrained.size());
+  std::vector<Eigen::Triplet<double>> ff, fc, gw;
+  ff.reserve(K.nonZeros());
+  for (Eigen::Index col = 0; col < K.outerSize(); ++col)
+    for (SparseMatrix::InnerIterator it(K, col); it; ++it) {
+      const int r = static_cast<int>(it.row());
+      if (c.region_of[r] >= 0) continue;
+      if (c.region_of[col] < 0)
+        ff.emplace_back(c.block_index[r], c.block_index[col], it.value());
+      else
+        fc.emplace_back(c.block_index[r], c.block_index[col], it.value());
+    }
+  gw.reserve(GtW.nonZeros());
+  for (Eigen::Index col = 0; col < GtW.outerSize(); ++col)
+    for (SparseMatrix::InnerIterator it(GtW, col); it; ++it) {
+      const int r = static_cast<int>(it.row());
+      if (c.region_of[r] < 0) gw.emplace_back(c.block_index[r], static_cast<int>(col), it.value());
+    }
+  s.K_FF.resize(nF, nF);
+  s.K_FF.setFromTriplets(ff.begin(), ff.end());
+  s.K_FC.resize(nF, nC);
+  s.K_FC.setFromTriplets(fc.begin(), fc.end());
+  s.GtW_F.resize(nF, GtW.cols());
+  s.GtW_F.setFromTriplets(gw.begin(), gw.end());
+}
+
+// K_FF etc. for β (area units); factorizations are built on demand.
+System& system(Case& c, double beta) {
+  auto it = c.systems.find(beta);
+  if (it != c.systems.end()) return it->second;
+  System& s = c.systems[beta];
+  const PreparedMesh& pm = *c.pm;
+  s.raw_beta = pm.raw_beta(Beta{beta});
+  if (s.raw_beta == 0.0) {
+    split(c, pm.L(), pm.GtA(), s);  // the Laplacian's own narrow pattern
+  } else {
+    const double b = s.raw_beta;
+    // Wide pattern: union of both parts' patterns (explicit zeros kept), like the engine.
+    const SparseMatrix K = (1 - b) * pm.L() + b * pm.Reg();
+    const SparseMatrix GtW = (1 - b) * pm.GtA() + b * pm.GtDBD();
+    split(c, K, GtW, s);
+  }
+  return s;
+}
+const Factorization& cholmod(System& s) {
+  if (!s.cholmod) s.cholmod = std::make_shared<Factorization>(s.K_FF);
+  return *s.cholmod;
+}
+System::Simplicial& simplicial(System& s) {
+  if (!s.simplicial) {
+    s.simplicial = std::make_unique<System::Simplicial>();
+    s.simplicial->compute(s.K_FF);
+    if (s.simplicial->info() != Eigen::Success) throw std::runtime_error("SimplicialLLT failed");
+  }
+  return *s.simplicial;
+}
+
+// A handle move that differs slightly every iteration: pull the cap sideways and tilt it.
+HandleTransform move(const Case& c, int i) {
+  const double wiggle = 1e-3 * (i % 97);
+  if (c.def) {
+    HandleTransform t = HandleTransform::from_matrix(*c.def, c.cs->centroid(0));
+    t.translation += Eigen::Vector3d(wiggle, 0, 0);
+    return t;
+  }
+  HandleTransform t;
+  t.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(0.5 + wiggle, Eigen::Vector3d::UnitX()));
+  t.translation = Eigen::Vector3d(1.5 + wiggle, 0.0, -0.5);
+  return t;
+}
+
+Eigen::MatrixXd random_rhs(Eigen::Index rows) {
+  std::srand(7);
+  return Eigen::MatrixXd::Random(rows, 3);
+}
+
+void size_counters(benchmark::State& state, const Case& c) {
+  state.counters["n"] = c.mesh.num_vertices();
+  state.counters["nF"] = static_cast<double>(c.free_.size());
+}
+
+// ---------------------------------------------------------------------------------------
+// Benchmarks. `get` returns the case (built on first use, outside any timed region).
+Case& get(const std::string& key) {
+  if (key.rfind("bs-", 0) == 0) return botsch_sorkine(key.substr(3));
+  return capsule(std::stoi(key.substr(7)));
+}
+
+// PreparedMesh::create: validation, G, A, L, interior edges, regularizer.
+void BM_Operators(benchmark::State& state, std::string key) {
+  Case& c = get(key);
+  for (auto _ : state) {
+    state.PauseTiming();
+    TriMesh copy = c.mesh;
+    state.ResumeTiming();
+    auto pm = PreparedMesh::create(std::move(copy));
+    benchmark::DoNotOptimize(pm.get());
+    state.PauseTiming();
+    pm.reset();
+    state.ResumeTiming();
+  }
+  size_counters(state, c);
+  state.counters["nnz_L"] = static_cast<double>(c.pm->L().nonZeros());
+  state.counters["nnz_Reg"] = static_cast<double>(c.pm->Reg().nonZeros());
+  state.counters["prepared_MB"] = mb(c.pm_bytes);
+}
+
+// ConstraintSet construction: METIS analysis + β = 0 factorization of L_FF + harmonic basis.
+void BM_ConstraintSet(benchmark::State& state, std::string key) {
+  Case& c = get(key);
+  for (auto _ : state) {
+    auto cs = std::make_shared<ConstraintSet>(c.pm, c.constraints);
+    benchmark::DoNotOptimize(cs.get());
+    state.PauseTiming();
+    cs.reset();
+    state.ResumeTiming();
+  }
+  size_counters(state, c);
+  state.counters["cs_MB"] = mb(c.cs_bytes_open);
+}
+
+// Session open = operators + ConstraintSet (target at 100K: ≤ 1.5 s).
+void BM_SessionOpen(benchmark::State& state, std::string key) {
+  Case& c = get(key);
+  for (auto _ : state) {
+    state.PauseTiming();
+    TriMesh copy = c.mesh;
+    state.ResumeTiming();
+    auto pm = PreparedMesh::create(std::move(copy));
+    auto cs = std::make_shared<ConstraintSet>(pm, c.constraints);
+    benchmark::DoNotOptimize(cs.get());
+    state.PauseTiming();
+    cs.reset();
+    pm.reset();
+    state.ResumeTiming();
+  }
+  size_counters(state, c);
+}
+
+// First β > 0 on a constraint set: wide blocks + METIS on the wide pattern + factorization.
+void BM_BetaFirst(benchmark::State& state, std::string key) {
+  Case& c = get(key);
+  for (auto _ : state) {
+    state.PauseTiming();
+    auto cs = std::make_shared<ConstraintSet>(c.pm, c.constraints);
+    state.ResumeTiming();
+    cs->prepare(Beta{0.5});
+    state.PauseTiming();
+    cs.reset();
+    state.ResumeTiming();
+  }
+  size_counters(state, c);
+}
+
+// β change on a warm set: numeric factorization reusing the shared wide analysis (plus the
+// two value combinations for K_FC and (GᵀW_β)_F). A new β every iteration; dropped after.
+void BM_BetaRefactor(benchmark::State& state, std::string key) {
+  Case& c = get(key);
+  static int counter = 0;
+  for (auto _ : state) {
+    const Beta beta{0.3 + 1e-4 * (++counter % 1000)};
+    c.cs->prepare(beta);
+    state.PauseTiming();
+    c.cs->drop_factorization(beta);
+    state.ResumeTiming();
+  }
+  size_counters(state, c);
+  state.counters["cached"] = static_cast<double>(c.cs->num_cached_factorizations());
+}
+
+// Handle move with the factorization cached: guidance + RHS + solve + measures (+ normals,
+// energies unless `light`). Target at 100K: ≤ 10 ms.
+void BM_Update(benchmark::State& state, std::string key, double beta, bool light) {
+  Case& c = get(key);
+  c.cs->prepare(Beta{beta});
+  UpdateOptions opt;
+  if (light) opt.energies = opt.normals = false;
+  int i = 0;
+  for (auto _ : state) {
+    const HandleTransform t = move(c, i++);
+    Frame f = c.cs->update(std::span(&t, 1), Beta{beta}, opt);
+    benchmark::DoNotOptimize(f.positions.data());
+  }
+  size_counters(state, c);
+}
+
+// Two threads updating the same set concurrently (a session per client): throughput.
+void BM_UpdateConcurrent(benchmark::State& state, std::string key, double beta) {
+  Case& c = get(key);
+  c.cs->prepare(Beta{beta});
+  int i = state.thread_index() * 1000;
+  for (auto _ : state) {
+    const HandleTransform t = move(c, i++);
+    Frame f = c.cs->update(std::span(&t, 1), Beta{beta});
+    benchmark::DoNotOptimize(f.positions.data());
+  }
+}
+
+// Phases of update(), each on its own (the same operations the engine performs).
+enum class Phase {
+  guidance, rhs, solve, measures, measures_ef2, normals,
+  // Candidate improvements, measured on the same data (not used by the engine):
+  guidance_sketch,  // single handle: slerp angle precomputed, g row-major
+  rhs_rowmajor_g,   // (GᵀW)_F · g with g row-major: one pass over the matrix instead of 3
+  GX                // the G·X' product inside measure() on its own
+};
+
+using RowMajorX3 = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
+
+// Sketch of a cheaper single-handle guidance field (same result as guidance_field for
+// k = 1): slerp(I, q, h) = (cos(hθ/2), sin(hθ/2)·axis), so the angle and axis are computed
+// once and each triangle needs one sincos; g is written as 9 contiguous doubles.
+void guidance_sketch(const Triangles& F, const Vertices& normals, const Eigen::MatrixXd& Phi,
+                     const HandleTransform& t, RowMajorX3& g,
+                     std::vector<Eigen::Quaterniond>& R_l) {
+  const Eigen::Index m = F.rows();
+  g.resize(3 * m, 3);
+  R_l.resize(static_cast<std::size_t>(m));
+  Eigen::Quaterniond q = t.rotation.normalized();
+  if (q.w() < 0) q.coeffs() *= -1.0;
+  const double s = q.vec().norm();
+  const double theta = 2.0 * std::atan2(s, q.w());
+  const Eigen::Vector3d axis = s > 0 ? Eigen::Vector3d(q.vec() / s) : Eigen::Vector3d::UnitX();
+  const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
+  const Eigen::Matrix3d S1 = t.stretch;
+  const double* phi = Phi.data();
+  for (Eigen::Index l = 0; l < m; ++l) {
+    const double h = (phi[F(l, 0)] + phi[F(l, 1)] + phi[F(l, 2)]) * (1.0 / 3.0);
+    const double half = 0.5 * h * theta;
+    const Eigen::Quaterniond R(std::cos(half), std::sin(half) * axis.x(),
+                               std::sin(half) * axis.y(), std::sin(half) * axis.z());
+    R_l[l] = R;
+    const Eigen::Matrix3d M = R.toRotationMatrix() * ((1.0 - h) * I + h * S1);
+    const Eigen::Vector3d n = normals.row(l).transpose();
+    g.middleRows<3>(3 * l) = M.transpose() - n * (M * n).transpose();
+  }
+}
+
+void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta) {
+  Case& c = get(key);
+  System& s = system(c, beta);
+  const HandleTransform t = move(c, 0);
+  Eigen::MatrixX3d g;
+  std::vector<Eigen::Quaterniond> R_l;
+  c.cs->guidance(std::span(&t, 1), g, R_l);
+  const Frame frame = c.cs->update(std::span(&t, 1), Beta{beta}, {false, false});
+  Eigen::MatrixX3d x_C(static_cast<Eigen::Index>(c.constrained.size()), 3);
+  for (std::size_t r = 0; r < c.constrained.size(); ++r)
+    x_C.row(static_cast<Eigen::Index>(r)) = frame.positions.row(c.constrained[r]);
+  Eigen::MatrixXd rhs = s.GtW_F * g - s.K_FC * x_C;
+  const Factorization* fac = phase == Phase::solve ? &cholmod(s) : nullptr;
+  Eigen::VectorXf ef2;
+  RowMajorX3 g_row = g;
+  Eigen::MatrixX3d Y;
+  for (auto _ : state) {
+    switch (phase) {
+      case Phase::guidance:
+        c.cs->guidance(std::span(&t, 1), g, R_l);
+        benchmark::DoNotOptimize(g.data());
+        break;
+      case Phase::rhs:
+        rhs = s.GtW_F * g - s.K_FC * x_C;
+        benchmark::DoNotOptimize(rhs.data());
+        break;
+      case Phase::solve: {
+        Eigen::MatrixXd x = fac->solve(rhs);
+        benchmark::DoNotOptimize(x.data());
+        break;
+      }
+      case Phase::measures:
+      case Phase::measures_ef2: {
+        Measures m = measure(*c.pm, frame.positions, g, R_l,
+                             phase == Phase::measures_ef2 ? &ef2 : nullptr);
+        benchmark::DoNotOptimize(m);
+        break;
+      }
+      case Phase::guidance_sketch:
+        guidance_sketch(c.pm->mesh().F, c.pm->normals(), c.cs->harmonic_basis(), t, g_row, R_l);
+        benchmark::DoNotOptimize(g_row.data());
+        break;
+      case Phase::rhs_rowmajor_g:
+        rhs = s.GtW_F * g_row - s.K_FC * x_C;
+        benchmark::DoNotOptimize(rhs.data());
+        break;
+      case Phase::GX:
+        Y = c.pm->G() * frame.positions;
+        benchmark::DoNotOptimize(Y.data());
+        break;
+      case Phase::normals: {
+        Vertices N = vertex_normals(frame.positions, c.pm->mesh().F);
+        benchmark::DoNotOptimize(N.data());
+        break;
+      }
+    }
+  }
+  size_counters(state, c);
+  if (phase == Phase::guidance_sketch) {  // same field as the engine's?
+    Eigen::MatrixX3d g_engine;
+    std::vector<Eigen::Quaterniond> R_engine;
+    c.cs->guidance(std::span(&t, 1), g_engine, R_engine);
+    state.counters["diff_vs_engine"] = (RowMajorX3(g_engine) - g_row).cwiseAbs().maxCoeff();
+  }
+  if (phase == Phase::rhs_rowmajor_g)
+    state.counters["diff_vs_engine"] =
+        (rhs - (s.GtW_F * Eigen::MatrixX3d(g_row) - s.K_FC * x_C)).cwiseAbs().maxCoeff();
+}
+
+// Solver comparison on the same K_FF: CHOLMOD supernodal (METIS; the engine's
+// Factorization) vs Eigen SimplicialLLT (AMD; the thesis's solver).
+enum class Op { analyze_factor, factor, solve3 };
+
+void BM_Cholmod(benchmark::State& state, std::string key, double beta, Op op) {
+  Case& c = get(key);
+  System& s = system(c, beta);
+  const Eigen::MatrixXd B = random_rhs(s.K_FF.rows());
+  const Factorization& analysed = cholmod(s);
+  for (auto _ : state) {
+    switch (op) {
+      case Op::analyze_factor: {
+        auto f = std::make_unique<Factorization>(s.K_FF);
+        benchmark::DoNotOptimize(f.get());
+        state.PauseTiming();  // exclude freeing the factor
+        f.reset();
+        state.ResumeTiming();
+        break;
+      }
+      case Op::factor: {
+        auto f = std::make_unique<Factorization>(analysed, s.K_FF);
+        benchmark::DoNotOptimize(f.get());
+        state.PauseTiming();
+        f.reset();
+        state.ResumeTiming();
+        break;
+      }
+      case Op::solve3: {
+        Eigen::MatrixXd X = analysed.solve(B);
+        benchmark::DoNotOptimize(X.data());
+        break;
+      }
+    }
+  }
+  size_counters(state, c);
+  state.counters["nnz_K"] = static_cast<double>(s.K_FF.nonZeros());
+  state.counters["factor_MB"] = mb(analysed.memory_bytes());
+}
+
+void BM_Simplicial(benchmark::State& state, std::string key, double beta, Op op) {
+  Case& c = get(key);
+  System& s = system(c, beta);
+  const Eigen::MatrixXd B = random_rhs(s.K_FF.rows());
+  System::Simplicial& analysed = simplicial(s);
+  for (auto _ : state) {
+    switch (op) {
+      case Op::analyze_factor: {
+        auto f = std::make_unique<System::Simplicial>();
+        f->compute(s.K_FF);
+        benchmark::DoNotOptimize(f.get());
+        state.PauseTiming();
+        f.reset();
+        state.ResumeTiming();
+        break;
+      }
+      case Op::factor:
+        analysed.factorize(s.K_FF);
+        benchmark::DoNotOptimize(&analysed);
+        break;
+      case Op::solve3: {
+        Eigen::MatrixXd X = analysed.solve(B);
+        benchmark::DoNotOptimize(X.data());
+        break;
+      }
+    }
+  }
+  size_counters(state, c);
+  state.counters["nnz_K"] = static_cast<double>(s.K_FF.nonZeros());
+  // Eigen's simplicial L: values (double) + row indices (int).
+  state.counters["factor_MB"] =
+      mb(static_cast<std::size_t>(analysed.matrixL().nestedExpression().nonZeros()) * 12);
+}
+
+// Memory measured while the case was built (see finish_case). Iterations(1); the time
+// column of this benchmark is meaningless.
+void BM_Memory(benchmark::State& state, std::string key) {
+  Case& c = get(key);
+  for (auto _ : state) benchmark::DoNotOptimize(&c);
+  size_counters(state, c);
+  state.counters["rss_before_MB"] = c.rss_before;
+  state.counters["peak_open_MB"] = c.hwm_open;             // VmHWM after session open
+  state.counters["peak_beta_MB"] = c.hwm_beta;             // VmHWM during first β > 0
+  state.counters["rss_after_MB"] = c.rss_after;
+  state.counters["prepared_MB"] = mb(c.pm_bytes);          // PreparedMesh::memory_bytes
+  state.counters["cs_open_MB"] = mb(c.cs_bytes_open);      // ConstraintSet, β = 0 only
+  state.counters["cs_beta_MB"] = mb(c.cs_bytes_beta);      // + wide blocks + β = 0.5
+  state.counters["open_s"] = c.open_seconds;
+  state.counters["beta_first_s"] = c.beta_seconds;
+}
+
+// ---------------------------------------------------------------------------------------
+std::string beta_tag(double beta) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "beta:%g", beta);
+  return buf;
+}
+
+// Repetition policy: medians of 5 for the fast benchmarks; 1M (and SimplicialLLT at 100K
+// β > 0) run once; Iterations(1) where a single iteration takes seconds.
+enum class Cost { fast, slow, huge };
+
+benchmark::internal::Benchmark* policy(benchmark::internal::Benchmark* b, Cost cost) {
+  b->Unit(benchmark::kMillisecond)->UseRealTime();
+  if (g_smoke) return b->Iterations(1)->Repetitions(1);
+  switch (cost) {
+    case Cost::fast: return b->Repetitions(5)->ReportAggregatesOnly(true);
+    case Cost::slow: return b->MinTime(0.5)->Repetitions(3)->ReportAggregatesOnly(true);
+    case Cost::huge: return b->Iterations(1)->Repetitions(1);
+  }
+  return b;
+}
+
+template <typename... Args>
+void reg(const std::string& name, Cost cost, Args&&... args) {
+  policy(benchmark::RegisterBenchmark(name.c_str(), std::forward<Args>(args)...), cost);
+}
+
+void register_size(int n) {
+  const std::string key = case_name(n);
+  const std::string N = "/" + std::to_string(n);  // names: FAMILY/N[/...]
+  const bool big = n >= 1000000, small = n <= 10000;
+  const Cost fast = big ? Cost::huge : Cost::fast;
+  const Cost slow = big ? Cost::huge : (small ? Cost::fast : Cost::slow);
+
+  reg("Memory" + N, Cost::huge, BM_Memory, key);
+  reg("Operators" + N, slow, BM_Operators, key);
+  reg("ConstraintSet" + N, slow, BM_ConstraintSet, key);
+  reg("SessionOpen" + N, slow, BM_SessionOpen, key);
+  reg("BetaFirst" + N, slow, BM_BetaFirst, key);
+  reg("BetaRefactor" + N, slow, BM_BetaRefactor, key);
+  for (double beta : kBetas) {
+    reg("Update" + N + "/" + beta_tag(beta) + "/full", fast, BM_Update, key, beta, false);
+    reg("Update" + N + "/" + beta_tag(beta) + "/light", fast, BM_Update, key, beta, true);
+  }
+  if (!big) {
+    auto* b = benchmark::RegisterBenchmark(("UpdateConcurrent" + N + "/" + beta_tag(0.0)).c_str(),
+                                           BM_UpdateConcurrent, key, 0.0);
+    b->Unit(benchmark::kMillisecond)->UseRealTime()->Threads(1)->Threads(2);
+    if (g_smoke) b->Iterations(1);
+  }
+  reg("Phase" + N + "/guidance", fast, BM_Phase, key, Phase::guidance, 0.0);
+  reg("Phase" + N + "/measures", fast, BM_Phase, key, Phase::measures, 0.0);
+  reg("Phase" + N + "/measures+ef2", fast, BM_Phase, key, Phase::measures_ef2, 0.0);
+  reg("Phase" + N + "/normals", fast, BM_Phase, key, Phase::normals, 0.0);
+  reg("Phase" + N + "/GX", fast, BM_Phase, key, Phase::GX, 0.0);
+  reg("Phase" + N + "/guidance_sketch", fast, BM_Phase, key, Phase::guidance_sketch, 0.0);
+  for (double beta : kBetas) {
+    reg("Phase" + N + "/rhs/" + beta_tag(beta), fast, BM_Phase, key, Phase::rhs, beta);
+    reg("Phase" + N + "/rhs_rowmajor_g/" + beta_tag(beta), fast, BM_Phase, key,
+        Phase::rhs_rowmajor_g, beta);
+    reg("Phase" + N + "/solve/" + beta_tag(beta), fast, BM_Phase, key, Phase::solve, beta);
+  }
+  for (double beta : kBetas) {
+    const std::string B = beta_tag(beta);
+    reg("Solver" + N + "/cholmod/" + B + "/analyze+factor", slow, BM_Cholmod, key, beta,
+        Op::analyze_factor);
+    reg("Solver" + N + "/cholmod/" + B + "/factor", slow, BM_Cholmod, key, beta, Op::factor);
+    reg("Solver" + N + "/cholmod/" + B + "/solve3", fast, BM_Cholmod, key, beta, Op::solve3);
+    // SimplicialLLT (AMD) at β > 0: 5 s per factorization at 100K, minutes at 1M (skipped).
+    if (big && beta > 0) continue;
+    const Cost sslow = beta > 0 && !small ? Cost::huge : slow;
+    reg("Solver" + N + "/simplicial/" + B + "/analyze+factor", sslow, BM_Simplicial, key, beta,
+        Op::analyze_factor);
+    reg("Solver" + N + "/simplicial/" + B + "/factor", sslow, BM_Simplicial, key, beta,
+        Op::factor);
+    reg("Solver" + N + "/simplicial/" + B + "/solve3", fast, BM_Simplicial, key, beta,
+        Op::solve3);
+  }
+}
+
+void register_botsch_sorkine(const std::string& model) {
+  const std::string key = "bs-" + model;
+  const std::string P = "BS/" + model + "/";
+  reg(P + "memory", Cost::huge, BM_Memory, key);
+  reg(P + "open", Cost::fast, BM_SessionOpen, key);
+  reg(P + "refactor", Cost::fast, BM_BetaRefactor, key);
+  for (double beta : kBetas) {
+    reg(P + "update/" + beta_tag(beta), Cost::fast, BM_Update, key, beta, false);
+    reg(P + "cholmod/" + beta_tag(beta) + "/factor", Cost::fast, BM_Cholmod, key, beta,
+        Op::factor);
+    reg(P + "simplicial/" + beta_tag(beta) + "/factor", Cost::fast, BM_Simplicial, key, beta,
+        Op::factor);
+    reg(P + "cholmod/" + beta_tag(beta) + "/solve3", Cost::fast, BM_Cholmod, key, beta,
+        Op::solve3);
+    reg(P + "simplicial/" + beta_tag(beta) + "/solve3", Cost::fast, BM_Simplicial, key, beta,
+        Op::solve3);
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::vector<char*> args;
+  for (int i = 0; i < argc; ++i) {
+    if (std::strcmp(argv[i], "--hdeform_smoke") == 0)
+      g_smoke = true;
+    else
+      args.push_back(argv[i]);
+  }
+  int nargs = static_cast<int>(args.size());
+  benchmark::Initialize(&nargs, args.data());
+  if (benchmark::ReportUnrecognizedArguments(nargs, args.data())) return 1;
+
+  for (const char* model : {"cactus", "bar", "cylinder", "plane"}) register_botsch_sorkine(model);
+  for (int n : kSizes) register_size(n);
+
+  benchmark::AddCustomContext("peak_reset", reset_peak() ? "clear_refs" : "unavailable");
+  benchmark::AddCustomContext("note",
+                              "SimplicialLLT at beta>0 is skipped at 1M vertices (minutes per "
+                              "factorization); 1M benchmarks run one iteration");
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}

@@ -1,0 +1,158 @@
+// hdeform-server: the gRPC service on TCP (and optionally the gRPC-Web/HTTP gateway with
+// the web viewer). Every flag also reads an HDEFORM_* environment variable.
+#include "service/server.h"
+
+#ifdef HDEFORM_HAVE_GATEWAY
+#include "gateway/http_gateway.h"
+#endif
+
+#include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
+
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <pthread.h>
+#include <string>
+
+namespace {
+
+std::string default_web_root() {
+#if defined(HDEFORM_DEFAULT_WEB_ROOT)
+  const std::string root = HDEFORM_DEFAULT_WEB_ROOT;
+#elif defined(HDEFORM_SOURCE_DIR)
+  const std::string root = std::string(HDEFORM_SOURCE_DIR) + "/web-viewer/dist";
+#else
+  const std::string root;
+#endif
+  std::error_code ec;
+  return !root.empty() && std::filesystem::is_directory(root, ec) ? root : std::string();
+}
+
+std::string host_port(const std::string& host, int port) {
+  const bool v6 = host.find(':') != std::string::npos && host.front() != '[';
+  return (v6 ? "[" + host + "]" : host) + ":" + std::to_string(port);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"hdeform-server: interactive harmonic surface deformation over gRPC"};
+  int port = 50051;
+  std::string bind = "127.0.0.1";
+  std::string mesh_dir;
+  std::size_t max_sessions = 64;
+  std::size_t max_vertices = 2'000'000;
+  std::size_t max_upload_mb = 256;
+  std::size_t cache_mb = 4096;
+  long session_ttl = 3600;
+  int workers = 2;
+  std::string log_level = "info";
+  int http_port = -1;
+  std::string web_root = default_web_root();
+
+  app.add_option("--port", port, "gRPC TCP port (0 = any free port)")
+      ->envname("HDEFORM_PORT")
+      ->capture_default_str();
+  app.add_option("--bind", bind, "address to listen on")
+      ->envname("HDEFORM_BIND")
+      ->capture_default_str();
+  app.add_option("--mesh-dir", mesh_dir, "mesh library folder (default: the bundled data/)")
+      ->envname("HDEFORM_MESH_DIR");
+  app.add_option("--max-sessions", max_sessions, "most concurrent sessions")
+      ->envname("HDEFORM_MAX_SESSIONS")
+      ->capture_default_str();
+  app.add_option("--max-vertices", max_vertices, "largest mesh accepted (vertices)")
+      ->envname("HDEFORM_MAX_VERTICES")
+      ->capture_default_str();
+  app.add_option("--max-upload-mb", max_upload_mb, "largest upload accepted (MiB)")
+      ->envname("HDEFORM_MAX_UPLOAD_MB")
+      ->capture_default_str();
+  app.add_option("--cache-mb", cache_mb, "prepared meshes + factorizations cache budget (MiB)")
+      ->envname("HDEFORM_CACHE_MB")
+      ->capture_default_str();
+  app.add_option("--session-ttl", session_ttl, "idle session lifetime (seconds)")
+      ->envname("HDEFORM_SESSION_TTL")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--workers", workers, "solver threads")
+      ->envname("HDEFORM_WORKERS")
+      ->check(CLI::Range(1, 256))
+      ->capture_default_str();
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical, off")
+      ->envname("HDEFORM_LOG_LEVEL")
+      ->check(CLI::IsMember(
+          {"trace", "debug", "info", "warn", "warning", "err", "error", "critical", "off"}))
+      ->capture_default_str();
+  app.add_option("--http-port", http_port,
+                 "gRPC-Web + web viewer HTTP port (-1 = off, 0 = any free port)")
+      ->envname("HDEFORM_HTTP_PORT")
+      ->capture_default_str();
+  app.add_option("--web-root", web_root, "built web viewer served on --http-port")
+      ->envname("HDEFORM_WEB_ROOT");
+  CLI11_PARSE(app, argc, argv);
+
+  spdlog::set_level(spdlog::level::from_str(log_level));
+
+  // SIGINT/SIGTERM are taken by sigwait() below: block them before any thread starts.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  hdeform::service::ServerOptions options;
+  options.listen_address = host_port(bind, port);
+  options.mesh_dir = mesh_dir;
+  options.workers = workers;
+  options.max_sessions = max_sessions;
+  options.max_vertices = max_vertices;
+  options.max_upload_bytes = max_upload_mb << 20;
+  options.cache_bytes = cache_mb << 20;
+  options.session_ttl = std::chrono::seconds(session_ttl);
+
+  std::unique_ptr<hdeform::service::Server> server;
+  try {
+    server = std::make_unique<hdeform::service::Server>(options);
+  } catch (const std::exception& e) {
+    spdlog::critical("{}", e.what());
+    return 1;
+  }
+  std::cout << "hdeform-server listening on " << host_port(bind, server->port()) << std::endl;
+
+#ifdef HDEFORM_HAVE_GATEWAY
+  std::unique_ptr<hdeform::gateway::HttpGateway> gateway;
+  if (http_port >= 0) {
+    hdeform::gateway::GatewayOptions g;
+    g.address = bind;
+    g.port = http_port;
+    g.web_root = web_root;
+    g.max_body_bytes = options.max_upload_bytes + (16u << 20);
+    try {
+      gateway = std::make_unique<hdeform::gateway::HttpGateway>(g, server->in_process_channel());
+    } catch (const std::exception& e) {
+      spdlog::critical("HTTP gateway: {}", e.what());
+      server->shutdown();
+      return 1;
+    }
+    std::cout << "hdeform-server http on " << host_port(bind, gateway->port())
+              << (web_root.empty() ? " (API only)" : " (viewer: " + web_root + ")") << std::endl;
+  }
+#else
+  if (http_port >= 0) spdlog::warn("--http-port: this build has no HTTP gateway");
+#endif
+
+  int sig = 0;
+  sigwait(&signals, &sig);
+  spdlog::info("signal {}: shutting down", sig);
+#ifdef HDEFORM_HAVE_GATEWAY
+  if (gateway) gateway->stop();
+  gateway.reset();
+#endif
+  server->shutdown(std::chrono::milliseconds(2000));
+  server.reset();
+  spdlog::info("bye");
+  return 0;
+}

@@ -1,0 +1,677 @@
+#include "deform_service.h"
+
+#include "convert.h"
+#include "errors.h"
+
+#include <spdlog/spdlog.h>
+
+#include <deque>
+#include <mutex>
+#include <optional>
+
+namespace hdeform::service {
+
+namespace {
+
+Limits limits_from(const ServerOptions& o) {
+  Limits l;
+  l.max_sessions = o.max_sessions;
+  l.max_vertices = o.max_vertices;
+  l.max_upload_bytes = o.max_upload_bytes;
+  l.session_ttl = std::chrono::duration_cast<std::chrono::milliseconds>(o.session_ttl);
+  return l;
+}
+
+constexpr std::size_t kMeshChunkBytes = 1u << 20;
+
+// ---------------------------------------------------------------------------------------
+// CreateSession: header, then upload chunks; the byte limit is enforced as chunks arrive.
+class CreateSessionReactor final : public grpc::ServerReadReactor<v1::CreateSessionRequest> {
+ public:
+  CreateSessionReactor(DeformService* svc, v1::Session* response)
+      : svc_(svc), response_(response) {
+    StartRead(&request_);
+  }
+
+  void OnReadDone(bool ok) override {
+    if (!ok) {
+      finish_upload();
+      return;
+    }
+    if (!have_header_) {
+      if (!request_.has_header()) {
+        Finish({grpc::StatusCode::INVALID_ARGUMENT,
+                "the first CreateSessionRequest must carry the header"});
+        return;
+      }
+      header_ = request_.header();
+      have_header_ = true;
+      const auto status = guarded([&] { check_header(); }, "CreateSession");
+      if (!status.ok()) {
+        Finish(status);
+        return;
+      }
+    } else {
+      if (!request_.has_chunk()) {
+        Finish({grpc::StatusCode::INVALID_ARGUMENT,
+                "only chunks may follow the CreateSession header"});
+        return;
+      }
+      if (header_.has_library_mesh()) {
+        Finish({grpc::StatusCode::INVALID_ARGUMENT,
+                "a library mesh takes no upload chunks"});
+        return;
+      }
+      received_ += request_.chunk().size();
+      if (received_ > svc_->sessions().limits().max_upload_bytes) {
+        spdlog::warn("CreateSession: upload '{}' exceeds {} bytes; rejected", header_.filename(),
+                     svc_->sessions().limits().max_upload_bytes);
+        Finish({grpc::StatusCode::RESOURCE_EXHAUSTED,
+                "upload exceeds the limit of " +
+                    std::to_string(svc_->sessions().limits().max_upload_bytes) + " bytes"});
+        return;
+      }
+      data_->append(request_.chunk());
+    }
+    request_.Clear();
+    StartRead(&request_);
+  }
+
+  void OnDone() override { delete this; }
+
+ private:
+  void check_header() {
+    const auto& limits = svc_->sessions().limits();
+    switch (header_.source_case()) {
+      case v1::CreateSessionHeader::kLibraryMesh:
+        if (header_.library_mesh().empty()) fail(grpc::StatusCode::INVALID_ARGUMENT,
+                                                 "library_mesh is empty");
+        break;
+      case v1::CreateSessionHeader::kFilename:
+        if (header_.filename().empty())
+          fail(grpc::StatusCode::INVALID_ARGUMENT, "an upload needs a filename (its format)");
+        break;
+      default:
+        fail(grpc::StatusCode::INVALID_ARGUMENT,
+             "CreateSessionHeader needs library_mesh or filename");
+    }
+    if (header_.total_bytes() < 0)
+      fail(grpc::StatusCode::INVALID_ARGUMENT, "total_bytes must not be negative");
+    if (static_cast<std::uint64_t>(header_.total_bytes()) > limits.max_upload_bytes)
+      fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
+           "upload of " + std::to_string(header_.total_bytes()) + " bytes exceeds the limit of " +
+               std::to_string(limits.max_upload_bytes) + " bytes");
+    svc_->sessions().check_capacity();
+    if (header_.total_bytes() > 0) data_->reserve(static_cast<std::size_t>(header_.total_bytes()));
+  }
+
+  void finish_upload() {
+    if (!have_header_) {
+      Finish({grpc::StatusCode::INVALID_ARGUMENT, "CreateSession needs a header"});
+      return;
+    }
+    std::shared_ptr<const std::string> bytes = std::move(data_);
+    svc_->pool().submit([this, bytes] {
+      const auto status = guarded(
+          [&] {
+            svc_->sessions().check_capacity();
+            std::shared_ptr<const MeshRef> mesh =
+                header_.has_library_mesh() ? svc_->load_library_mesh(header_.library_mesh())
+                                           : svc_->load_upload(bytes, header_.filename());
+            auto session = svc_->sessions().create(std::move(mesh));
+            *response_ = session->describe();
+          },
+          "CreateSession");
+      Finish(status);
+    });
+  }
+
+  DeformService* svc_;
+  v1::Session* response_;
+  v1::CreateSessionRequest request_;
+  v1::CreateSessionHeader header_;
+  bool have_header_ = false;
+  std::size_t received_ = 0;
+  std::shared_ptr<std::string> data_ = std::make_shared<std::string>();
+};
+
+// ---------------------------------------------------------------------------------------
+// GetMesh: the file is produced on the session's strand, then streamed in ≤ 1 MiB chunks.
+class MeshWriter final : public grpc::ServerWriteReactor<v1::MeshChunk> {
+ public:
+  MeshWriter(std::shared_ptr<Session> session, const v1::GetMeshRequest& request)
+      : session_(std::move(session)) {
+    const bool rest = request.rest();
+    const auto format = request.format();
+    session_->post([this, rest, format] {
+      const auto status = guarded([&] { data_ = session_->mesh_file(rest, format); }, "GetMesh");
+      if (!status.ok()) {
+        Finish(status);
+        return;
+      }
+      std::lock_guard lock(mutex_);
+      next_locked();
+    });
+  }
+
+  void OnWriteDone(bool ok) override {
+    std::lock_guard lock(mutex_);
+    if (!ok) {
+      Finish({grpc::StatusCode::CANCELLED, "GetMesh: the client went away"});
+      return;
+    }
+    next_locked();
+  }
+
+  void OnDone() override { delete this; }
+
+ private:
+  void next_locked() {
+    if (offset_ >= data_.size() && offset_ > 0) {
+      Finish(grpc::Status::OK);
+      return;
+    }
+    chunk_.Clear();
+    if (offset_ == 0) chunk_.set_total_bytes(static_cast<std::int64_t>(data_.size()));
+    const std::size_t n = std::min(kMeshChunkBytes, data_.size() - offset_);
+    chunk_.set_data(data_.substr(offset_, n));
+    offset_ += n;
+    if (data_.empty()) offset_ = 1;  // an empty file is one empty chunk
+    StartWrite(&chunk_);
+  }
+
+  std::shared_ptr<Session> session_;
+  std::mutex mutex_;
+  std::string data_;
+  std::size_t offset_ = 0;
+  v1::MeshChunk chunk_;
+};
+
+// ---------------------------------------------------------------------------------------
+// WatchSession: the session's state and frames. A slow reader never has more than one
+// frame (the newest) and one state (the newest) waiting.
+class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
+ public:
+  WatchReactor(std::shared_ptr<Session> session) : session_(std::move(session)) {
+    sink_ = std::make_shared<Sink>(this);
+    session_->add_watcher(sink_);
+  }
+
+  void OnWriteDone(bool ok) override {
+    std::lock_guard lock(mutex_);
+    writing_ = false;
+    current_.reset();
+    if (!ok) {
+      finish_locked({grpc::StatusCode::CANCELLED, "watcher went away"});
+      return;
+    }
+    next_locked();
+  }
+
+  void OnCancel() override {
+    std::lock_guard lock(mutex_);
+    finish_locked({grpc::StatusCode::CANCELLED, "watch cancelled"});
+  }
+
+  void OnDone() override {
+    {
+      std::lock_guard lock(sink_->mutex);
+      sink_->reactor = nullptr;
+    }
+    session_->remove_watcher(sink_.get());
+    delete this;
+  }
+
+ private:
+  struct Sink final : EventSink {
+    explicit Sink(WatchReactor* r) : reactor(r) {}
+    void push(std::shared_ptr<const v1::SessionEvent> event) override {
+      std::lock_guard lock(mutex);
+      if (reactor) reactor->enqueue(std::move(event));
+    }
+    void close() override {
+      std::lock_guard lock(mutex);
+      if (reactor) reactor->end();
+    }
+    std::mutex mutex;
+    WatchReactor* reactor;
+  };
+
+  void enqueue(std::shared_ptr<const v1::SessionEvent> event) {
+    std::lock_guard lock(mutex_);
+    if (finished_ || closing_) return;
+    // Latest wins: a newer frame replaces a waiting frame, a newer state a waiting state.
+    const auto kind = event->event_case();
+    if (kind == v1::SessionEvent::kFrame || kind == v1::SessionEvent::kState) {
+      for (auto it = pending_.begin(); it != pending_.end(); ++it)
+        if ((*it)->event_case() == kind) {
+          pending_.erase(it);
+          ++skipped_;
+          break;
+        }
+    }
+    pending_.push_back(std::move(event));
+    if (!writing_) next_locked();
+  }
+
+  void end() {
+    std::lock_guard lock(mutex_);
+    closing_ = true;
+    if (!writing_) next_locked();
+  }
+
+  void next_locked() {
+    if (finished_) return;
+    if (pending_.empty()) {
+      if (closing_) finish_locked(grpc::Status::OK);
+      return;
+    }
+    current_ = std::move(pending_.front());
+    pending_.pop_front();
+    writing_ = true;
+    StartWrite(current_.get());
+  }
+
+  void finish_locked(const grpc::Status& status) {
+    if (finished_) return;
+    finished_ = true;
+    pending_.clear();
+    Finish(status);
+  }
+
+  std::shared_ptr<Session> session_;
+  std::shared_ptr<Sink> sink_;
+  std::mutex mutex_;
+  std::deque<std::shared_ptr<const v1::SessionEvent>> pending_;
+  std::shared_ptr<const v1::SessionEvent> current_;
+  bool writing_ = false, closing_ = false, finished_ = false;
+  std::uint64_t skipped_ = 0;
+};
+
+// ---------------------------------------------------------------------------------------
+// Deform: handle updates in, frames out. Reads never stop: while a solve runs, only the
+// newest update waits (latest wins); while a frame is being written, only the newest frame
+// waits (a slow reader skips frames). The reactor outlives OnDone until its last solve
+// has come back from the pool.
+class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1::Frame> {
+ public:
+  explicit DeformReactor(DeformService* svc) : svc_(svc) { StartRead(&in_); }
+
+  void OnReadDone(bool ok) override {
+    std::unique_lock lock(mutex_);
+    if (!ok) {
+      reads_done_ = true;
+      maybe_finish_locked();
+      return;
+    }
+    ++received_;
+    if (!session_) {
+      if (in_.name().empty()) {
+        finish_locked({grpc::StatusCode::INVALID_ARGUMENT,
+                       "the first DeformRequest must name the session"});
+        return;
+      }
+      session_ = svc_->sessions().find(in_.name());
+      if (!session_) {
+        finish_locked({grpc::StatusCode::NOT_FOUND, "no session '" + in_.name() + "'"});
+        return;
+      }
+      session_->stream_opened();
+    }
+    if (finished_) return;
+    if (pending_) ++coalesced_;
+    pending_ = std::move(in_);
+    in_.Clear();
+    if (!solving_) start_solve_locked();
+    StartRead(&in_);
+  }
+
+  void OnWriteDone(bool ok) override {
+    std::unique_lock lock(mutex_);
+    writing_ = false;
+    current_.reset();
+    if (!ok) {
+      finish_locked({grpc::StatusCode::CANCELLED, "Deform: the client went away"});
+      return;
+    }
+    if (pending_out_) {
+      write_locked(std::move(pending_out_));
+      pending_out_.reset();
+    } else {
+      maybe_finish_locked();
+    }
+  }
+
+  void OnCancel() override {
+    std::unique_lock lock(mutex_);
+    finish_locked({grpc::StatusCode::CANCELLED, "Deform cancelled"});
+  }
+
+  void OnDone() override {
+    std::unique_lock lock(mutex_);
+    done_ = true;
+    if (session_) {
+      session_->stream_closed();
+      spdlog::debug("{}: Deform stream ended: {} updates, {} solves, {} frames skipped",
+                    session_->name(), received_, solves_, skipped_frames_);
+    }
+    if (inflight_ == 0) {
+      lock.unlock();
+      delete this;
+    }
+  }
+
+ private:
+  void start_solve_locked() {
+    solving_ = true;
+    ++inflight_;
+    ++solves_;
+    auto request = std::make_shared<v1::DeformRequest>(std::move(*pending_));
+    pending_.reset();
+    session_->post([this, request] {
+      std::shared_ptr<v1::Frame> frame;
+      const auto status = guarded(
+          [&] {
+            Session::Update u;
+            u.sequence = request->sequence();
+            u.transforms = &request->transforms();
+            u.keep_transforms_if_empty = true;
+            u.energies = request->energies();
+            u.beta = request->has_beta() ? &request->beta() : nullptr;
+            frame = session_->update(u);
+          },
+          "Deform");
+      solved(status, std::move(frame));
+    });
+  }
+
+  void solved(const grpc::Status& status, std::shared_ptr<v1::Frame> frame) {
+    std::unique_lock lock(mutex_);
+    --inflight_;
+    solving_ = false;
+    if (done_) {
+      if (inflight_ == 0) {
+        lock.unlock();
+        delete this;
+      }
+      return;
+    }
+    if (finished_) return;
+    if (!status.ok()) {
+      finish_locked(status);
+      return;
+    }
+    if (writing_) {
+      if (pending_out_) ++skipped_frames_;
+      pending_out_ = std::move(frame);
+    } else {
+      write_locked(std::move(frame));
+    }
+    if (pending_)
+      start_solve_locked();
+    else
+      maybe_finish_locked();
+  }
+
+  void write_locked(std::shared_ptr<v1::Frame> frame) {
+    current_ = std::move(frame);
+    writing_ = true;
+    StartWrite(current_.get());
+  }
+
+  void maybe_finish_locked() {
+    if (reads_done_ && !solving_ && !pending_ && !writing_ && !pending_out_)
+      finish_locked(grpc::Status::OK);
+  }
+
+  void finish_locked(const grpc::Status& status) {
+    if (finished_) return;
+    finished_ = true;
+    pending_.reset();
+    pending_out_.reset();
+    Finish(status);
+  }
+
+  DeformService* svc_;
+  std::mutex mutex_;
+  v1::DeformRequest in_;
+  std::optional<v1::DeformRequest> pending_;
+  std::shared_ptr<v1::Frame> current_, pending_out_;
+  std::shared_ptr<Session> session_;
+  bool solving_ = false, writing_ = false, reads_done_ = false, finished_ = false, done_ = false;
+  int inflight_ = 0;
+  std::uint64_t received_ = 0, coalesced_ = 0, solves_ = 0, skipped_frames_ = 0;
+};
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------
+
+DeformService::DeformService(const ServerOptions& options)
+    : options_(options),
+      pool_(std::make_unique<WorkerPool>(options.workers)),
+      cache_(options.cache_bytes),
+      library_(options.mesh_dir.empty() ? default_mesh_dir() : options.mesh_dir),
+      store_(limits_from(options), *pool_, cache_) {
+  store_.start_sweeper();
+  spdlog::info("mesh library: {} ({} meshes)", library_.dir().empty() ? "(none)" : library_.dir(),
+               library_.list().size());
+}
+
+DeformService::~DeformService() {
+  close_sessions();
+  stop_workers();
+}
+
+void DeformService::close_sessions() { store_.shutdown(); }
+void DeformService::stop_workers() { pool_->stop(); }
+
+std::shared_ptr<const MeshRef> DeformService::load_library_mesh(const std::string& name) {
+  auto entry = library_.find(name);
+  if (!entry) fail(grpc::StatusCode::NOT_FOUND, "no mesh '" + name + "' in the library");
+  auto bytes = std::make_shared<const std::string>(read_file(entry->path));
+  return load_mesh(bytes, entry->path, entry->name, cache_, options_.max_vertices);
+}
+
+std::shared_ptr<const MeshRef> DeformService::load_upload(std::shared_ptr<const std::string> bytes,
+                                                          const std::string& filename) {
+  if (bytes->size() > options_.max_upload_bytes)
+    fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
+         "upload exceeds the limit of " + std::to_string(options_.max_upload_bytes) + " bytes");
+  return load_mesh(std::move(bytes), filename, "", cache_, options_.max_vertices);
+}
+
+grpc::ServerUnaryReactor* DeformService::finish_inline(grpc::CallbackServerContext* ctx,
+                                                       const char* op, const Work& fn) {
+  auto* reactor = ctx->DefaultReactor();
+  reactor->Finish(guarded(fn, op));
+  return reactor;
+}
+
+grpc::ServerUnaryReactor* DeformService::finish_on_pool(grpc::CallbackServerContext* ctx,
+                                                        const char* op, Work fn) {
+  auto* reactor = ctx->DefaultReactor();
+  pool_->submit([reactor, op, fn = std::move(fn)] { reactor->Finish(guarded(fn, op)); });
+  return reactor;
+}
+
+grpc::ServerUnaryReactor* DeformService::finish_on_session(grpc::CallbackServerContext* ctx,
+                                                           const char* op,
+                                                           const std::string& name,
+                                                           std::function<void(Session&)> fn) {
+  auto* reactor = ctx->DefaultReactor();
+  auto session = store_.find(name);
+  if (!session) {
+    reactor->Finish({grpc::StatusCode::NOT_FOUND, "no session '" + name + "'"});
+    return reactor;
+  }
+  session->post([reactor, op, session, fn = std::move(fn)] {
+    reactor->Finish(guarded([&] { fn(*session); }, op));
+  });
+  return reactor;
+}
+
+grpc::ServerReadReactor<v1::CreateSessionRequest>* DeformService::CreateSession(
+    grpc::CallbackServerContext*, v1::Session* response) {
+  return new CreateSessionReactor(this, response);
+}
+
+grpc::ServerUnaryReactor* DeformService::GetSession(grpc::CallbackServerContext* ctx,
+                                                    const v1::GetSessionRequest* request,
+                                                    v1::Session* response) {
+  return finish_inline(ctx, "GetSession",
+                       [&] { *response = store_.get(request->name())->describe(); });
+}
+
+grpc::ServerUnaryReactor* DeformService::ListSessions(grpc::CallbackServerContext* ctx,
+                                                      const v1::ListSessionsRequest*,
+                                                      v1::ListSessionsResponse* response) {
+  return finish_inline(ctx, "ListSessions", [&] {
+    for (auto& s : store_.list()) *response->add_sessions() = s->describe();
+  });
+}
+
+grpc::ServerUnaryReactor* DeformService::DeleteSession(grpc::CallbackServerContext* ctx,
+                                                       const v1::DeleteSessionRequest* request,
+                                                       v1::DeleteSessionResponse*) {
+  return finish_inline(ctx, "DeleteSession", [&] {
+    if (!store_.remove(request->name()))
+      fail(grpc::StatusCode::NOT_FOUND, "no session '" + request->name() + "'");
+  });
+}
+
+grpc::ServerUnaryReactor* DeformService::ListMeshes(grpc::CallbackServerContext* ctx,
+                                                    const v1::ListMeshesRequest*,
+                                                    v1::ListMeshesResponse* response) {
+  return finish_on_pool(ctx, "ListMeshes", [this, response] {
+    for (const auto& e : library_.list()) {
+      auto* m = response->add_meshes();
+      m->set_name(e.name);
+      m->set_path(e.path);
+      m->set_has_benchmark(e.has_benchmark);
+    }
+  });
+}
+
+grpc::ServerUnaryReactor* DeformService::SetConstraints(grpc::CallbackServerContext* ctx,
+                                                        const v1::SetConstraintsRequest* request,
+                                                        v1::Session* response) {
+  return finish_on_session(ctx, "SetConstraints", request->name(), [request, response](Session& s) {
+    *response = s.set_constraints(request->constraints(), request->expected_version());
+  });
+}
+
+grpc::ServerUnaryReactor* DeformService::SetBeta(grpc::CallbackServerContext* ctx,
+                                                 const v1::SetBetaRequest* request,
+                                                 v1::Session* response) {
+  return finish_on_session(ctx, "SetBeta", request->name(), [request, response](Session& s) {
+    *response = s.set_beta(request->beta(), request->expected_version());
+  });
+}
+
+grpc::ServerUnaryReactor* DeformService::UpdateHandles(grpc::CallbackServerContext* ctx,
+                                                       const v1::UpdateHandlesRequest* request,
+                                                       v1::Frame* response) {
+  return finish_on_session(ctx, "UpdateHandles", request->name(), [request, response](Session& s) {
+    Session::Update u;
+    u.sequence = request->sequence();
+    u.transforms = &request->transforms();
+    u.energies = request->energies();
+    u.expected_version = request->expected_version();
+    auto frame = s.update(u);
+    response->Swap(frame.get());
+  });
+}
+
+grpc::ServerWriteReactor<v1::MeshChunk>* DeformService::GetMesh(
+    grpc::CallbackServerContext*, const v1::GetMeshRequest* request) {
+  auto session = store_.find(request->name());
+  if (!session) {
+    class Fail final : public grpc::ServerWriteReactor<v1::MeshChunk> {
+     public:
+      explicit Fail(grpc::Status s) { Finish(std::move(s)); }
+      void OnDone() override { delete this; }
+    };
+    return new Fail({grpc::StatusCode::NOT_FOUND, "no session '" + request->name() + "'"});
+  }
+  return new MeshWriter(std::move(session), *request);
+}
+
+grpc::ServerUnaryReactor* DeformService::Sweep(grpc::CallbackServerContext* ctx,
+                                               const v1::SweepRequest* request,
+                                               v1::SweepResponse* response) {
+  return finish_on_session(ctx, "Sweep", request->name(),
+                           [request, response](Session& s) { *response = s.sweep(*request); });
+}
+
+grpc::ServerBidiReactor<v1::DeformRequest, v1::Frame>* DeformService::Deform(
+    grpc::CallbackServerContext*) {
+  return new DeformReactor(this);
+}
+
+grpc::ServerWriteReactor<v1::SessionEvent>* DeformService::WatchSession(
+    grpc::CallbackServerContext*, const v1::WatchSessionRequest* request) {
+  auto session = store_.find(request->name());
+  if (!session) {
+    class Fail final : public grpc::ServerWriteReactor<v1::SessionEvent> {
+     public:
+      explicit Fail(grpc::Status s) { Finish(std::move(s)); }
+      void OnDone() override { delete this; }
+    };
+    return new Fail({grpc::StatusCode::NOT_FOUND, "no session '" + request->name() + "'"});
+  }
+  return new WatchReactor(std::move(session));
+}
+
+grpc::ServerUnaryReactor* DeformService::ExportSession(grpc::CallbackServerContext* ctx,
+                                                       const v1::ExportSessionRequest* request,
+                                                       v1::Snapshot* response) {
+  return finish_on_session(ctx, "ExportSession", request->name(), [request, response](Session& s) {
+    *response = s.export_snapshot(request->include_mesh());
+  });
+}
+
+grpc::ServerUnaryReactor* DeformService::ImportSession(grpc::CallbackServerContext* ctx,
+                                                       const v1::ImportSessionRequest* request,
+                                                       v1::Session* response) {
+  return finish_on_pool(ctx, "ImportSession", [this, request, response] {
+    const auto& snap = request->snapshot();
+    store_.check_capacity();
+    std::shared_ptr<const MeshRef> mesh;
+    if (!snap.mesh_bytes().empty()) {
+      const std::string filename =
+          !snap.filename().empty() ? snap.filename()
+                                   : (!snap.library_mesh().empty() ? snap.library_mesh() : "");
+      if (filename.empty())
+        fail(grpc::StatusCode::INVALID_ARGUMENT, "snapshot mesh_bytes need a filename");
+      auto bytes = std::make_shared<const std::string>(snap.mesh_bytes());
+      mesh = snap.library_mesh().empty()
+                 ? load_upload(bytes, filename)
+                 : load_mesh(bytes, filename, snap.library_mesh(), cache_, options_.max_vertices);
+    } else if (!snap.library_mesh().empty()) {
+      mesh = load_library_mesh(snap.library_mesh());
+    } else if (!snap.mesh_hash().empty()) {
+      mesh = store_.find_mesh(snap.mesh_hash());
+      if (!mesh)
+        fail(grpc::StatusCode::NOT_FOUND,
+             "mesh " + snap.mesh_hash() +
+                 " is not on this server: export the snapshot with include_mesh");
+    } else {
+      fail(grpc::StatusCode::INVALID_ARGUMENT,
+           "snapshot names no mesh (mesh_bytes, library_mesh or mesh_hash)");
+    }
+    if (!snap.mesh_hash().empty() && snap.mesh_hash() != mesh->hash)
+      fail(grpc::StatusCode::INVALID_ARGUMENT, "snapshot mesh hash " + snap.mesh_hash() +
+                                                   " does not match the mesh's hash " +
+                                                   mesh->hash);
+    auto session = store_.create(mesh);
+    const auto status = guarded([&] { session->restore(snap); }, "ImportSession");
+    if (!status.ok()) {
+      store_.remove(session->name());
+      throw ServiceError(status.error_code(), status.error_message());
+    }
+    *response = session->describe();
+  });
+}
+
+}  // namespace hdeform::service

@@ -1,0 +1,98 @@
+// The hdeform.v1.Deformation service on gRPC's callback API. Reactions never block:
+// parsing, preparing, factorizing and solving run on the worker pool, one session's work
+// serialized on that session's strand.
+#pragma once
+
+#include "cache.h"
+#include "hdeform/v1/deform.grpc.pb.h"
+#include "mesh_library.h"
+#include "server.h"
+#include "session_store.h"
+#include "worker_pool.h"
+
+#include <atomic>
+#include <functional>
+#include <memory>
+
+namespace hdeform::service {
+
+class DeformService final : public v1::Deformation::CallbackService {
+ public:
+  explicit DeformService(const ServerOptions& options);
+  ~DeformService() override;
+
+  // Ends every WatchSession stream (sessions are closed) and stops the TTL sweeper.
+  void close_sessions();
+  // Drains and joins the worker pool (after the gRPC server has shut down).
+  void stop_workers();
+
+  SessionStore& sessions() { return store_; }
+  Cache& cache() { return cache_; }
+  WorkerPool& pool() { return *pool_; }
+  const MeshLibrary& library() const { return library_; }
+  const ServerOptions& options() const { return options_; }
+
+  grpc::ServerReadReactor<v1::CreateSessionRequest>* CreateSession(
+      grpc::CallbackServerContext* ctx, v1::Session* response) override;
+  grpc::ServerUnaryReactor* GetSession(grpc::CallbackServerContext* ctx,
+                                       const v1::GetSessionRequest* request,
+                                       v1::Session* response) override;
+  grpc::ServerUnaryReactor* ListSessions(grpc::CallbackServerContext* ctx,
+                                         const v1::ListSessionsRequest* request,
+                                         v1::ListSessionsResponse* response) override;
+  grpc::ServerUnaryReactor* DeleteSession(grpc::CallbackServerContext* ctx,
+                                          const v1::DeleteSessionRequest* request,
+                                          v1::DeleteSessionResponse* response) override;
+  grpc::ServerUnaryReactor* ListMeshes(grpc::CallbackServerContext* ctx,
+                                       const v1::ListMeshesRequest* request,
+                                       v1::ListMeshesResponse* response) override;
+  grpc::ServerUnaryReactor* SetConstraints(grpc::CallbackServerContext* ctx,
+                                           const v1::SetConstraintsRequest* request,
+                                           v1::Session* response) override;
+  grpc::ServerUnaryReactor* SetBeta(grpc::CallbackServerContext* ctx,
+                                    const v1::SetBetaRequest* request,
+                                    v1::Session* response) override;
+  grpc::ServerUnaryReactor* UpdateHandles(grpc::CallbackServerContext* ctx,
+                                          const v1::UpdateHandlesRequest* request,
+                                          v1::Frame* response) override;
+  grpc::ServerWriteReactor<v1::MeshChunk>* GetMesh(grpc::CallbackServerContext* ctx,
+                                                   const v1::GetMeshRequest* request) override;
+  grpc::ServerUnaryReactor* Sweep(grpc::CallbackServerContext* ctx,
+                                  const v1::SweepRequest* request,
+                                  v1::SweepResponse* response) override;
+  grpc::ServerBidiReactor<v1::DeformRequest, v1::Frame>* Deform(
+      grpc::CallbackServerContext* ctx) override;
+  grpc::ServerWriteReactor<v1::SessionEvent>* WatchSession(
+      grpc::CallbackServerContext* ctx, const v1::WatchSessionRequest* request) override;
+  grpc::ServerUnaryReactor* ExportSession(grpc::CallbackServerContext* ctx,
+                                          const v1::ExportSessionRequest* request,
+                                          v1::Snapshot* response) override;
+  grpc::ServerUnaryReactor* ImportSession(grpc::CallbackServerContext* ctx,
+                                          const v1::ImportSessionRequest* request,
+                                          v1::Session* response) override;
+
+  // Blocking helpers used by the reactors (run on the pool).
+  std::shared_ptr<const MeshRef> load_library_mesh(const std::string& name);
+  std::shared_ptr<const MeshRef> load_upload(std::shared_ptr<const std::string> bytes,
+                                             const std::string& filename);
+
+ private:
+  using Work = std::function<void()>;
+  // Finish a unary call with fn's outcome: inline (cheap), on the pool, or on a session's
+  // strand (NOT_FOUND when the session does not exist).
+  grpc::ServerUnaryReactor* finish_inline(grpc::CallbackServerContext* ctx, const char* op,
+                                          const Work& fn);
+  grpc::ServerUnaryReactor* finish_on_pool(grpc::CallbackServerContext* ctx, const char* op,
+                                           Work fn);
+  grpc::ServerUnaryReactor* finish_on_session(grpc::CallbackServerContext* ctx, const char* op,
+                                              const std::string& name,
+                                              std::function<void(Session&)> fn);
+
+  ServerOptions options_;
+  std::unique_ptr<WorkerPool> pool_;
+  Cache cache_;
+  MeshLibrary library_;
+  SessionStore store_;
+};
+
+}  // namespace hdeform::service

@@ -1,0 +1,34 @@
+#include "errors.h"
+
+#include "mesh.h"
+
+#include <spdlog/spdlog.h>
+
+#include <new>
+
+namespace hdeform::service {
+
+grpc::Status guarded(const std::function<void()>& fn, const char* what) {
+  const char* op = what ? what : "request";
+  try {
+    fn();
+    return grpc::Status::OK;
+  } catch (const ServiceError& e) {
+    spdlog::debug("{}: {} ({})", op, e.what(), static_cast<int>(e.code()));
+    return e.status();
+  } catch (const InvalidInput& e) {
+    spdlog::debug("{}: invalid input: {}", op, e.what());
+    return {grpc::StatusCode::INVALID_ARGUMENT, e.what()};
+  } catch (const std::bad_alloc&) {
+    spdlog::warn("{}: out of memory", op);
+    return {grpc::StatusCode::RESOURCE_EXHAUSTED, "out of memory"};
+  } catch (const std::exception& e) {
+    spdlog::error("{}: internal error: {}", op, e.what());
+    return {grpc::StatusCode::INTERNAL, e.what()};
+  } catch (...) {
+    spdlog::error("{}: unknown internal error", op);
+    return {grpc::StatusCode::INTERNAL, "unknown internal error"};
+  }
+}
+
+}  // namespace hdeform::service

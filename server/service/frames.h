@@ -1,0 +1,50 @@
+// The base layout a session's clients see: the base GLB (input vertex layout, float32
+// POSITION/NORMAL, uint32 indices) and the float32 little-endian frame buffers in that
+// same layout.
+#pragma once
+
+#include "deformer.h"
+#include "hdeform/v1/deform.pb.h"
+#include "mesh_io.h"
+
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+namespace hdeform::service {
+
+class FrameLayout {
+ public:
+  // `layout` is the loaded file (its engine mesh may have been moved out already);
+  // `mesh` the prepared engine mesh it maps to.
+  FrameLayout(LoadedMesh layout, std::shared_ptr<const PreparedMesh> mesh);
+
+  int vertex_count() const;    // base GLB vertices (input layout)
+  int triangle_count() const;  // base GLB triangles
+
+  // float32 LE, 3 per base-GLB vertex, from engine-order rows.
+  std::string pack_vertices(const Vertices& engine_rows) const;
+  // float32 LE, 1 per base-GLB triangle.
+  std::string pack_triangles(const Eigen::VectorXf& per_triangle) const;
+  // Fills positions / normals / energies / measures of a proto frame.
+  void fill(const hdeform::Frame& frame, v1::Frame* out) const;
+
+  // A mesh file of `engine_positions`: GLB in the input layout with normals (the base
+  // layout); OBJ/OFF/PLY in engine order (the ids constraints use; text keeps %.17g).
+  std::string mesh_file(MeshFileFormat format, const Vertices& engine_positions) const;
+  // The rest mesh as GLB, built once.
+  const std::string& base_glb() const;
+
+ private:
+  int input_vertex(int i) const { return identity_ ? i : layout_.input_to_engine[i]; }
+
+  LoadedMesh layout_;
+  std::shared_ptr<const PreparedMesh> mesh_;
+  bool identity_;
+  int input_vertices_;
+  mutable std::once_flag glb_once_;
+  mutable std::string glb_;
+};
+
+}  // namespace hdeform::service

@@ -1,0 +1,142 @@
+#include "mesh_library.h"
+
+#include "errors.h"
+#include "mesh_io.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cctype>
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+namespace fs = std::filesystem;
+
+namespace hdeform::service {
+
+namespace {
+bool is_mesh_extension(std::string ext) {
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  static const std::set<std::string> kExt = {".off", ".obj", ".ply", ".stl", ".glb", ".gltf"};
+  return kExt.count(ext) > 0;
+}
+}  // namespace
+
+std::size_t MeshRef::memory_bytes() const {
+  std::size_t b = sizeof(MeshRef) + (file_bytes ? file_bytes->size() : 0);
+  if (layout) b += 16u * static_cast<std::size_t>(layout->vertex_count()) +
+                   12u * static_cast<std::size_t>(layout->triangle_count());
+  return b;
+}
+
+MeshLibrary::MeshLibrary(std::string dir) : dir_(std::move(dir)) {}
+
+std::vector<LibraryEntry> MeshLibrary::list() const {
+  std::vector<LibraryEntry> out;
+  if (dir_.empty()) return out;
+  std::error_code ec;
+  if (!fs::is_directory(dir_, ec)) return out;
+  std::vector<fs::path> files;
+  for (auto it = fs::recursive_directory_iterator(
+           dir_, fs::directory_options::skip_permission_denied, ec);
+       !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+    if (it.depth() > 1) {
+      it.disable_recursion_pending();
+      continue;
+    }
+    if (it->is_regular_file(ec) && is_mesh_extension(it->path().extension().string()))
+      files.push_back(it->path());
+  }
+  std::sort(files.begin(), files.end());
+  std::set<std::string> seen;
+  for (const auto& p : files) {
+    LibraryEntry e;
+    e.name = p.stem().string();
+    if (!seen.insert(e.name).second) continue;
+    e.path = p.string();
+    fs::path sel = p, def = p;
+    sel.replace_extension(".sel");
+    def.replace_extension(".def");
+    e.has_benchmark = fs::exists(sel, ec) && fs::exists(def, ec);
+    out.push_back(std::move(e));
+  }
+  return out;
+}
+
+std::optional<LibraryEntry> MeshLibrary::find(const std::string& name) const {
+  for (auto& e : list())
+    if (e.name == name) return e;
+  return std::nullopt;
+}
+
+std::string default_mesh_dir() {
+#ifdef HDEFORM_DATA_DIR
+  std::error_code ec;
+  if (fs::is_directory(HDEFORM_DATA_DIR, ec)) return HDEFORM_DATA_DIR;
+#endif
+  return "";
+}
+
+std::string read_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) fail(grpc::StatusCode::NOT_FOUND, "cannot open mesh file " + path);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return std::move(ss).str();
+}
+
+std::shared_ptr<const MeshRef> load_mesh(std::shared_ptr<const std::string> bytes,
+                                         const std::string& filename,
+                                         const std::string& library_name, Cache& cache,
+                                         std::size_t max_vertices) {
+  std::string ext = fs::path(filename).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (!is_mesh_extension(ext))
+    throw InvalidInput("unsupported mesh format '" + filename +
+                       "' (use .obj .off .ply .stl .gltf .glb)");
+  // Identical files (same format, same bytes) share one MeshRef.
+  std::uint64_t h = fnv1a(ext.data(), ext.size());
+  h = fnv1a(bytes->data(), bytes->size(), h);
+  const std::string file_key = "file/" + hex64(h) + "/" + library_name;
+
+  auto ref = cache.get_or_create<MeshRef>(
+      file_key,
+      [&]() -> std::shared_ptr<const MeshRef> {
+        LoadedMesh loaded = read_mesh_bytes(*bytes, filename);
+        const std::size_t nv = std::max<std::size_t>(
+            static_cast<std::size_t>(loaded.mesh.num_vertices()), loaded.input_to_engine.size());
+        if (nv > max_vertices)
+          fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
+               "mesh has " + std::to_string(nv) + " vertices; this server allows at most " +
+                   std::to_string(max_vertices));
+        auto r = std::make_shared<MeshRef>();
+        r->hash = mesh_hash(loaded.mesh);
+        r->library_name = library_name;
+        r->filename = fs::path(filename).filename().string();
+        r->file_bytes = bytes;
+        r->warnings = loaded.warnings;
+        if (loaded.mesh.num_vertices() > 0) {
+          r->bbox_min = loaded.mesh.V.colwise().minCoeff().transpose();
+          r->bbox_max = loaded.mesh.V.colwise().maxCoeff().transpose();
+        }
+        r->prepared = cache.get_or_create<PreparedMesh>(
+            "mesh/" + r->hash,
+            [&]() -> std::shared_ptr<const PreparedMesh> {
+              spdlog::info("preparing mesh {} ({} vertices, {} triangles)", r->hash,
+                           loaded.mesh.num_vertices(), loaded.mesh.num_triangles());
+              return PreparedMesh::create(std::move(loaded.mesh));
+            },
+            [](const PreparedMesh& pm) { return pm.memory_bytes(); });
+        loaded.mesh = TriMesh{};  // the prepared mesh keeps the geometry
+        r->layout = std::make_shared<const FrameLayout>(std::move(loaded), r->prepared);
+        return r;
+      },
+      [](const MeshRef& r) { return r.memory_bytes(); });
+  return ref;
+}
+
+}  // namespace hdeform::service

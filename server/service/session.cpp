@@ -1,0 +1,414 @@
+#include "session.h"
+
+#include "convert.h"
+#include "errors.h"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <set>
+
+namespace hdeform::service {
+
+std::int64_t unix_ms_now() {
+  return std::chrono::duration_cast<std::chrono::milliseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+namespace {
+std::int64_t steady_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+MeshFileFormat file_format(pb::MeshFormat f) {
+  switch (f) {
+    case pb::MESH_FORMAT_OBJ: return MeshFileFormat::obj;
+    case pb::MESH_FORMAT_OFF: return MeshFileFormat::off;
+    case pb::MESH_FORMAT_PLY: return MeshFileFormat::ply;
+    case pb::MESH_FORMAT_GLB: return MeshFileFormat::glb;
+    default: break;
+  }
+  fail(grpc::StatusCode::INVALID_ARGUMENT, "unknown mesh format " + std::to_string(f));
+}
+
+const char* kNoConstraints = "the session has no constraints yet: call SetConstraints first";
+}  // namespace
+
+Session::Session(std::string id, std::shared_ptr<const MeshRef> mesh, WorkerPool& pool,
+                 Cache& cache)
+    : id_(std::move(id)),
+      name_("sessions/" + id_),
+      mesh_(std::move(mesh)),
+      cache_(cache),
+      strand_(std::make_shared<Strand>(pool)) {
+  create_ms_ = update_ms_ = unix_ms_now();
+  touch();
+}
+
+void Session::touch() { last_used_ns_.store(steady_ns()); }
+
+std::chrono::steady_clock::time_point Session::last_used() const {
+  return std::chrono::steady_clock::time_point(std::chrono::nanoseconds(last_used_ns_.load()));
+}
+
+void Session::check_version_locked(std::int64_t expected) const {
+  if (expected != 0 && expected != version_)
+    fail(grpc::StatusCode::ABORTED, "version conflict: expected " + std::to_string(expected) +
+                                        ", session " + name_ + " is at " +
+                                        std::to_string(version_));
+}
+
+std::shared_ptr<const ConstraintSet> Session::constraint_set_for(const Constraints& c) {
+  const std::string key = "cs/" + mesh_->hash + "/" + constraints_digest(c);
+  return cache_.get_or_create<ConstraintSet>(
+      key,
+      [&]() -> std::shared_ptr<const ConstraintSet> {
+        const auto t0 = std::chrono::steady_clock::now();
+        auto cs = std::make_shared<ConstraintSet>(mesh_->prepared, c);  // non-const: prepare()
+        spdlog::info("{}: constraint set {} built in {:.1f} ms ({} fixed, {} handle(s))", name_,
+                     key,
+                     std::chrono::duration<double, std::milli>(
+                         std::chrono::steady_clock::now() - t0)
+                         .count(),
+                     c.fixed.size(), c.handles.size());
+        return cs;
+      },
+      [](const ConstraintSet& cs) { return cs.memory_bytes(); });
+}
+
+pb::Session Session::set_constraints(const pb::Constraints& constraints,
+                                     std::int64_t expected_version) {
+  touch();
+  Beta beta;
+  {
+    std::lock_guard lock(mutex_);
+    check_version_locked(expected_version);
+    beta = beta_;
+  }
+  const Constraints resolved = resolve_constraints(constraints, mesh_->prepared->mesh().V);
+  auto cs = constraint_set_for(resolved);
+  const std::string key = "cs/" + mesh_->hash + "/" + constraints_digest(resolved);
+  // ConstraintSet is shared: prepare() is thread-safe (it builds each β once).
+  const_cast<ConstraintSet&>(*cs).prepare(beta);
+  cache_.update_size(key, cs->memory_bytes());
+  pb::Session out;
+  {
+    std::lock_guard lock(mutex_);
+    cs_ = cs;
+    cs_key_ = key;
+    given_ = constraints;
+    transforms_.assign(cs->num_handles(), HandleTransform{});
+    ++version_;
+    last_frame_.reset();
+    update_ms_ = unix_ms_now();
+    describe_locked(&out);
+  }
+  broadcast_state();
+  return out;
+}
+
+pb::Session Session::set_beta(const pb::Beta& beta_msg, std::int64_t expected_version) {
+  touch();
+  const Beta beta = from_proto(beta_msg);
+  std::shared_ptr<const ConstraintSet> cs;
+  {
+    std::lock_guard lock(mutex_);
+    check_version_locked(expected_version);
+    cs = cs_;
+  }
+  if (cs) {
+    const_cast<ConstraintSet&>(*cs).prepare(beta);
+    cache_.update_size(cs_key_, cs->memory_bytes());
+  }
+  pb::Session out;
+  {
+    std::lock_guard lock(mutex_);
+    beta_ = beta;
+    ++version_;
+    last_frame_.reset();
+    update_ms_ = unix_ms_now();
+    describe_locked(&out);
+  }
+  broadcast_state();
+  return out;
+}
+
+std::shared_ptr<pb::Frame> Session::update(const Update& u) {
+  touch();
+  const auto t0 = std::chrono::steady_clock::now();
+  std::shared_ptr<const ConstraintSet> cs;
+  Beta beta;
+  std::vector<HandleTransform> transforms;
+  const bool keep = u.keep_transforms_if_empty && (!u.transforms || u.transforms->empty());
+  {
+    std::lock_guard lock(mutex_);
+    if (!cs_) fail(grpc::StatusCode::FAILED_PRECONDITION, kNoConstraints);
+    check_version_locked(u.expected_version);
+    cs = cs_;
+    beta = beta_;
+    if (keep) transforms = transforms_;
+  }
+  if (!keep) {
+    static const google::protobuf::RepeatedPtrField<pb::HandleTransform> kNone;
+    transforms = from_proto(u.transforms ? *u.transforms : kNone, *cs);
+  }
+  bool beta_changed = false;
+  if (u.beta) {
+    const Beta b = from_proto(*u.beta);
+    beta_changed = b.value != beta.value || b.units != beta.units;
+    beta = b;
+    if (beta_changed) {
+      const_cast<ConstraintSet&>(*cs).prepare(beta);
+      cache_.update_size(cs_key_, cs->memory_bytes());
+    }
+  }
+  UpdateOptions options;
+  options.energies = u.energies;
+  options.normals = true;
+  auto frame = std::make_shared<const hdeform::Frame>(cs->update(transforms, beta, options));
+
+  auto out = std::make_shared<pb::Frame>();
+  mesh_->layout->fill(*frame, out.get());
+  out->set_session(name_);
+  out->set_sequence(u.sequence);
+  to_proto(beta, out->mutable_beta());
+  {
+    std::lock_guard lock(mutex_);
+    if (cs_ != cs) {
+      // SetConstraints cannot interleave (same strand); this guards against misuse.
+      fail(grpc::StatusCode::ABORTED, "constraints changed during the update");
+    }
+    transforms_ = std::move(transforms);
+    beta_ = beta;
+    ++version_;
+    last_frame_ = frame;
+    last_frame_version_ = version_;
+    update_ms_ = unix_ms_now();
+    out->set_version(version_);
+  }
+  out->set_solve_ms(
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+  if (beta_changed) broadcast_state();
+  if (observers() > 0) {
+    auto event = std::make_shared<pb::SessionEvent>();
+    *event->mutable_frame() = *out;
+    broadcast(std::move(event));
+  }
+  return out;
+}
+
+pb::SweepResponse Session::sweep(const pb::SweepRequest& request) {
+  touch();
+  std::shared_ptr<const ConstraintSet> cs;
+  std::vector<HandleTransform> transforms;
+  Beta session_beta;
+  {
+    std::lock_guard lock(mutex_);
+    if (!cs_) fail(grpc::StatusCode::FAILED_PRECONDITION, kNoConstraints);
+    cs = cs_;
+    transforms = transforms_;
+    session_beta = beta_;
+  }
+  if (request.transforms_size() > 0) transforms = from_proto(request.transforms(), *cs);
+  std::vector<Beta> betas;
+  for (double b : request.betas()) betas.push_back(beta_from(b, request.units()));
+  // Factorizations built only for the sweep are dropped again afterwards.
+  pb::SweepResponse out;
+  std::vector<Beta> extra;
+  for (const Beta& b : betas) {
+    UpdateOptions options;
+    options.energies = false;
+    options.normals = false;
+    const std::size_t before = cs->num_cached_factorizations();
+    const hdeform::Frame f = cs->update(transforms, b, options);
+    if (cs->num_cached_factorizations() > before &&
+        !(b.value == session_beta.value && b.units == session_beta.units))
+      extra.push_back(b);
+    auto* row = out.add_rows();
+    row->set_beta(b.value);
+    to_proto(f.measures, row->mutable_measures());
+  }
+  for (const Beta& b : extra) const_cast<ConstraintSet&>(*cs).drop_factorization(b);
+  cache_.update_size(cs_key_, cs->memory_bytes());
+  return out;
+}
+
+Vertices Session::deformed_positions() {
+  std::shared_ptr<const ConstraintSet> cs;
+  std::vector<HandleTransform> transforms;
+  Beta beta;
+  std::int64_t version;
+  {
+    std::lock_guard lock(mutex_);
+    if (!cs_) return mesh_->prepared->mesh().V;
+    if (last_frame_ && last_frame_version_ == version_) return last_frame_->positions;
+    cs = cs_;
+    transforms = transforms_;
+    beta = beta_;
+    version = version_;
+  }
+  UpdateOptions options;
+  options.energies = false;
+  options.normals = false;
+  auto frame = std::make_shared<const hdeform::Frame>(cs->update(transforms, beta, options));
+  std::lock_guard lock(mutex_);
+  if (version == version_) {
+    last_frame_ = frame;
+    last_frame_version_ = version;
+  }
+  return frame->positions;
+}
+
+std::string Session::mesh_file(bool rest, pb::MeshFormat format) {
+  touch();
+  const MeshFileFormat f = file_format(format);
+  if (rest && f == MeshFileFormat::glb) return mesh_->layout->base_glb();
+  const Vertices V = rest ? mesh_->prepared->mesh().V : deformed_positions();
+  return mesh_->layout->mesh_file(f, V);
+}
+
+pb::Snapshot Session::export_snapshot(bool include_mesh) const {
+  pb::Snapshot s;
+  s.set_mesh_hash(mesh_->hash);
+  s.set_library_mesh(mesh_->library_name);
+  s.set_filename(mesh_->filename);
+  if (include_mesh && mesh_->file_bytes) s.set_mesh_bytes(*mesh_->file_bytes);
+  std::lock_guard lock(mutex_);
+  if (cs_) *s.mutable_constraints() = given_;
+  to_proto(beta_, s.mutable_beta());
+  for (const auto& t : transforms_) to_proto(t, s.add_transforms());
+  return s;
+}
+
+void Session::restore(const pb::Snapshot& s) {
+  const Beta beta = s.has_beta() ? from_proto(s.beta()) : Beta{};
+  {
+    std::lock_guard lock(mutex_);
+    beta_ = beta;
+  }
+  const bool has_constraints =
+      s.has_constraints() &&
+      (s.constraints().fixed().selectors_size() > 0 || s.constraints().handles_size() > 0);
+  if (!has_constraints) {
+    if (s.transforms_size() > 0)
+      throw InvalidInput("snapshot has transforms but no constraints");
+    return;
+  }
+  set_constraints(s.constraints(), 0);
+  std::shared_ptr<const ConstraintSet> cs;
+  {
+    std::lock_guard lock(mutex_);
+    cs = cs_;
+  }
+  std::vector<HandleTransform> transforms =
+      s.transforms_size() > 0 ? from_proto(s.transforms(), *cs)
+                              : std::vector<HandleTransform>(cs->num_handles());
+  std::lock_guard lock(mutex_);
+  transforms_ = std::move(transforms);
+  ++version_;
+  last_frame_.reset();
+}
+
+void Session::describe_locked(pb::Session* out) const {
+  out->set_name(name_);
+  out->set_mesh_hash(mesh_->hash);
+  out->set_mesh_name(mesh_->display_name());
+  out->set_vertex_count(mesh_->layout->vertex_count());
+  out->set_triangle_count(mesh_->layout->triangle_count());
+  out->set_version(version_);
+  out->set_constrained(cs_ != nullptr);
+  if (cs_) {
+    to_proto(cs_->constraints(), out->mutable_constraints());
+    for (int j = 0; j < cs_->num_handles(); ++j) to_proto(cs_->centroid(j), out->add_pivots());
+  }
+  to_proto(beta_, out->mutable_beta());
+  for (const auto& t : transforms_) to_proto(t, out->add_transforms());
+  out->set_observers(static_cast<int>(watchers_.size()));
+  out->set_create_time_unix_ms(create_ms_);
+  out->set_update_time_unix_ms(update_ms_);
+  to_proto(mesh_->bbox_min, out->mutable_bbox_min());
+  to_proto(mesh_->bbox_max, out->mutable_bbox_max());
+}
+
+pb::Session Session::describe() const {
+  pb::Session out;
+  std::lock_guard lock(mutex_);
+  describe_locked(&out);
+  return out;
+}
+
+void Session::broadcast(std::shared_ptr<const pb::SessionEvent> event) {
+  std::vector<std::shared_ptr<EventSink>> sinks;
+  {
+    std::lock_guard lock(mutex_);
+    sinks = watchers_;
+  }
+  for (auto& s : sinks) s->push(event);
+}
+
+void Session::broadcast_state() {
+  if (observers() == 0) return;
+  auto event = std::make_shared<pb::SessionEvent>();
+  *event->mutable_state() = describe();
+  broadcast(std::move(event));
+}
+
+void Session::add_watcher(std::shared_ptr<EventSink> sink) {
+  touch();
+  auto event = std::make_shared<pb::SessionEvent>();
+  {
+    std::lock_guard lock(mutex_);
+    if (closed_) {
+      event->set_deleted(name_);
+    } else {
+      watchers_.push_back(sink);
+      describe_locked(event->mutable_state());
+    }
+  }
+  sink->push(event);
+  if (event->has_deleted()) {
+    sink->close();
+    return;
+  }
+  broadcast_state();  // the others see the new observer count
+}
+
+void Session::remove_watcher(const EventSink* sink) {
+  bool removed = false;
+  {
+    std::lock_guard lock(mutex_);
+    for (auto it = watchers_.begin(); it != watchers_.end(); ++it)
+      if (it->get() == sink) {
+        watchers_.erase(it);
+        removed = true;
+        break;
+      }
+  }
+  touch();
+  if (removed && !closed_) broadcast_state();
+}
+
+int Session::observers() const {
+  std::lock_guard lock(mutex_);
+  return static_cast<int>(watchers_.size());
+}
+
+void Session::close() {
+  if (closed_.exchange(true)) return;
+  std::vector<std::shared_ptr<EventSink>> sinks;
+  {
+    std::lock_guard lock(mutex_);
+    sinks.swap(watchers_);
+  }
+  auto event = std::make_shared<pb::SessionEvent>();
+  event->set_deleted(name_);
+  for (auto& s : sinks) {
+    s->push(event);
+    s->close();
+  }
+}
+
+}  // namespace hdeform::service

@@ -1,0 +1,113 @@
+// One editing session: a shared mesh, a shared constraint set, β, one transform per handle,
+// a version, and its observers. Mutations and solves run on the session's strand (one at
+// a time, on the worker pool); describe() and the observer list may be used from any
+// thread.
+#pragma once
+
+#include "cache.h"
+#include "deformer.h"
+#include "hdeform/v1/deform.pb.h"
+#include "mesh_library.h"
+#include "worker_pool.h"
+
+#include <google/protobuf/repeated_field.h>
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+namespace hdeform::service {
+
+namespace pb = ::hdeform::v1;
+
+// A WatchSession stream as the session sees it. push() never blocks.
+class EventSink {
+ public:
+  virtual ~EventSink() = default;
+  virtual void push(std::shared_ptr<const pb::SessionEvent> event) = 0;
+  virtual void close() = 0;  // the session is gone (after a `deleted` event)
+};
+
+class Session : public std::enable_shared_from_this<Session> {
+ public:
+  Session(std::string id, std::shared_ptr<const MeshRef> mesh, WorkerPool& pool, Cache& cache);
+
+  const std::string& id() const { return id_; }
+  const std::string& name() const { return name_; }  // "sessions/{id}"
+  const MeshRef& mesh() const { return *mesh_; }
+  std::shared_ptr<const MeshRef> mesh_ref() const { return mesh_; }
+  // Runs `task` on this session's strand (serialized, on the worker pool).
+  void post(WorkerPool::Task task) { strand_->post(std::move(task)); }
+
+  // ---- blocking: call on the strand. Throw ServiceError / InvalidInput. ----
+  pb::Session set_constraints(const pb::Constraints& constraints, std::int64_t expected_version);
+  pb::Session set_beta(const pb::Beta& beta, std::int64_t expected_version);
+
+  struct Update {
+    std::int64_t sequence = 0;
+    const google::protobuf::RepeatedPtrField<pb::HandleTransform>* transforms = nullptr;
+    bool keep_transforms_if_empty = false;  // Deform: a β-only message
+    bool energies = false;
+    const pb::Beta* beta = nullptr;  // also change β
+    std::int64_t expected_version = 0;
+  };
+  // Solves, commits the transforms (bumping the version) and sends the frame to every
+  // observer. Returns the frame.
+  std::shared_ptr<pb::Frame> update(const Update& update);
+  pb::SweepResponse sweep(const pb::SweepRequest& request);
+  std::string mesh_file(bool rest, pb::MeshFormat format);
+  pb::Snapshot export_snapshot(bool include_mesh) const;
+  // Re-applies a snapshot's constraints, β and transforms (a fresh session only).
+  void restore(const pb::Snapshot& snapshot);
+
+  // ---- non-blocking ----
+  pb::Session describe() const;
+  void add_watcher(std::shared_ptr<EventSink> sink);  // also sends the current state
+  void remove_watcher(const EventSink* sink);
+  int observers() const;
+  void stream_opened() { ++streams_; touch(); }
+  void stream_closed() { --streams_; touch(); }
+  bool busy() const { return streams_.load() > 0 || observers() > 0; }
+  void touch();
+  std::chrono::steady_clock::time_point last_used() const;
+  // The session was deleted or expired: observers get `deleted` and their streams end.
+  void close();
+  bool closed() const { return closed_.load(); }
+
+ private:
+  void check_version_locked(std::int64_t expected) const;
+  void describe_locked(pb::Session* out) const;
+  void broadcast(std::shared_ptr<const pb::SessionEvent> event);
+  void broadcast_state();
+  std::shared_ptr<const ConstraintSet> constraint_set_for(const Constraints& c);
+  Vertices deformed_positions();  // current deformation (solves if needed), engine order
+
+  const std::string id_, name_;
+  const std::shared_ptr<const MeshRef> mesh_;
+  Cache& cache_;
+  std::shared_ptr<Strand> strand_;
+
+  mutable std::mutex mutex_;  // guards everything below
+  std::shared_ptr<const ConstraintSet> cs_;
+  std::string cs_key_;
+  pb::Constraints given_;  // constraints as the client gave them (for snapshots)
+  Beta beta_;
+  std::vector<HandleTransform> transforms_;
+  std::int64_t version_ = 1;
+  std::shared_ptr<const hdeform::Frame> last_frame_;  // engine frame at last_frame_version_
+  std::int64_t last_frame_version_ = 0;
+  std::int64_t create_ms_ = 0, update_ms_ = 0;
+  std::vector<std::shared_ptr<EventSink>> watchers_;
+
+  std::atomic<int> streams_{0};
+  std::atomic<bool> closed_{false};
+  std::atomic<std::int64_t> last_used_ns_{0};
+};
+
+std::int64_t unix_ms_now();
+
+}  // namespace hdeform::service

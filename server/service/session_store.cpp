@@ -1,0 +1,154 @@
+#include "session_store.h"
+
+#include "errors.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+
+namespace hdeform::service {
+
+SessionStore::SessionStore(const Limits& limits, WorkerPool& pool, Cache& cache)
+    : limits_(limits), pool_(pool), cache_(cache), rng_(std::random_device{}()) {}
+
+SessionStore::~SessionStore() { shutdown(); }
+
+std::string SessionStore::id_of(const std::string& name) {
+  static const std::string kPrefix = "sessions/";
+  if (name.rfind(kPrefix, 0) == 0) return name.substr(kPrefix.size());
+  return name;
+}
+
+void SessionStore::check_capacity() const {
+  std::lock_guard lock(mutex_);
+  if (sessions_.size() >= limits_.max_sessions)
+    fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
+         "session limit reached (" + std::to_string(limits_.max_sessions) +
+             " sessions); delete one or wait for idle sessions to expire");
+}
+
+std::shared_ptr<Session> SessionStore::create(std::shared_ptr<const MeshRef> mesh) {
+  std::lock_guard lock(mutex_);
+  if (sessions_.size() >= limits_.max_sessions)
+    fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
+         "session limit reached (" + std::to_string(limits_.max_sessions) + " sessions)");
+  std::string id;
+  do {
+    id = hex64(rng_());
+  } while (sessions_.count(id));
+  auto s = std::make_shared<Session>(id, std::move(mesh), pool_, cache_);
+  sessions_.emplace(id, s);
+  spdlog::info("{}: created on mesh {} ({}, {} vertices)", s->name(), s->mesh().display_name(),
+               s->mesh().hash, s->mesh().layout->vertex_count());
+  return s;
+}
+
+std::shared_ptr<Session> SessionStore::find(const std::string& name) const {
+  std::lock_guard lock(mutex_);
+  auto it = sessions_.find(id_of(name));
+  if (it == sessions_.end()) return nullptr;
+  it->second->touch();
+  return it->second;
+}
+
+std::shared_ptr<Session> SessionStore::get(const std::string& name) const {
+  auto s = find(name);
+  if (!s) fail(grpc::StatusCode::NOT_FOUND, "no session '" + name + "'");
+  return s;
+}
+
+bool SessionStore::remove(const std::string& name) {
+  std::shared_ptr<Session> s;
+  {
+    std::lock_guard lock(mutex_);
+    auto it = sessions_.find(id_of(name));
+    if (it == sessions_.end()) return false;
+    s = std::move(it->second);
+    sessions_.erase(it);
+  }
+  s->close();
+  spdlog::info("{}: deleted", s->name());
+  return true;
+}
+
+std::vector<std::shared_ptr<Session>> SessionStore::list() const {
+  std::lock_guard lock(mutex_);
+  std::vector<std::shared_ptr<Session>> out;
+  out.reserve(sessions_.size());
+  for (auto& [id, s] : sessions_) out.push_back(s);
+  return out;
+}
+
+std::size_t SessionStore::size() const {
+  std::lock_guard lock(mutex_);
+  return sessions_.size();
+}
+
+std::shared_ptr<const MeshRef> SessionStore::find_mesh(const std::string& hash) const {
+  std::lock_guard lock(mutex_);
+  for (auto& [id, s] : sessions_)
+    if (s->mesh().hash == hash) return s->mesh_ref();
+  return nullptr;
+}
+
+std::size_t SessionStore::expire_idle() {
+  const auto now = std::chrono::steady_clock::now();
+  std::vector<std::shared_ptr<Session>> expired;
+  {
+    std::lock_guard lock(mutex_);
+    for (auto it = sessions_.begin(); it != sessions_.end();) {
+      auto& s = it->second;
+      if (s->busy()) {
+        s->touch();
+        ++it;
+      } else if (now - s->last_used() > limits_.session_ttl) {
+        expired.push_back(std::move(s));
+        it = sessions_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+  }
+  for (auto& s : expired) {
+    spdlog::info("{}: expired after {} ms idle", s->name(), limits_.session_ttl.count());
+    s->close();
+  }
+  return expired.size();
+}
+
+void SessionStore::start_sweeper() {
+  if (sweeper_.joinable()) return;
+  const auto period = std::clamp<std::chrono::milliseconds>(
+      limits_.session_ttl / 4, std::chrono::milliseconds(50), std::chrono::milliseconds(10'000));
+  sweeper_ = std::thread([this, period] {
+    std::unique_lock lock(sweeper_mutex_);
+    while (!stopping_) {
+      sweeper_cv_.wait_for(lock, period, [this] { return stopping_; });
+      if (stopping_) break;
+      lock.unlock();
+      try {
+        expire_idle();
+      } catch (const std::exception& e) {
+        spdlog::error("session sweeper: {}", e.what());
+      }
+      lock.lock();
+    }
+  });
+}
+
+void SessionStore::shutdown() {
+  {
+    std::lock_guard lock(sweeper_mutex_);
+    stopping_ = true;
+  }
+  sweeper_cv_.notify_all();
+  if (sweeper_.joinable()) sweeper_.join();
+  std::map<std::string, std::shared_ptr<Session>> all;
+  {
+    std::lock_guard lock(mutex_);
+    all.swap(sessions_);
+  }
+  for (auto& [id, s] : all) s->close();
+}
+
+}  // namespace hdeform::service

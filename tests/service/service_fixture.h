@@ -1,0 +1,193 @@
+// A real Server on 127.0.0.1:0 and a TCP channel to it, plus helpers for the tests.
+#pragma once
+
+#include "hdeform/v1/deform.grpc.pb.h"
+#include "service/server.h"
+
+#include <grpcpp/grpcpp.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace hdeform::testing {
+
+namespace pb = ::hdeform::v1;
+
+inline std::string data_path(const std::string& rel) {
+  return std::string(HDEFORM_TEST_DATA) + "/" + rel;
+}
+
+inline std::string slurp(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  EXPECT_TRUE(in) << path;
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+struct TestServer {
+  std::unique_ptr<service::Server> server;
+  std::shared_ptr<grpc::Channel> channel;
+  std::unique_ptr<pb::Deformation::Stub> stub;
+
+  explicit TestServer(service::ServerOptions options = {}) {
+    options.listen_address = "127.0.0.1:0";
+    if (options.workers < 1) options.workers = 2;
+    server = std::make_unique<service::Server>(options);
+    grpc::ChannelArguments args;
+    args.SetMaxReceiveMessageSize(-1);
+    args.SetMaxSendMessageSize(-1);
+    channel = grpc::CreateCustomChannel("127.0.0.1:" + std::to_string(server->port()),
+                                        grpc::InsecureChannelCredentials(), args);
+    stub = pb::Deformation::NewStub(channel);
+  }
+  ~TestServer() { server->shutdown(std::chrono::milliseconds(500)); }
+
+  // CreateSession from the library.
+  grpc::Status create_library(const std::string& name, pb::Session* out) {
+    grpc::ClientContext ctx;
+    auto writer = stub->CreateSession(&ctx, out);
+    pb::CreateSessionRequest req;
+    req.mutable_header()->set_library_mesh(name);
+    writer->Write(req);
+    writer->WritesDone();
+    return writer->Finish();
+  }
+  pb::Session library_session(const std::string& name) {
+    pb::Session s;
+    auto st = create_library(name, &s);
+    EXPECT_TRUE(st.ok()) << st.error_message();
+    return s;
+  }
+
+  // CreateSession as an upload in `chunk`-byte pieces.
+  grpc::Status upload(const std::string& bytes, const std::string& filename, pb::Session* out,
+                      std::size_t chunk = 1u << 20, bool declare_size = false) {
+    grpc::ClientContext ctx;
+    auto writer = stub->CreateSession(&ctx, out);
+    pb::CreateSessionRequest req;
+    req.mutable_header()->set_filename(filename);
+    if (declare_size) req.mutable_header()->set_total_bytes(static_cast<std::int64_t>(bytes.size()));
+    bool ok = writer->Write(req);
+    for (std::size_t off = 0; ok && off < bytes.size(); off += chunk) {
+      pb::CreateSessionRequest c;
+      c.set_chunk(bytes.substr(off, chunk));
+      ok = writer->Write(c);
+    }
+    writer->WritesDone();
+    return writer->Finish();
+  }
+
+  grpc::Status set_constraints(const std::string& name, const pb::Constraints& c,
+                               pb::Session* out, std::int64_t expected_version = 0) {
+    grpc::ClientContext ctx;
+    pb::SetConstraintsRequest req;
+    req.set_name(name);
+    *req.mutable_constraints() = c;
+    req.set_expected_version(expected_version);
+    return stub->SetConstraints(&ctx, req, out);
+  }
+
+  grpc::Status set_beta(const std::string& name, double beta, pb::Session* out,
+                        std::int64_t expected_version = 0) {
+    grpc::ClientContext ctx;
+    pb::SetBetaRequest req;
+    req.set_name(name);
+    req.mutable_beta()->set_value(beta);
+    req.set_expected_version(expected_version);
+    return stub->SetBeta(&ctx, req, out);
+  }
+
+  grpc::Status update(const std::string& name, std::int64_t seq,
+                      const std::vector<pb::HandleTransform>& ts, pb::Frame* out,
+                      bool energies = false) {
+    grpc::ClientContext ctx;
+    pb::UpdateHandlesRequest req;
+    req.set_name(name);
+    req.set_sequence(seq);
+    req.set_energies(energies);
+    for (const auto& t : ts) *req.add_transforms() = t;
+    return stub->UpdateHandles(&ctx, req, out);
+  }
+
+  grpc::Status get_mesh(const std::string& name, bool rest, pb::MeshFormat format,
+                        std::string* out, std::vector<std::size_t>* chunk_sizes = nullptr) {
+    grpc::ClientContext ctx;
+    pb::GetMeshRequest req;
+    req.set_name(name);
+    req.set_rest(rest);
+    req.set_format(format);
+    auto reader = stub->GetMesh(&ctx, req);
+    pb::MeshChunk chunk;
+    out->clear();
+    while (reader->Read(&chunk)) {
+      out->append(chunk.data());
+      if (chunk_sizes) chunk_sizes->push_back(chunk.data().size());
+    }
+    return reader->Finish();
+  }
+};
+
+// The Botsch–Sorkine cactus benchmark: fixed = label 0, handle = label 2 of cactus.sel.
+inline pb::Constraints cactus_constraints() {
+  const std::string sel = slurp(data_path("botsch-sorkine/cactus.sel"));
+  pb::Constraints c;
+  auto* f = c.mutable_fixed()->add_selectors()->mutable_sel();
+  f->set_content(sel);
+  f->set_label(0);
+  auto* h = c.add_handles()->add_selectors()->mutable_sel();
+  h->set_content(sel);
+  h->set_label(2);
+  return c;
+}
+
+// cactus.def as a 4×4 matrix transform.
+inline pb::HandleTransform cactus_transform() {
+  std::istringstream in(slurp(data_path("botsch-sorkine/cactus.def")));
+  std::string header;
+  std::getline(in, header);
+  pb::HandleTransform t;
+  for (int i = 0; i < 16; ++i) {
+    double v = 0;
+    in >> v;
+    t.add_matrix(v);
+  }
+  return t;
+}
+
+inline pb::HandleTransform translation(double x, double y, double z) {
+  pb::HandleTransform t;
+  t.mutable_translation()->set_x(x);
+  t.mutable_translation()->set_y(y);
+  t.mutable_translation()->set_z(z);
+  return t;
+}
+
+// A finely subdivided wavy grid (n×n vertices) as OFF text with 17 significant digits.
+inline std::string grid_off(int n) {
+  std::string s = "OFF\n" + std::to_string(n * n) + " " + std::to_string(2 * (n - 1) * (n - 1)) +
+                  " 0\n";
+  char buf[128];
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      const double x = i / double(n - 1), y = j / double(n - 1);
+      std::snprintf(buf, sizeof buf, "%.17g %.17g %.17g\n", x * 3.14159265358979, y * 2.718281828459,
+                    0.05 * std::sin(7.1 * x) * std::cos(5.3 * y) + 0.0123456789);
+      s += buf;
+    }
+  for (int j = 0; j + 1 < n; ++j)
+    for (int i = 0; i + 1 < n; ++i) {
+      const int a = j * n + i, b = a + 1, c = a + n, d = c + 1;
+      std::snprintf(buf, sizeof buf, "3 %d %d %d\n3 %d %d %d\n", a, b, d, a, d, c);
+      s += buf;
+    }
+  return s;
+}
+
+}  // namespace hdeform::testing

@@ -1,0 +1,269 @@
+// Live streams: Deform (latest wins) and WatchSession (every observer sees every frame).
+#include "service_fixture.h"
+
+#include <atomic>
+#include <cstdio>
+#include <condition_variable>
+#include <map>
+#include <mutex>
+#include <thread>
+
+using namespace hdeform::testing;
+
+namespace {
+pb::Session constrained_cactus(TestServer& t) {
+  const pb::Session s = t.library_session("cactus");
+  pb::Session c;
+  auto st = t.set_constraints(s.name(), cactus_constraints(), &c);
+  EXPECT_TRUE(st.ok()) << st.error_message();
+  return c;
+}
+}  // namespace
+
+TEST(ServiceStreams, DeformBurstIsLatestWins) {
+  TestServer t;
+  const pb::Session s = constrained_cactus(t);
+  constexpr int kUpdates = 1000;
+
+  grpc::ClientContext ctx;
+  auto stream = t.stub->Deform(&ctx);
+  for (int i = 1; i <= kUpdates; ++i) {
+    pb::DeformRequest req;
+    if (i == 1) req.set_name(s.name());
+    req.set_sequence(i);
+    *req.add_transforms() = translation(0, 0.0005 * i, 0);
+    ASSERT_TRUE(stream->Write(req));
+  }
+  stream->WritesDone();
+  std::vector<std::int64_t> seqs;
+  pb::Frame f, last;
+  while (stream->Read(&f)) {
+    seqs.push_back(f.sequence());
+    last = f;
+  }
+  auto st = stream->Finish();
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  ASSERT_FALSE(seqs.empty());
+  std::printf("[   info   ] %d updates answered by %zu frames\n", kUpdates, seqs.size());
+  EXPECT_EQ(seqs.back(), kUpdates);  // the last frame answers the last update
+  EXPECT_LT(seqs.size(), static_cast<std::size_t>(kUpdates));  // fewer solves than updates
+  for (std::size_t i = 1; i < seqs.size(); ++i) EXPECT_LT(seqs[i - 1], seqs[i]);
+  EXPECT_EQ(last.positions().size(), 5261u * 12);
+
+  // The session now holds the last update's transform.
+  grpc::ClientContext gctx;
+  pb::GetSessionRequest greq;
+  greq.set_name(s.name());
+  pb::Session now;
+  ASSERT_TRUE(t.stub->GetSession(&gctx, greq, &now).ok());
+  ASSERT_EQ(now.transforms_size(), 1);
+  EXPECT_DOUBLE_EQ(now.transforms(0).translation().y(), 0.0005 * kUpdates);
+  EXPECT_EQ(now.version(), last.version());
+}
+
+TEST(ServiceStreams, DeformChangesBetaAndAnswersEachUpdate) {
+  TestServer t;
+  const pb::Session s = constrained_cactus(t);
+  grpc::ClientContext ctx;
+  auto stream = t.stub->Deform(&ctx);
+  pb::Frame f0, f1;
+  {
+    pb::DeformRequest req;
+    req.set_name(s.name());
+    req.set_sequence(1);
+    *req.add_transforms() = cactus_transform();
+    ASSERT_TRUE(stream->Write(req));
+    ASSERT_TRUE(stream->Read(&f0));
+    EXPECT_EQ(f0.sequence(), 1);
+  }
+  {
+    pb::DeformRequest req;  // β only: transforms stay
+    req.set_sequence(2);
+    req.mutable_beta()->set_value(0.4);
+    ASSERT_TRUE(stream->Write(req));
+    ASSERT_TRUE(stream->Read(&f1));
+    EXPECT_EQ(f1.sequence(), 2);
+    EXPECT_DOUBLE_EQ(f1.beta().value(), 0.4);
+    EXPECT_NE(f1.positions(), f0.positions());
+  }
+  stream->WritesDone();
+  pb::Frame extra;
+  EXPECT_FALSE(stream->Read(&extra));
+  EXPECT_TRUE(stream->Finish().ok());
+}
+
+namespace {
+// Collects a WatchSession stream on its own thread.
+struct Watcher {
+  grpc::ClientContext ctx;
+  std::unique_ptr<grpc::ClientReader<pb::SessionEvent>> reader;
+  std::thread thread;
+  std::mutex mutex;
+  std::condition_variable cv;
+  std::map<std::int64_t, std::string> frames;  // sequence → positions
+  int states = 0;
+  std::string deleted;
+  bool ended = false;
+  grpc::Status status;
+
+  Watcher(TestServer& t, const std::string& name) {
+    pb::WatchSessionRequest req;
+    req.set_name(name);
+    reader = t.stub->WatchSession(&ctx, req);
+    thread = std::thread([this] {
+      pb::SessionEvent ev;
+      while (reader->Read(&ev)) {
+        std::lock_guard lock(mutex);
+        if (ev.has_frame()) frames[ev.frame().sequence()] = ev.frame().positions();
+        if (ev.has_state()) ++states;
+        if (ev.has_deleted()) deleted = ev.deleted();
+        cv.notify_all();
+      }
+      auto st = reader->Finish();
+      std::lock_guard lock(mutex);
+      status = st;
+      ended = true;
+      cv.notify_all();
+    });
+  }
+  ~Watcher() {
+    ctx.TryCancel();
+    if (thread.joinable()) thread.join();
+  }
+  template <class Pred>
+  bool wait(Pred pred) {
+    std::unique_lock lock(mutex);
+    return cv.wait_for(lock, std::chrono::seconds(20), [&] { return pred(); });
+  }
+};
+}  // namespace
+
+TEST(ServiceStreams, TwoWatchersSeeTheSameFrames) {
+  TestServer t;
+  const pb::Session s = constrained_cactus(t);
+  Watcher a(t, s.name()), b(t, s.name());
+  ASSERT_TRUE(a.wait([&] { return a.states > 0; }));
+  ASSERT_TRUE(b.wait([&] { return b.states > 0; }));
+  {
+    grpc::ClientContext ctx;
+    pb::GetSessionRequest req;
+    req.set_name(s.name());
+    pb::Session now;
+    ASSERT_TRUE(t.stub->GetSession(&ctx, req, &now).ok());
+    EXPECT_EQ(now.observers(), 2);
+  }
+  for (int i = 1; i <= 5; ++i) {
+    pb::Frame f;
+    auto st = t.update(s.name(), i, {translation(0.01 * i, 0, 0)}, &f);
+    ASSERT_TRUE(st.ok()) << st.error_message();
+    ASSERT_TRUE(a.wait([&] { return a.frames.count(i) > 0; })) << i;
+    ASSERT_TRUE(b.wait([&] { return b.frames.count(i) > 0; })) << i;
+    std::lock_guard la(a.mutex), lb(b.mutex);
+    EXPECT_EQ(a.frames[i], f.positions());
+    EXPECT_EQ(b.frames[i], f.positions());
+  }
+  // A client's Deform stream on the same session reaches the watchers too.
+  {
+    grpc::ClientContext ctx;
+    auto stream = t.stub->Deform(&ctx);
+    pb::DeformRequest req;
+    req.set_name(s.name());
+    req.set_sequence(100);
+    *req.add_transforms() = cactus_transform();
+    ASSERT_TRUE(stream->Write(req));
+    stream->WritesDone();
+    pb::Frame f;
+    ASSERT_TRUE(stream->Read(&f));
+    ASSERT_TRUE(stream->Finish().ok());
+    ASSERT_TRUE(a.wait([&] { return a.frames.count(100) > 0; }));
+    ASSERT_TRUE(b.wait([&] { return b.frames.count(100) > 0; }));
+    std::lock_guard la(a.mutex), lb(b.mutex);
+    EXPECT_EQ(a.frames[100], f.positions());
+    EXPECT_EQ(b.frames[100], f.positions());
+  }
+  // Deleting the session ends both streams with a `deleted` event.
+  {
+    grpc::ClientContext ctx;
+    pb::DeleteSessionRequest req;
+    req.set_name(s.name());
+    pb::DeleteSessionResponse resp;
+    ASSERT_TRUE(t.stub->DeleteSession(&ctx, req, &resp).ok());
+  }
+  ASSERT_TRUE(a.wait([&] { return a.ended; }));
+  ASSERT_TRUE(b.wait([&] { return b.ended; }));
+  EXPECT_EQ(a.deleted, s.name());
+  EXPECT_EQ(b.deleted, s.name());
+  EXPECT_TRUE(a.status.ok()) << a.status.error_message();
+}
+
+TEST(ServiceStreams, SlowWatcherSkipsToTheNewestFrame) {
+  TestServer t;
+  const pb::Session s = constrained_cactus(t);
+  // A watcher that does not read while 30 frames are produced.
+  grpc::ClientContext wctx;
+  pb::WatchSessionRequest wreq;
+  wreq.set_name(s.name());
+  auto reader = t.stub->WatchSession(&wctx, wreq);
+  pb::SessionEvent ev;
+  ASSERT_TRUE(reader->Read(&ev));
+  ASSERT_TRUE(ev.has_state());
+  for (int i = 1; i <= 30; ++i) {
+    pb::Frame f;
+    ASSERT_TRUE(t.update(s.name(), i, {translation(0, 0, 0.002 * i)}, &f).ok());
+  }
+  int frames = 0;
+  std::int64_t last = 0;
+  while (last != 30 && reader->Read(&ev)) {
+    if (ev.has_frame()) {
+      ++frames;
+      EXPECT_GT(ev.frame().sequence(), last);
+      last = ev.frame().sequence();
+    }
+  }
+  EXPECT_EQ(last, 30);
+  EXPECT_LE(frames, 30);
+  wctx.TryCancel();
+  reader->Finish();
+}
+
+TEST(ServiceStreams, ClientsThatGoAwayDoNotHurtTheServer) {
+  TestServer t;
+  const pb::Session s = constrained_cactus(t);
+  for (int round = 0; round < 5; ++round) {
+    grpc::ClientContext ctx, wctx;
+    auto stream = t.stub->Deform(&ctx);
+    pb::WatchSessionRequest wreq;
+    wreq.set_name(s.name());
+    auto watch = t.stub->WatchSession(&wctx, wreq);
+    for (int i = 1; i <= 20; ++i) {
+      pb::DeformRequest req;
+      if (i == 1) req.set_name(s.name());
+      req.set_sequence(i);
+      *req.add_transforms() = translation(0.001 * i, 0, 0);
+      if (!stream->Write(req)) break;
+    }
+    if (round % 2) {
+      pb::Frame f;
+      stream->Read(&f);
+    }
+    ctx.TryCancel();  // mid-solve, with frames unread
+    wctx.TryCancel();
+    stream->Finish();
+    watch->Finish();
+  }
+  pb::Frame f;
+  auto st = t.update(s.name(), 1, {cactus_transform()}, &f);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  grpc::ClientContext ctx;
+  pb::GetSessionRequest req;
+  req.set_name(s.name());
+  pb::Session now;
+  ASSERT_TRUE(t.stub->GetSession(&ctx, req, &now).ok());
+  // Cancelled watchers are gone (their OnDone may trail the client's Finish briefly).
+  for (int i = 0; i < 100 && now.observers() != 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    grpc::ClientContext c2;
+    ASSERT_TRUE(t.stub->GetSession(&c2, req, &now).ok());
+  }
+  EXPECT_EQ(now.observers(), 0);
+}
