@@ -120,6 +120,7 @@ std::shared_ptr<const PreparedMesh> PreparedMesh::create(TriMesh mesh) {
   pm->areas_ = triangle_areas(V, F);
   pm->total_area_ = pm->areas_.sum();
   pm->normals_ = triangle_normals(V, F);
+  pm->grads_ = hat_gradients(V, F);
   pm->G_ = grad(V, F);
   pm->edges_ = interior_edges(V, F);
 
@@ -150,6 +151,7 @@ std::size_t PreparedMesh::memory_bytes() const {
   return sizeof(*this) + static_cast<std::size_t>(mesh_.V.size()) * sizeof(double) +
          static_cast<std::size_t>(mesh_.F.size()) * sizeof(int) + sparse_bytes(G_) +
          sparse_bytes(L_) + sparse_bytes(Reg_) + sparse_bytes(GtA_) + sparse_bytes(GtDBD_) +
+         static_cast<std::size_t>(grads_.size()) * sizeof(double) +
          static_cast<std::size_t>(areas_.size() + normals_.size()) * sizeof(double) +
          edges_.size() * sizeof(InteriorEdge) + component_.size() * sizeof(int);
 }
@@ -350,6 +352,23 @@ Eigen::VectorXd falloff_beta(const PreparedMesh& pm, const std::vector<int>& aro
     const double t = std::max(0.0, 1.0 - d / radius);
     field[l] = beta * t * t;
   }
+  return field;
+}
+
+Eigen::VectorXd region_beta(const PreparedMesh& pm, const std::vector<int>& region,
+                            double beta) {
+  if (!(beta >= 0 && beta < 1)) throw InvalidInput("local beta must be in [0, 1)");
+  std::vector<char> in(static_cast<std::size_t>(pm.n()), 0);
+  for (int v : region) {
+    if (v < 0 || v >= pm.n())
+      throw InvalidInput("local beta region has vertex id " + std::to_string(v) +
+                         " out of range [0, " + std::to_string(pm.n()) + ")");
+    in[v] = 1;
+  }
+  const Triangles& F = pm.mesh().F;
+  Eigen::VectorXd field = Eigen::VectorXd::Zero(pm.m());
+  for (Eigen::Index l = 0; l < pm.m(); ++l)
+    if (in[F(l, 0)] || in[F(l, 1)] || in[F(l, 2)]) field[l] = beta;
   return field;
 }
 

@@ -37,6 +37,7 @@ class PreparedMesh {
   int n() const { return mesh_.num_vertices(); }
   int m() const { return mesh_.num_triangles(); }
   const SparseMatrix& G() const { return G_; }
+  const TriangleGradients& gradients() const { return grads_; }  // G's blocks, per triangle
   const Eigen::VectorXd& areas() const { return areas_; }        // a_l (units²)
   const Vertices& normals() const { return normals_; }           // n_l at rest
   const std::vector<InteriorEdge>& edges() const { return edges_; }
@@ -60,6 +61,7 @@ class PreparedMesh {
   PreparedMesh() = default;
   TriMesh mesh_;
   SparseMatrix G_, L_, Reg_, GtA_, GtDBD_;
+  TriangleGradients grads_;
   Eigen::VectorXd areas_;
   Vertices normals_;
   std::vector<InteriorEdge> edges_;
@@ -88,6 +90,10 @@ struct LocalBeta {
 // exactly 0 beyond `radius` (model units).
 Eigen::VectorXd falloff_beta(const PreparedMesh& mesh, const std::vector<int>& around,
                              double beta, double radius);
+
+// β_l = beta on every triangle with a vertex in `region`, 0 elsewhere.
+Eigen::VectorXd region_beta(const PreparedMesh& mesh, const std::vector<int>& region,
+                            double beta);
 
 struct UpdateOptions {
   bool energies = true;  // fill Frame::energies

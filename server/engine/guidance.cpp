@@ -1,5 +1,7 @@
 #include "guidance.h"
 
+#include <cmath>
+
 namespace hdeform {
 
 void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::MatrixXd& Phi,
@@ -16,14 +18,33 @@ void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::Ma
     if (q[j].w() < 0) q[j].coeffs() *= -1.0;
   }
   const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
+  // One handle: slerp(I, q, h) = (cos(hθ/2), sin(hθ/2) a) with q = (cos(θ/2), sin(θ/2) a),
+  // so the angle and axis are computed once instead of per triangle.
+  double half_angle = 0;
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitX();
+  bool stretched = false;
+  if (k == 1) {
+    const double s = q[0].vec().norm();
+    if (s > 0) {
+      half_angle = std::atan2(s, q[0].w());
+      axis = q[0].vec() / s;
+    }
+    stretched = !transforms[0].stretch.isIdentity(0.0);
+  }
 
   for (Eigen::Index l = 0; l < m; ++l) {
     Eigen::Quaterniond R;
     Eigen::Matrix3d S;
     if (k == 1) {
       const double h = (Phi(F(l, 0), 0) + Phi(F(l, 1), 0) + Phi(F(l, 2), 0)) / 3.0;
-      R = Eigen::Quaterniond::Identity().slerp(h, q[0]);
-      S = (1.0 - h) * I + h * transforms[0].stretch;
+      const double a = h * half_angle;
+      R.w() = std::cos(a);
+      R.vec() = std::sin(a) * axis;
+      if (stretched) {
+        S = (1.0 - h) * I + h * transforms[0].stretch;
+      } else {
+        S = I;
+      }
     } else {
       Eigen::Vector4d qc = Eigen::Vector4d::Zero();  // (x, y, z, w) as Eigen stores it
       S.setZero();
@@ -39,7 +60,8 @@ void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::Ma
       R.coeffs() = qc.normalized();
     }
     R_l[l] = R;
-    const Eigen::Matrix3d M = R.toRotationMatrix() * S;
+    const Eigen::Matrix3d M = stretched || k != 1 ? Eigen::Matrix3d(R.toRotationMatrix() * S)
+                                                  : R.toRotationMatrix();
     const Eigen::Vector3d n = normals.row(l).transpose();
     // g_l = Y_l Mᵀ with Y_l = I − n nᵀ (the rest gradient block, SPEC's check).
     g.middleRows<3>(3 * l) = M.transpose() - n * (M * n).transpose();

@@ -12,20 +12,25 @@ Measures measure(const PreparedMesh& pm, const Vertices& X, const Eigen::MatrixX
   const Triangles& F = pm.mesh().F;
   const Eigen::VectorXd& a = pm.areas();
   const Eigen::Index m = F.rows();
-  const Eigen::MatrixX3d Y = pm.G() * X;  // Y'_l blocks
+  const TriangleGradients& grads = pm.gradients();
   if (ef2) ef2->resize(m);
 
   Measures out;
   double iso_sum = 0, conf_sum = 0, area_deformed = 0;
   for (Eigen::Index l = 0; l < m; ++l) {
-    const Eigen::Matrix3d Yl = Y.middleRows<3>(3 * l);
+    // Y'_l = Σ_i ∇φ_i x'_iᵀ, block l of G X' without forming G X'.
+    const Eigen::Vector3d x0 = X.row(F(l, 0)).transpose();
+    const Eigen::Vector3d x1 = X.row(F(l, 1)).transpose();
+    const Eigen::Vector3d x2 = X.row(F(l, 2)).transpose();
+    const Eigen::Matrix3d Yl = grads.row(l).segment<3>(0).transpose() * x0.transpose() +
+                               grads.row(l).segment<3>(3).transpose() * x1.transpose() +
+                               grads.row(l).segment<3>(6).transpose() * x2.transpose();
     const double r2 = (Yl - g.middleRows<3>(3 * l)).squaredNorm();
     out.E += a[l] * r2;
     out.max_ef2 = std::max(out.max_ef2, r2);
     if (ef2) (*ef2)[l] = static_cast<float>(r2);
 
-    const Eigen::Vector3d x0 = X.row(F(l, 0)).transpose();
-    const Eigen::Vector3d c = (X.row(F(l, 1)).transpose() - x0).cross(X.row(F(l, 2)).transpose() - x0);
+    const Eigen::Vector3d c = (x1 - x0).cross(x2 - x0);
     const double a_def = 0.5 * c.norm();
     area_deformed += a_def;
 

@@ -31,20 +31,26 @@ Vertices triangle_normals(const Vertices& V, const Triangles& F) {
   return N;
 }
 
-SparseMatrix grad(const Vertices& V, const Triangles& F) {
-  std::vector<Eigen::Triplet<double>> t;
-  t.reserve(9 * F.rows());
+TriangleGradients hat_gradients(const Vertices& V, const Triangles& F) {
+  TriangleGradients grads(F.rows(), 9);
   for (Eigen::Index l = 0; l < F.rows(); ++l) {
     const Eigen::Vector3d x[3] = {row(V, F(l, 0)), row(V, F(l, 1)), row(V, F(l, 2))};
     const Eigen::Vector3d c = (x[1] - x[0]).cross(x[2] - x[0]);
     const double twice_area = c.norm();
     const Eigen::Vector3d n = c / twice_area;
-    for (int i = 0; i < 3; ++i) {
-      const int j = (i + 1) % 3, k = (i + 2) % 3;
-      const Eigen::Vector3d g = n.cross(x[k] - x[j]) / twice_area;
-      for (int d = 0; d < 3; ++d) t.emplace_back(3 * l + d, F(l, i), g[d]);
-    }
+    for (int i = 0; i < 3; ++i)
+      grads.row(l).segment<3>(3 * i) = (n.cross(x[(i + 2) % 3] - x[(i + 1) % 3]) / twice_area);
   }
+  return grads;
+}
+
+SparseMatrix grad(const Vertices& V, const Triangles& F) {
+  const TriangleGradients grads = hat_gradients(V, F);
+  std::vector<Eigen::Triplet<double>> t;
+  t.reserve(9 * F.rows());
+  for (Eigen::Index l = 0; l < F.rows(); ++l)
+    for (int i = 0; i < 3; ++i)
+      for (int d = 0; d < 3; ++d) t.emplace_back(3 * l + d, F(l, i), grads(l, 3 * i + d));
   SparseMatrix G(3 * F.rows(), V.rows());
   G.setFromTriplets(t.begin(), t.end());
   return G;

@@ -19,6 +19,11 @@ Eigen::VectorXd triangle_areas(const Vertices& V, const Triangles& F);
 // Per-triangle unit normal n_l (m×3), counter-clockwise orientation.
 Vertices triangle_normals(const Vertices& V, const Triangles& F);
 
+// Hat-function gradients per triangle (m × 9): ∇φ_i, ∇φ_j, ∇φ_k of triangle (i, j, k),
+// each ∇φ_i = n_l × (x_k − x_j) / (2 a_l) (units⁻¹). The blocks G is assembled from.
+using TriangleGradients = Eigen::Matrix<double, Eigen::Dynamic, 9, Eigen::RowMajor>;
+TriangleGradients hat_gradients(const Vertices& V, const Triangles& F);
+
 // G (3m × n): rows 3l+0..2 hold the x, y, z components of the hat-function gradients
 // ∇φ_i = n_l × (x_k − x_j) / (2 a_l) of triangle l (units⁻¹). SPEC: on the rest mesh the
 // 3×3 block l of G·X equals I − n_l n_lᵀ.
