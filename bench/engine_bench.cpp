@@ -596,7 +596,8 @@ void reg(const std::string& name, Cost cost, Args&&... args) {
 
 void register_size(int n) {
   const std::string key = case_name(n);
-  const std::string N = "/" + std::to_string(n);  // names: FAMILY/N[/...]
+  std::string N(1, '/');  // names: FAMILY/N[/...] (built in two steps: GCC 12's -Wrestrict)
+  N += std::to_string(n);
   const bool big = n >= 1000000, small = n <= 10000;
   const Cost fast = big ? Cost::huge : Cost::fast;
   const Cost slow = big ? Cost::huge : (small ? Cost::fast : Cost::slow);

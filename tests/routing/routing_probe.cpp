@@ -80,7 +80,7 @@ int main(int argc, char** argv) {
       ++codes[s.ok() ? "ok" : "code" + std::to_string(s.error_code())];
     }
     std::string sep;
-    for (const auto& [k, v] : codes) std::cout << sep << k << "=" << v, sep = " ";
+    for (const auto& [k, v] : codes) std::cout << sep << k << "=" << v, sep.assign(1, ' ');
     std::cout << "\n";
     return 0;
   }
