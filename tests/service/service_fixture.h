@@ -50,11 +50,13 @@ struct TestServer {
   ~TestServer() { server->shutdown(std::chrono::milliseconds(500)); }
 
   // CreateSession from the library.
-  grpc::Status create_library(const std::string& name, pb::Session* out) {
+  grpc::Status create_library(const std::string& name, pb::Session* out,
+                              const std::string& session_id = "") {
     grpc::ClientContext ctx;
     auto writer = stub->CreateSession(&ctx, out);
     pb::CreateSessionRequest req;
     req.mutable_header()->set_library_mesh(name);
+    req.mutable_header()->set_session_id(session_id);
     writer->Write(req);
     writer->WritesDone();
     return writer->Finish();
