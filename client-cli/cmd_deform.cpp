@@ -38,7 +38,8 @@ Command add_deform_command(CLI::App& app, const GlobalOptions& global) {
     check_mesh_or_session(o.mesh, o.c, global);
     pb::MeshFormat format = pb::MESH_FORMAT_GLB;
     if (!o.output.empty()) format = mesh_format_for(o.output);
-    const pb::BetaUnits units = parse_beta_units(o.c.beta_units);
+    const pb::Beta beta = build_beta(o.c);  // syntax errors before any call
+    const bool automatic = beta_is_auto(o.c);
     std::unique_ptr<ConstraintSpec> spec;
     if (has_constraints(o.c)) spec = std::make_unique<ConstraintSpec>(build_constraint_spec(o.c));
 
@@ -47,19 +48,32 @@ Command add_deform_command(CLI::App& app, const GlobalOptions& global) {
     SessionClient& s = *w.client;
     try {
       if (spec) s.set_constraints(spec->constraints);
-      if (w.created || beta_opt->count() > 0 || o.c.beta_units != "area")
-        s.set_beta(o.c.beta, units);
       const auto transforms = transforms_for(o.c, s, spec.get());
-      const pb::Frame frame = s.update(transforms, 1);
+      pb::Frame frame;
+      if (automatic) {
+        // One Deform message: the server picks β at exactly these transforms.
+        frame = s.deform(transforms, 1, beta);
+      } else {
+        if (w.created || beta_opt->count() > 0 || o.c.beta_units != "area" ||
+            !o.c.local_betas.empty())
+          s.set_beta(beta);
+        frame = s.update(transforms, 1);
+      }
       const pb::Session& info = s.info();
+      const char* units_name = frame.beta().units() == pb::BETA_UNITS_RAW ? "raw" : "area";
 
       std::cout << (info.mesh_name().empty() ? o.mesh : info.mesh_name()) << ": "
                 << info.vertex_count() << " vertices, " << info.triangle_count()
                 << " triangles, " << info.constraints().fixed().ids_size() << " fixed, "
                 << info.constraints().handles_size() << " handle(s); beta "
-                << g6(frame.beta().value())
-                << (frame.beta().units() == pb::BETA_UNITS_RAW ? " (raw)" : " (area)")
-                << "; solve " << g6(frame.solve_ms()) << " ms\n";
+                << g6(frame.beta().value()) << " (" << units_name
+                << (frame.beta().automatic() ? ", automatic" : "") << ")";
+      if (!o.c.local_betas.empty())
+        std::cout << " + " << o.c.local_betas.size() << " local beta region(s)";
+      std::cout << "; solve " << g6(frame.solve_ms()) << " ms\n";
+      if (frame.beta().automatic())
+        std::cout << "automatic beta: picked " << g6(frame.beta().value()) << " (" << units_name
+                  << " units)\n";
       print_measures(std::cout, frame.measures());
       if (!o.output.empty()) {
         const std::size_t bytes = s.download(o.output, format);

@@ -60,8 +60,13 @@ struct Job {
 };
 
 // Per mesh, resolved before any call: constraints and transforms with {mesh} substituted.
+// A "betas" entry "auto": the server picks β per item, at the item's transforms.
+constexpr double kAutoBeta = -1.0;
+bool is_auto(double beta) { return beta == kAutoBeta; }
+
 struct Resolved {
   pb::Constraints constraints;
+  google::protobuf::RepeatedPtrField<pb::LocalBeta> local;  // the set's "local_beta"
   std::vector<std::vector<pb::HandleTransform>> transforms;  // [transform][handle]
 };
 
@@ -175,9 +180,16 @@ class JobParser {
     }
     if (doc.contains("betas")) {
       const json& b = doc["betas"];
-      if (!b.is_array() || b.empty()) fail("betas", "expected a non-empty array of numbers");
+      if (!b.is_array() || b.empty())
+        fail("betas", "expected a non-empty array of numbers (or \"auto\")");
       job.betas.clear();
       for (std::size_t i = 0; i < b.size(); ++i) {
+        if (b[i].is_string()) {
+          if (b[i].get<std::string>() != "auto")
+            fail("betas[" + std::to_string(i) + "]", "expected a number or \"auto\"");
+          job.betas.push_back(kAutoBeta);
+          continue;
+        }
         const double v = number(b[i], "betas[" + std::to_string(i) + "]");
         if (v < 0 || v >= 1) fail("betas[" + std::to_string(i) + "]", g6(v) + " is outside [0, 1)");
         job.betas.push_back(v);
@@ -225,7 +237,7 @@ class JobParser {
     for (std::size_t i = 0; i < doc["constraints"].size(); ++i) {
       const json& c = doc["constraints"][i];
       const std::string w = "constraints[" + std::to_string(i) + "]";
-      keys(c, w, {"name", "sel", "fixed", "handles"});
+      keys(c, w, {"name", "sel", "fixed", "handles", "local_beta"});
       ConstraintEntry e{c.contains("name") ? str(c["name"], w + ".name") : "c" + std::to_string(i), c};
       job.constraints.push_back(e);
     }
@@ -297,6 +309,28 @@ class JobParser {
       s->set_label(2);
     }
     if (r.constraints.handles_size() == 0) fail(w, "no handle: give \"sel\" or \"handles\"");
+    if (c.contains("local_beta")) {
+      // ["SEL@BETA[@RADIUS]", {"region": REGION, "beta": B, "radius": R}, …]
+      const json& ls = c["local_beta"];
+      if (!ls.is_array() || ls.empty())
+        fail(w + ".local_beta", "expected a non-empty array of entries");
+      for (std::size_t i = 0; i < ls.size(); ++i) {
+        const std::string lw = w + ".local_beta[" + std::to_string(i) + "]";
+        const json& e = ls[i];
+        if (e.is_string()) {
+          *r.local.Add() = parse_local_beta(subst(e.get<std::string>(), mesh), lw, job.dir);
+          continue;
+        }
+        keys(e, lw, {"region", "beta", "radius"});
+        if (!e.contains("region") || !e.contains("beta"))
+          fail(lw, "expected \"region\" and \"beta\" (and optionally \"radius\")");
+        pb::Region reg;
+        region(reg, e["region"], lw + ".region", job.dir, mesh);
+        *r.local.Add() = make_local_beta(
+            std::move(reg), number(e["beta"], lw + ".beta"),
+            e.contains("radius") ? number(e["radius"], lw + ".radius") : 0.0, lw);
+      }
+    }
     const std::size_t handles = static_cast<std::size_t>(r.constraints.handles_size());
 
     for (std::size_t ti = 0; ti < job.transforms.size(); ++ti) {
@@ -331,10 +365,7 @@ class JobParser {
   std::string file_;
 };
 
-std::string beta_tag(double b) {
-  std::string s = g6(b);
-  return s;
-}
+std::string beta_tag(double b) { return is_auto(b) ? "auto" : g6(b); }
 
 }  // namespace
 
@@ -396,8 +427,14 @@ Command add_run_command(CLI::App& app, const GlobalOptions& global) {
     auto record = [&](const MeshEntry& m, const ConstraintEntry& c, const TransformEntry& t,
                       double beta, const pb::Frame* frame, double wall_ms,
                       const std::string& output, const std::string& status) {
-      std::vector<std::string> row{m.name, c.name, t.name, g17(beta)};
-      std::vector<std::string> trow{m.name, c.name, t.name, g6(beta)};
+      // An automatic β shows its pick (CSV: the number; table: "auto=PICK").
+      const bool picked = is_auto(beta) && frame;
+      std::vector<std::string> row{
+          m.name, c.name, t.name,
+          picked ? g17(frame->beta().value()) : is_auto(beta) ? "auto" : g17(beta)};
+      std::vector<std::string> trow{
+          m.name, c.name, t.name,
+          picked ? "auto=" + g6(frame->beta().value()) : beta_tag(beta)};
       for (const auto& col : measure_columns()) {
         if (!frame) {
           row.emplace_back("");
@@ -450,10 +487,18 @@ Command add_run_command(CLI::App& app, const GlobalOptions& global) {
         }
         for (double beta : job.betas) {
           std::string beta_error = set_error;
-          if (beta_error.empty()) {
+          pb::Beta b;
+          b.set_units(units);
+          if (is_auto(beta))
+            b.set_automatic(true);
+          else
+            b.set_value(beta);
+          *b.mutable_local() = r.local;
+          // An automatic β is picked per item, at its transforms (one Deform message each).
+          if (beta_error.empty() && !is_auto(beta)) {
             const auto t0 = std::chrono::steady_clock::now();
             try {
-              s->set_beta(beta, units);
+              s->set_beta(b);
             } catch (const CliError& e) {
               beta_error = e.what();
             }
@@ -470,7 +515,9 @@ Command add_run_command(CLI::App& app, const GlobalOptions& global) {
               continue;
             }
             try {
-              const pb::Frame frame = s->update(r.transforms[ti], static_cast<std::int64_t>(n));
+              const auto seq = static_cast<std::int64_t>(n);
+              const pb::Frame frame = is_auto(beta) ? s->deform(r.transforms[ti], seq, b)
+                                                    : s->update(r.transforms[ti], seq);
               std::string output;
               if (write_meshes) {
                 output = (fs::path(job.output_dir) /
@@ -482,6 +529,7 @@ Command add_run_command(CLI::App& app, const GlobalOptions& global) {
               const double ms = ms_since(start);
               record(m, c, t, beta, &frame, ms, output, "ok");
               std::string outcome = "ok " + std::to_string(std::lround(ms)) + " ms";
+              if (is_auto(beta)) outcome += " (picked \u03b2=" + g6(frame.beta().value()) + ")";
               if (setup_ms > 0.5)
                 outcome += " (+" + std::to_string(std::lround(setup_ms)) + " ms constraints/\u03b2 setup)";
               setup_ms = 0;

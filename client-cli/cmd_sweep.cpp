@@ -45,6 +45,7 @@ Command add_sweep_command(CLI::App& app, const GlobalOptions& global) {
     for (double b : betas)
       if (b < 0 || b >= 1) throw CliError("--betas: " + g6(b) + " is outside [0, 1)");
     const pb::BetaUnits units = parse_beta_units(o.c.beta_units);
+    const pb::Beta local = build_beta(o.c);  // value 0 + the --local-beta entries
     std::unique_ptr<ConstraintSpec> spec;
     if (has_constraints(o.c)) spec = std::make_unique<ConstraintSpec>(build_constraint_spec(o.c));
 
@@ -54,6 +55,8 @@ Command add_sweep_command(CLI::App& app, const GlobalOptions& global) {
     std::vector<SweepPoint> rows;
     try {
       if (spec) s.set_constraints(spec->constraints);
+      // --local-beta: the session's local entries, applied at every swept β.
+      if (!o.c.local_betas.empty()) s.set_beta(local);
       const auto transforms = transforms_for(o.c, s, spec.get());
       const pb::SweepResponse resp = s.sweep(betas, units, transforms);
       for (const auto& r : resp.rows()) rows.push_back({r.beta(), r.measures()});

@@ -173,8 +173,8 @@ SessionClient SessionClient::create(Connection& conn, const std::string& mesh) {
   writer->WritesDone();
   grpc::Status status = writer->Finish();
   if (!status.ok()) throw RpcError("CreateSession", status);
-  // The routing key stays the id we proposed: if the server picked another id (it ignores
-  // session_id), the proposed key still routes to the replica that holds the session.
+  // The routing key stays the id we proposed: should a server pick another id (an old server
+  // that ignores session_id), the proposed key still routes to the replica that holds it.
   if (session_id_of(session.name()) != id)
     spdlog::debug("server named the session {} (proposed {})", session.name(), id);
   spdlog::info("created {} ({} vertices, {} triangles)", session.name(), session.vertex_count(),
@@ -226,12 +226,18 @@ pb::Session SessionClient::set_constraints(const pb::Constraints& constraints) {
 }
 
 pb::Session SessionClient::set_beta(double value, pb::BetaUnits units) {
+  pb::Beta beta;
+  beta.set_value(value);
+  beta.set_units(units);
+  return set_beta(beta);
+}
+
+pb::Session SessionClient::set_beta(const pb::Beta& beta) {
   grpc::ClientContext ctx;
   prepare(ctx, key_, timeout());
   pb::SetBetaRequest req;
   req.set_name(name_);
-  req.mutable_beta()->set_value(value);
-  req.mutable_beta()->set_units(units);
+  *req.mutable_beta() = beta;
   pb::Session s;
   grpc::Status status = conn_->stub().SetBeta(&ctx, req, &s);
   if (!status.ok()) throw RpcError("SetBeta", status);
@@ -251,6 +257,31 @@ pb::Frame SessionClient::update(const std::vector<pb::HandleTransform>& transfor
   pb::Frame frame;
   grpc::Status status = conn_->stub().UpdateHandles(&ctx, req, &frame);
   if (!status.ok()) throw RpcError("UpdateHandles", status);
+  return frame;
+}
+
+pb::Frame SessionClient::deform(const std::vector<pb::HandleTransform>& transforms,
+                                std::int64_t sequence, const pb::Beta& beta, bool energies) {
+  grpc::ClientContext ctx;
+  prepare(ctx, key_, timeout());
+  auto stream = conn_->stub().Deform(&ctx);
+  pb::DeformRequest req;
+  req.set_name(name_);
+  req.set_sequence(sequence);
+  req.set_energies(energies);
+  for (const auto& t : transforms) *req.add_transforms() = t;
+  *req.mutable_beta() = beta;
+  stream->Write(req);
+  stream->WritesDone();
+  pb::Frame frame, got;
+  bool any = false;
+  while (stream->Read(&got)) {
+    frame.Swap(&got);
+    any = true;
+  }
+  grpc::Status status = stream->Finish();
+  if (!status.ok()) throw RpcError("Deform", status);
+  if (!any) throw CliError("Deform: the server sent no frame");
   return frame;
 }
 

@@ -96,6 +96,11 @@ class SessionClient {
   pb::Session get();
   pb::Session set_constraints(const pb::Constraints& constraints);
   pb::Session set_beta(double value, pb::BetaUnits units);
+  pb::Session set_beta(const pb::Beta& beta);  // automatic β: picked at the current transforms
+  // One Deform stream message: these transforms and β together (an automatic β is picked at
+  // these transforms); returns the frame.
+  pb::Frame deform(const std::vector<pb::HandleTransform>& transforms, std::int64_t sequence,
+                   const pb::Beta& beta, bool energies = false);
   pb::Frame update(const std::vector<pb::HandleTransform>& transforms, std::int64_t sequence,
                    bool energies = false);
   pb::SweepResponse sweep(const std::vector<double>& betas, pb::BetaUnits units,

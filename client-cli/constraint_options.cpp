@@ -1,5 +1,7 @@
 #include "constraint_options.h"
 
+#include "output.h"
+
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
@@ -42,12 +44,34 @@ void add_constraint_options(CLI::App& cmd, ConstraintOptions& o) {
 
 void add_beta_options(CLI::App& cmd, ConstraintOptions& o, bool with_beta_value) {
   if (with_beta_value)
-    cmd.add_option("--beta", o.beta, "regularization weight, 0 <= beta < 1")
-        ->capture_default_str();
+    cmd.add_option("--beta", o.beta,
+                   "regularization weight, 0 <= beta < 1, or 'auto': the server picks it at "
+                   "the handles' transforms")
+        ->capture_default_str()
+        ->type_name("B|auto");
+  cmd.add_option("--local-beta", o.local_betas,
+                 "local regularization (repeatable): SEL@BETA[@RADIUS] - triangles touching "
+                 "the region SEL get BETA; with RADIUS > 0 every triangle within RADIUS (model "
+                 "units) of it gets BETA*(1-d/RADIUS)^2; beta = max(--beta, entries)")
+      ->allow_extra_args(false)
+      ->type_name("SEL@BETA[@R]");
   cmd.add_option("--beta-units", o.beta_units,
                  "area (scale-invariant, default) or raw (the thesis's model units)")
       ->check(CLI::IsMember({"area", "raw"}))
       ->capture_default_str();
+}
+
+bool beta_is_auto(const ConstraintOptions& o) { return o.beta == "auto"; }
+
+pb::Beta build_beta(const ConstraintOptions& o) {
+  pb::Beta b;
+  b.set_units(parse_beta_units(o.beta_units));
+  if (beta_is_auto(o))
+    b.set_automatic(true);
+  else
+    b.set_value(parse_numbers(o.beta, "--beta (a number or 'auto')", 1)[0]);
+  for (const auto& text : o.local_betas) *b.add_local() = parse_local_beta(text, "--local-beta");
+  return b;
 }
 
 bool has_constraints(const ConstraintOptions& o) {
@@ -179,6 +203,47 @@ pb::Selector parse_selector(const std::string& raw, const std::string& where,
                    "' (ids, box, sphere, half or sel)");
   }
   return s;
+}
+
+pb::LocalBeta make_local_beta(pb::Region region, double beta, double radius,
+                              const std::string& where) {
+  if (!(beta >= 0 && beta < 1))
+    throw CliError(where + ": beta " + g6(beta) + " is outside [0, 1)");
+  if (!(radius >= 0)) throw CliError(where + ": radius must be >= 0");
+  pb::LocalBeta e;
+  *e.mutable_region() = std::move(region);
+  e.set_beta(beta);
+  e.set_falloff_radius(radius);
+  return e;
+}
+
+pb::LocalBeta parse_local_beta(const std::string& raw, const std::string& where,
+                               const std::string& base_dir) {
+  const std::string text = trim(raw);
+  const std::string w = where + " '" + text + "'";
+  std::vector<std::string> parts;
+  std::size_t start = 0;
+  for (std::size_t at; (at = text.find('@', start)) != std::string::npos; start = at + 1)
+    parts.push_back(text.substr(start, at - start));
+  parts.push_back(text.substr(start));
+  if (parts.size() < 2) throw CliError(w + ": expected SEL@BETA or SEL@BETA@RADIUS");
+  auto is_number = [](const std::string& s) {
+    const std::string t = trim(s);
+    char* end = nullptr;
+    std::strtod(t.c_str(), &end);
+    return !t.empty() && end == t.c_str() + t.size();
+  };
+  // From the right: BETA[@RADIUS] are numbers; everything before is the selector text.
+  const std::size_t numbers =
+      parts.size() >= 3 && is_number(parts.back()) && is_number(parts[parts.size() - 2]) ? 2 : 1;
+  std::string sel;
+  for (std::size_t i = 0; i + numbers < parts.size(); ++i) sel += (i ? "@" : "") + parts[i];
+  const double beta = parse_numbers(parts[parts.size() - numbers], w + ": BETA", 1)[0];
+  const double radius = numbers == 2 ? parse_numbers(parts.back(), w + ": RADIUS", 1)[0] : 0.0;
+  if (trim(sel).empty()) throw CliError(w + ": no selector before '@'");
+  pb::Region region;
+  add_selectors(region, sel, where, base_dir);
+  return make_local_beta(std::move(region), beta, radius, w);
 }
 
 void add_selectors(pb::Region& region, const std::string& text, const std::string& where,

@@ -19,8 +19,9 @@ struct ConstraintOptions {
   std::vector<std::string> fixed;      // selectors; all united into the fixed region
   std::vector<std::string> handles;    // one handle region per occurrence
   std::string rotate, translate, scale, pivot;
-  double beta = 0;
+  std::string beta = "0";              // a number, or "auto" (picked by the server)
   std::string beta_units = "area";
+  std::vector<std::string> local_betas;  // SEL@BETA[@RADIUS], repeatable
   std::string session;                 // use this existing session instead of creating one
 };
 
@@ -31,6 +32,12 @@ struct ConstraintSpec {
   pb::Constraints constraints;
   std::vector<pb::HandleTransform> transforms;  // one per handle
 };
+
+// --beta auto?
+bool beta_is_auto(const ConstraintOptions& options);
+// The β the options describe: value (or automatic), units and the --local-beta entries.
+// Throws CliError on bad syntax.
+pb::Beta build_beta(const ConstraintOptions& options);
 
 // True when the options name any region (else an existing --session keeps its own).
 bool has_constraints(const ConstraintOptions& options);
@@ -47,6 +54,14 @@ pb::Selector parse_selector(const std::string& text, const std::string& where,
 // Selectors joined by '|' → one region (their union).
 void add_selectors(pb::Region& region, const std::string& text, const std::string& where,
                    const std::string& base_dir = "");
+
+// A local regularization entry: SEL@BETA or SEL@BETA@RADIUS (SEL as --fixed, '|' unites;
+// RADIUS > 0: falloff β·max(0, 1 − d/RADIUS)² around the region; 0 or omitted: the region's
+// triangles).
+pb::LocalBeta parse_local_beta(const std::string& text, const std::string& where,
+                               const std::string& base_dir = "");
+pb::LocalBeta make_local_beta(pb::Region region, double beta, double radius,
+                              const std::string& where);
 
 struct TransformText {
   std::string rotate;     // "AXIS,DEG": AXIS = x|y|z or "AX,AY,AZ"

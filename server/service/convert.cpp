@@ -95,8 +95,20 @@ Beta beta_from(double value, pb::BetaUnits units) {
     throw InvalidInput("beta must satisfy 0 <= beta < 1, got " + std::to_string(value));
   Beta b;
   b.value = value;
-  b.units = units == pb::BETA_UNITS_RAW ? BetaUnits::raw : BetaUnits::area;
+  b.units = units_from(units);
   return b;
+}
+
+BetaUnits units_from(pb::BetaUnits units) {
+  return units == pb::BETA_UNITS_RAW ? BetaUnits::raw : BetaUnits::area;
+}
+
+double convert_beta(const PreparedMesh& mesh, double value, BetaUnits from, BetaUnits to) {
+  if (from == to || value == 0.0) return value;
+  if (to == BetaUnits::raw) return mesh.raw_beta({value, BetaUnits::area});
+  // raw → area: β/(1−β) = s · β′/(1−β′), s = 1/√(total area).
+  const double ratio = value / ((1.0 - value) * std::sqrt(mesh.total_area()));
+  return ratio / (1.0 + ratio);
 }
 
 Beta from_proto(const pb::Beta& b) { return beta_from(b.value(), b.units()); }

@@ -31,6 +31,9 @@ std::vector<HandleTransform> from_proto(
 Beta from_proto(const pb::Beta& b);
 void to_proto(const Beta& b, pb::Beta* out);
 Beta beta_from(double value, pb::BetaUnits units);
+BetaUnits units_from(pb::BetaUnits units);
+// The same β in other units (SPEC decision Units: β′/(1−β′) = β/((1−β)·s)); exact for 0.
+double convert_beta(const PreparedMesh& mesh, double value, BetaUnits from, BetaUnits to);
 
 void to_proto(const Measures& m, pb::Measures* out);
 

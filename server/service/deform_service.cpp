@@ -101,6 +101,7 @@ class CreateSessionReactor final : public grpc::ServerReadReactor<v1::CreateSess
       fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
            "upload of " + std::to_string(header_.total_bytes()) + " bytes exceeds the limit of " +
                std::to_string(limits.max_upload_bytes) + " bytes");
+    svc_->sessions().check_id(header_.session_id());  // fail fast, before an upload
     svc_->sessions().check_capacity();
     if (header_.total_bytes() > 0) data_->reserve(static_cast<std::size_t>(header_.total_bytes()));
   }
@@ -118,7 +119,7 @@ class CreateSessionReactor final : public grpc::ServerReadReactor<v1::CreateSess
             std::shared_ptr<const MeshRef> mesh =
                 header_.has_library_mesh() ? svc_->load_library_mesh(header_.library_mesh())
                                            : svc_->load_upload(bytes, header_.filename());
-            auto session = svc_->sessions().create(std::move(mesh));
+            auto session = svc_->sessions().create(std::move(mesh), header_.session_id());
             *response_ = session->describe();
           },
           "CreateSession");
@@ -636,6 +637,7 @@ grpc::ServerUnaryReactor* DeformService::ImportSession(grpc::CallbackServerConte
                                                        v1::Session* response) {
   return finish_on_pool(ctx, "ImportSession", [this, request, response] {
     const auto& snap = request->snapshot();
+    store_.check_id(request->session_id());
     store_.check_capacity();
     std::shared_ptr<const MeshRef> mesh;
     if (!snap.mesh_bytes().empty()) {
@@ -664,7 +666,7 @@ grpc::ServerUnaryReactor* DeformService::ImportSession(grpc::CallbackServerConte
       fail(grpc::StatusCode::INVALID_ARGUMENT, "snapshot mesh hash " + snap.mesh_hash() +
                                                    " does not match the mesh's hash " +
                                                    mesh->hash);
-    auto session = store_.create(mesh);
+    auto session = store_.create(mesh, request->session_id());
     const auto status = guarded([&] { session->restore(snap); }, "ImportSession");
     if (!status.ok()) {
       store_.remove(session->name());

@@ -1,11 +1,13 @@
 #include "session.h"
 
+#include "auto_beta.h"
 #include "convert.h"
 #include "errors.h"
 
 #include <spdlog/spdlog.h>
 
 #include <chrono>
+#include <cmath>
 #include <set>
 
 namespace hdeform::service {
@@ -35,7 +37,36 @@ MeshFileFormat file_format(pb::MeshFormat f) {
 }
 
 const char* kNoConstraints = "the session has no constraints yet: call SetConstraints first";
+
+std::shared_ptr<const LocalBeta> make_field(const Eigen::VectorXd& local_max, const Beta& uniform) {
+  auto field = std::make_shared<LocalBeta>();
+  field->beta = local_max.cwiseMax(uniform.value);
+  field->units = uniform.units;
+  return field;
+}
+
+// The session's β as a proto (Session, Snapshot; with_local = false for frames: the local
+// entries may carry whole .sel files and every frame would repeat them).
+void beta_to_proto(const SessionBeta& b, pb::Beta* out, bool with_local = true) {
+  out->Clear();
+  to_proto(b.uniform, out);
+  out->set_automatic(b.automatic);
+  if (with_local) *out->mutable_local() = b.local;
+}
+
+double ms_between(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
 }  // namespace
+
+bool SessionBeta::same_as(const SessionBeta& o) const {
+  if (uniform.value != o.uniform.value || uniform.units != o.uniform.units ||
+      automatic != o.automatic || local.size() != o.local.size())
+    return false;
+  for (int i = 0; i < local.size(); ++i)
+    if (local.Get(i).SerializeAsString() != o.local.Get(i).SerializeAsString()) return false;
+  return true;
+}
 
 Session::Session(std::string id, std::shared_ptr<const MeshRef> mesh, WorkerPool& pool,
                  Cache& cache)
@@ -79,10 +110,76 @@ std::shared_ptr<const ConstraintSet> Session::constraint_set_for(const Constrain
       [](const ConstraintSet& cs) { return cs.memory_bytes(); });
 }
 
+SessionBeta Session::parse_beta(const pb::Beta& b, bool keep_automatic_value) const {
+  SessionBeta out;
+  out.automatic = b.automatic();
+  if (out.automatic && !keep_automatic_value)
+    out.uniform = Beta{0.0, units_from(b.units())};  // `value` is ignored: it gets picked
+  else
+    out.uniform = from_proto(b);
+  if (b.local_size() == 0) return out;
+  out.local = b.local();
+  const PreparedMesh& pm = *mesh_->prepared;
+  auto local_max = std::make_shared<Eigen::VectorXd>(Eigen::VectorXd::Zero(pm.m()));
+  for (int i = 0; i < b.local_size(); ++i) {
+    const pb::LocalBeta& e = b.local(i);
+    const std::string where = "beta.local[" + std::to_string(i) + "]";
+    if (!std::isfinite(e.beta()) || e.beta() < 0 || e.beta() >= 1)
+      throw InvalidInput(where + ": beta must satisfy 0 <= beta < 1, got " +
+                         fmt::format("{}", e.beta()));
+    if (!std::isfinite(e.falloff_radius()) || e.falloff_radius() < 0)
+      throw InvalidInput(where + ": falloff_radius must be finite and >= 0, got " +
+                         fmt::format("{}", e.falloff_radius()));
+    if (e.region().selectors_size() == 0)
+      throw InvalidInput(where + ": region has no selectors");
+    const std::vector<int> ids = resolve_region(e.region(), pm.mesh().V, where + " region");
+    if (ids.empty()) throw InvalidInput(where + ": region selects no vertices");
+    const Eigen::VectorXd f = e.falloff_radius() > 0
+                                  ? falloff_beta(pm, ids, e.beta(), e.falloff_radius())
+                                  : region_beta(pm, ids, e.beta());
+    *local_max = local_max->cwiseMax(f);
+  }
+  out.local_max = std::move(local_max);
+  out.field = make_field(*out.local_max, out.uniform);
+  return out;
+}
+
+void Session::pick_beta(SessionBeta& beta, const ConstraintSet& cs,
+                        const std::vector<HandleTransform>& transforms) {
+  const auto t0 = std::chrono::steady_clock::now();
+  AutoBetaParams params;
+  params.units = beta.uniform.units;
+  // ConstraintSet is shared and thread-safe; select_beta only adds/drops cached systems.
+  const AutoBetaResult r =
+      select_beta(const_cast<ConstraintSet&>(cs), std::span(transforms), params);
+  beta.uniform.value = r.beta.value;
+  if (beta.has_local()) beta.field = make_field(*beta.local_max, beta.uniform);
+  spdlog::info("{}: automatic beta picked {} ({}) from {} samples in {:.1f} ms", name_,
+               r.beta.value, beta.uniform.units == BetaUnits::raw ? "raw" : "area",
+               r.samples.size(), ms_between(t0));
+}
+
+void Session::prepare_beta(const ConstraintSet& cs, const SessionBeta& beta) {
+  if (beta.field) {
+    // No prepare() for fields: one cheap solve at rest builds (and caches) the system.
+    const std::vector<HandleTransform> rest(static_cast<std::size_t>(cs.num_handles()));
+    cs.update_local(rest, *beta.field, UpdateOptions{.energies = false, .normals = false});
+  } else {
+    const_cast<ConstraintSet&>(cs).prepare(beta.uniform);
+  }
+}
+
+hdeform::Frame Session::solve(const ConstraintSet& cs,
+                              const std::vector<HandleTransform>& transforms,
+                              const SessionBeta& beta, const UpdateOptions& options) const {
+  if (beta.field) return cs.update_local(transforms, *beta.field, options);
+  return cs.update(transforms, beta.uniform, options);
+}
+
 pb::Session Session::set_constraints(const pb::Constraints& constraints,
                                      std::int64_t expected_version) {
   touch();
-  Beta beta;
+  SessionBeta beta;
   {
     std::lock_guard lock(mutex_);
     check_version_locked(expected_version);
@@ -91,8 +188,9 @@ pb::Session Session::set_constraints(const pb::Constraints& constraints,
   const Constraints resolved = resolve_constraints(constraints, mesh_->prepared->mesh().V);
   auto cs = constraint_set_for(resolved);
   const std::string key = "cs/" + mesh_->hash + "/" + constraints_digest(resolved);
-  // ConstraintSet is shared: prepare() is thread-safe (it builds each β once).
-  const_cast<ConstraintSet&>(*cs).prepare(beta);
+  // ConstraintSet is shared: prepare() is thread-safe (it builds each β once). An automatic
+  // β keeps its pick (the new handles are at rest: nothing to pick from yet).
+  prepare_beta(*cs, beta);
   cache_.update_size(key, cs->memory_bytes());
   pb::Session out;
   {
@@ -112,21 +210,32 @@ pb::Session Session::set_constraints(const pb::Constraints& constraints,
 
 pb::Session Session::set_beta(const pb::Beta& beta_msg, std::int64_t expected_version) {
   touch();
-  const Beta beta = from_proto(beta_msg);
+  SessionBeta beta = parse_beta(beta_msg);
   std::shared_ptr<const ConstraintSet> cs;
+  std::vector<HandleTransform> transforms;
+  std::string key;
   {
     std::lock_guard lock(mutex_);
     check_version_locked(expected_version);
     cs = cs_;
+    transforms = transforms_;
+    key = cs_key_;
+  }
+  if (beta.automatic) {
+    if (!cs)
+      fail(grpc::StatusCode::FAILED_PRECONDITION,
+           "automatic beta is picked at the session's handle transforms: call SetConstraints "
+           "first");
+    pick_beta(beta, *cs, transforms);
   }
   if (cs) {
-    const_cast<ConstraintSet&>(*cs).prepare(beta);
-    cache_.update_size(cs_key_, cs->memory_bytes());
+    prepare_beta(*cs, beta);
+    cache_.update_size(key, cs->memory_bytes());
   }
   pb::Session out;
   {
     std::lock_guard lock(mutex_);
-    beta_ = beta;
+    beta_ = std::move(beta);
     ++version_;
     last_frame_.reset();
     update_ms_ = unix_ms_now();
@@ -140,8 +249,9 @@ std::shared_ptr<pb::Frame> Session::update(const Update& u) {
   touch();
   const auto t0 = std::chrono::steady_clock::now();
   std::shared_ptr<const ConstraintSet> cs;
-  Beta beta;
+  SessionBeta beta;
   std::vector<HandleTransform> transforms;
+  std::string key;
   const bool keep = u.keep_transforms_if_empty && (!u.transforms || u.transforms->empty());
   {
     std::lock_guard lock(mutex_);
@@ -149,6 +259,7 @@ std::shared_ptr<pb::Frame> Session::update(const Update& u) {
     check_version_locked(u.expected_version);
     cs = cs_;
     beta = beta_;
+    key = cs_key_;
     if (keep) transforms = transforms_;
   }
   if (!keep) {
@@ -157,24 +268,22 @@ std::shared_ptr<pb::Frame> Session::update(const Update& u) {
   }
   bool beta_changed = false;
   if (u.beta) {
-    const Beta b = from_proto(*u.beta);
-    beta_changed = b.value != beta.value || b.units != beta.units;
-    beta = b;
-    if (beta_changed) {
-      const_cast<ConstraintSet&>(*cs).prepare(beta);
-      cache_.update_size(cs_key_, cs->memory_bytes());
-    }
+    SessionBeta b = parse_beta(*u.beta);
+    if (b.automatic) pick_beta(b, *cs, transforms);  // at the transforms being committed
+    beta_changed = !b.same_as(beta);
+    beta = std::move(b);
   }
   UpdateOptions options;
   options.energies = u.energies;
   options.normals = true;
-  auto frame = std::make_shared<const hdeform::Frame>(cs->update(transforms, beta, options));
+  auto frame = std::make_shared<const hdeform::Frame>(solve(*cs, transforms, beta, options));
+  if (beta_changed) cache_.update_size(key, cs->memory_bytes());
 
   auto out = std::make_shared<pb::Frame>();
   mesh_->layout->fill(*frame, out.get());
   out->set_session(name_);
   out->set_sequence(u.sequence);
-  to_proto(beta, out->mutable_beta());
+  beta_to_proto(beta, out->mutable_beta(), false);
   {
     std::lock_guard lock(mutex_);
     if (cs_ != cs) {
@@ -204,17 +313,27 @@ pb::SweepResponse Session::sweep(const pb::SweepRequest& request) {
   touch();
   std::shared_ptr<const ConstraintSet> cs;
   std::vector<HandleTransform> transforms;
-  Beta session_beta;
+  SessionBeta session_beta;
+  std::string key;
   {
     std::lock_guard lock(mutex_);
     if (!cs_) fail(grpc::StatusCode::FAILED_PRECONDITION, kNoConstraints);
     cs = cs_;
     transforms = transforms_;
     session_beta = beta_;
+    key = cs_key_;
   }
   if (request.transforms_size() > 0) transforms = from_proto(request.transforms(), *cs);
   std::vector<Beta> betas;
   for (double b : request.betas()) betas.push_back(beta_from(b, request.units()));
+  // The session's local entries apply at every β (value = that β), in the sweep's units.
+  Eigen::VectorXd local_max;
+  if (session_beta.has_local()) {
+    const BetaUnits from = session_beta.uniform.units, to = units_from(request.units());
+    const PreparedMesh& pm = *mesh_->prepared;
+    local_max = session_beta.local_max->unaryExpr(
+        [&](double v) { return convert_beta(pm, v, from, to); });
+  }
   // Factorizations built only for the sweep are dropped again afterwards.
   pb::SweepResponse out;
   std::vector<Beta> extra;
@@ -222,24 +341,31 @@ pb::SweepResponse Session::sweep(const pb::SweepRequest& request) {
     UpdateOptions options;
     options.energies = false;
     options.normals = false;
+    if (session_beta.has_local()) {
+      const hdeform::Frame f = cs->update_local(transforms, *make_field(local_max, b), options);
+      auto* row = out.add_rows();
+      row->set_beta(b.value);
+      to_proto(f.measures, row->mutable_measures());
+      continue;
+    }
     const std::size_t before = cs->num_cached_factorizations();
     const hdeform::Frame f = cs->update(transforms, b, options);
     if (cs->num_cached_factorizations() > before &&
-        !(b.value == session_beta.value && b.units == session_beta.units))
+        !(b.value == session_beta.uniform.value && b.units == session_beta.uniform.units))
       extra.push_back(b);
     auto* row = out.add_rows();
     row->set_beta(b.value);
     to_proto(f.measures, row->mutable_measures());
   }
   for (const Beta& b : extra) const_cast<ConstraintSet&>(*cs).drop_factorization(b);
-  cache_.update_size(cs_key_, cs->memory_bytes());
+  cache_.update_size(key, cs->memory_bytes());
   return out;
 }
 
 Vertices Session::deformed_positions() {
   std::shared_ptr<const ConstraintSet> cs;
   std::vector<HandleTransform> transforms;
-  Beta beta;
+  SessionBeta beta;
   std::int64_t version;
   {
     std::lock_guard lock(mutex_);
@@ -253,7 +379,7 @@ Vertices Session::deformed_positions() {
   UpdateOptions options;
   options.energies = false;
   options.normals = false;
-  auto frame = std::make_shared<const hdeform::Frame>(cs->update(transforms, beta, options));
+  auto frame = std::make_shared<const hdeform::Frame>(solve(*cs, transforms, beta, options));
   std::lock_guard lock(mutex_);
   if (version == version_) {
     last_frame_ = frame;
@@ -278,16 +404,18 @@ pb::Snapshot Session::export_snapshot(bool include_mesh) const {
   if (include_mesh && mesh_->file_bytes) s.set_mesh_bytes(*mesh_->file_bytes);
   std::lock_guard lock(mutex_);
   if (cs_) *s.mutable_constraints() = given_;
-  to_proto(beta_, s.mutable_beta());
+  beta_to_proto(beta_, s.mutable_beta());
   for (const auto& t : transforms_) to_proto(t, s.add_transforms());
   return s;
 }
 
 void Session::restore(const pb::Snapshot& s) {
-  const Beta beta = s.has_beta() ? from_proto(s.beta()) : Beta{};
+  // An automatic β keeps the snapshot's pick (`value`): the restored session deforms exactly
+  // as the exported one, whatever transforms the pick was made at.
+  SessionBeta beta = s.has_beta() ? parse_beta(s.beta(), true) : SessionBeta{};
   {
     std::lock_guard lock(mutex_);
-    beta_ = beta;
+    beta_ = std::move(beta);
   }
   const bool has_constraints =
       s.has_constraints() &&
@@ -324,7 +452,7 @@ void Session::describe_locked(pb::Session* out) const {
     to_proto(cs_->constraints(), out->mutable_constraints());
     for (int j = 0; j < cs_->num_handles(); ++j) to_proto(cs_->centroid(j), out->add_pivots());
   }
-  to_proto(beta_, out->mutable_beta());
+  beta_to_proto(beta_, out->mutable_beta());
   for (const auto& t : transforms_) to_proto(t, out->add_transforms());
   out->set_observers(static_cast<int>(watchers_.size()));
   out->set_create_time_unix_ms(create_ms_);

@@ -32,6 +32,22 @@ class EventSink {
   virtual void close() = 0;  // the session is gone (after a `deleted` event)
 };
 
+// β as a session holds it: the uniform value (the pick, when automatic) and the local
+// regularization entries, as given (for Session/Frame/Snapshot) and resolved on the rest
+// mesh to a per-triangle field.
+struct SessionBeta {
+  Beta uniform;
+  bool automatic = false;
+  google::protobuf::RepeatedPtrField<pb::LocalBeta> local;  // as given
+  // Per triangle, the largest local entry covering it (in uniform.units); null: no entries.
+  std::shared_ptr<const Eigen::VectorXd> local_max;
+  // max(uniform.value, local_max) per triangle; null: no entries (a uniform β).
+  std::shared_ptr<const LocalBeta> field;
+
+  bool has_local() const { return local_max != nullptr; }
+  bool same_as(const SessionBeta& other) const;
+};
+
 class Session : public std::enable_shared_from_this<Session> {
  public:
   Session(std::string id, std::shared_ptr<const MeshRef> mesh, WorkerPool& pool, Cache& cache);
@@ -84,6 +100,16 @@ class Session : public std::enable_shared_from_this<Session> {
   void broadcast(std::shared_ptr<const pb::SessionEvent> event);
   void broadcast_state();
   std::shared_ptr<const ConstraintSet> constraint_set_for(const Constraints& c);
+  // Validates a proto β and resolves its local entries (automatic: value not yet picked).
+  // keep_automatic_value: a snapshot's automatic β keeps its pick instead of a new one.
+  SessionBeta parse_beta(const pb::Beta& beta, bool keep_automatic_value = false) const;
+  // Automatic β: runs select_beta at `transforms` and stores the pick in `beta`.
+  void pick_beta(SessionBeta& beta, const ConstraintSet& cs,
+                 const std::vector<HandleTransform>& transforms);
+  // Builds the factorization `beta` needs (for a local field: by one cheap solve).
+  void prepare_beta(const ConstraintSet& cs, const SessionBeta& beta);
+  hdeform::Frame solve(const ConstraintSet& cs, const std::vector<HandleTransform>& transforms,
+                       const SessionBeta& beta, const UpdateOptions& options) const;
   Vertices deformed_positions();  // current deformation (solves if needed), engine order
 
   const std::string id_, name_;
@@ -95,7 +121,7 @@ class Session : public std::enable_shared_from_this<Session> {
   std::shared_ptr<const ConstraintSet> cs_;
   std::string cs_key_;
   pb::Constraints given_;  // constraints as the client gave them (for snapshots)
-  Beta beta_;
+  SessionBeta beta_;
   std::vector<HandleTransform> transforms_;
   std::int64_t version_ = 1;
   std::shared_ptr<const hdeform::Frame> last_frame_;  // engine frame at last_frame_version_

@@ -27,15 +27,39 @@ void SessionStore::check_capacity() const {
              " sessions); delete one or wait for idle sessions to expire");
 }
 
-std::shared_ptr<Session> SessionStore::create(std::shared_ptr<const MeshRef> mesh) {
+namespace {
+void check_id_format(const std::string& id) {
+  if (id.size() > 64)
+    fail(grpc::StatusCode::INVALID_ARGUMENT,
+         "session_id must be 1 to 64 characters of [A-Za-z0-9_-], got " +
+             std::to_string(id.size()) + " characters");
+  for (char c : id)
+    if (!((c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') ||
+          c == '_' || c == '-'))
+      fail(grpc::StatusCode::INVALID_ARGUMENT,
+           "session_id '" + id + "' may only contain [A-Za-z0-9_-] (at most 64 characters)");
+}
+}  // namespace
+
+void SessionStore::check_id(const std::string& id) const {
+  if (id.empty()) return;
+  check_id_format(id);
   std::lock_guard lock(mutex_);
+  if (sessions_.count(id))
+    fail(grpc::StatusCode::ALREADY_EXISTS, "session sessions/" + id + " already exists");
+}
+
+std::shared_ptr<Session> SessionStore::create(std::shared_ptr<const MeshRef> mesh,
+                                              const std::string& requested) {
+  if (!requested.empty()) check_id_format(requested);
+  std::lock_guard lock(mutex_);
+  if (!requested.empty() && sessions_.count(requested))
+    fail(grpc::StatusCode::ALREADY_EXISTS, "session sessions/" + requested + " already exists");
   if (sessions_.size() >= limits_.max_sessions)
     fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
          "session limit reached (" + std::to_string(limits_.max_sessions) + " sessions)");
-  std::string id;
-  do {
-    id = hex64(rng_());
-  } while (sessions_.count(id));
+  std::string id = requested;
+  while (id.empty() || sessions_.count(id)) id = hex64(rng_());
   auto s = std::make_shared<Session>(id, std::move(mesh), pool_, cache_);
   sessions_.emplace(id, s);
   spdlog::info("{}: created on mesh {} ({}, {} vertices)", s->name(), s->mesh().display_name(),

@@ -31,7 +31,11 @@ class SessionStore {
   const Limits& limits() const { return limits_; }
   // RESOURCE_EXHAUSTED when no session can be added.
   void check_capacity() const;
-  std::shared_ptr<Session> create(std::shared_ptr<const MeshRef> mesh);
+  // `id` (the {id} of sessions/{id}): empty → the server picks one; else it must be
+  // [A-Za-z0-9_-]{1,64} (INVALID_ARGUMENT) and free (ALREADY_EXISTS).
+  std::shared_ptr<Session> create(std::shared_ptr<const MeshRef> mesh, const std::string& id = "");
+  // Early checks of a client-chosen id (format, and not taken right now); "" passes.
+  void check_id(const std::string& id) const;
   // "sessions/{id}" or "{id}"; nullptr when unknown.
   std::shared_ptr<Session> find(const std::string& name) const;
   std::shared_ptr<Session> get(const std::string& name) const;  // NOT_FOUND

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # End-to-end tests of the hdeform CLI, run by ctest (LABELS cli):
 #   cli_test.sh CASE HDEFORM DATA_DIR [HDEFORM_SERVER]
-# Cases: deform, sweep, run, bad-inputs (in-process service) and remote (a real
+# Cases: deform, sweep, run, beta (automatic and local β), bad-inputs (in-process service)
+# and remote (a real
 # hdeform-server --port 0 started here: deform/sweep --server, and watch).
 set -uo pipefail
 
@@ -53,6 +54,12 @@ check_measures() {  # FILE: the deform report
 }
 
 BS=$DATA/botsch-sorkine
+# The cactus with its base fixed and the single topmost vertex (z = 0.89169…) as the handle,
+# pulled sideways: the naive result has a spike there (thesis Figure 7.8).
+SINGLE=(--fixed "sel:$BS/cactus.sel:0" --handle 'half:0,0,1,0.8916' --translate 0.08,0,0)
+TOP='half:0,0,1,0.8916'
+
+max_e_iso() { sed -n 's/^max e_iso  *//p' "$1"; }
 
 start_server() {
   [ -x "$SERVER_BIN" ] || fail "no hdeform-server binary"
@@ -104,6 +111,64 @@ run)
   $CHECK summary "$TMP/out-small/summary.csv" 8 || fail "bad summary"
   [ "$(ls "$TMP"/out-small/*.glb | wc -l)" -eq 8 ] || fail "expected 8 GLB files"
   ;;
+beta)
+  "$HDEFORM" deform cactus "${SINGLE[@]}" >"$TMP/naive" || fail "naive deform exited $?"
+  naive=$(max_e_iso "$TMP/naive")
+  # --beta auto: the server picks β at the transforms; the pick is printed.
+  "$HDEFORM" deform cactus "${SINGLE[@]}" --beta auto --beta-units raw -o "$TMP/auto.glb" \
+    >"$TMP/auto" || fail "deform --beta auto exited $?"
+  cat "$TMP/auto"
+  check_measures "$TMP/auto"
+  grep -q '; beta [0-9.]* (raw, automatic);' "$TMP/auto" || fail "no '(raw, automatic)' in the summary"
+  pick=$(sed -n 's/^automatic beta: picked \([0-9.e-]*\) (raw units)$/\1/p' "$TMP/auto")
+  [ -n "$pick" ] || fail "deform --beta auto printed no 'automatic beta: picked' line"
+  awk -v b="$pick" 'BEGIN { exit !(b >= 0.1 && b <= 0.25) }' || fail "picked beta $pick not in [0.1, 0.25]"
+  auto=$(max_e_iso "$TMP/auto")
+  awk -v a="$auto" -v n="$naive" 'BEGIN { exit !(a * 10 <= n) }' \
+    || fail "auto max e_iso $auto is not 10x below the naive $naive"
+  $CHECK glb "$TMP/auto.glb" 5261 || fail "bad GLB"
+  # --local-beta: a falloff around the handle vertex removes the spike as well.
+  "$HDEFORM" deform cactus "${SINGLE[@]}" --local-beta "$TOP@0.3@0.03" >"$TMP/local" \
+    || fail "deform --local-beta exited $?"
+  cat "$TMP/local"
+  grep -q '+ 1 local beta region(s)' "$TMP/local" || fail "no local beta in the summary"
+  local_=$(max_e_iso "$TMP/local")
+  awk -v a="$local_" -v n="$naive" 'BEGIN { exit !(a * 10 <= n) }' \
+    || fail "local max e_iso $local_ is not 10x below the naive $naive"
+  # two entries (one a plain region, radius 0), '|' in a selector
+  "$HDEFORM" deform cactus "${SINGLE[@]}" --local-beta "$TOP|ids:0@0.3@0.03" \
+    --local-beta 'ids:1,2@0.2' >"$TMP/local2" || fail "deform with two --local-beta exited $?"
+  grep -q '+ 2 local beta region(s)' "$TMP/local2" || fail "two local entries not reported"
+  # sweep: the local entries apply at every β
+  "$HDEFORM" sweep cactus "${SINGLE[@]}" --local-beta "$TOP@0.3@0.03" --betas 0,0.1 \
+    --csv "$TMP/local.csv" >/dev/null || fail "sweep --local-beta exited $?"
+  $CHECK sweep-csv "$TMP/local.csv" 0,0.1 || fail "bad CSV"
+  first=$(sed -n '2p' "$TMP/local.csv" | cut -d, -f6)
+  awk -v a="$first" -v n="$naive" 'BEGIN { exit !(a * 10 <= n) }' \
+    || fail "sweep --local-beta at beta 0: max e_iso $first is not 10x below the naive $naive"
+  # run: "auto" in betas, local_beta in a constraint set (string and object forms)
+  cat >"$TMP/job.json" <<JSON
+{
+  "format": "none",
+  "beta_units": "raw",
+  "betas": [0, "auto"],
+  "meshes": ["cactus"],
+  "constraints": [
+    { "name": "top", "sel": "$BS/{mesh}.sel", "handles": ["$TOP"] },
+    { "name": "toplocal", "sel": "$BS/{mesh}.sel", "handles": ["$TOP"],
+      "local_beta": ["$TOP@0.2@0.03", { "region": ["ids:1"], "beta": 0.1 }] }
+  ],
+  "transforms": [ { "name": "side", "translate": [0.08, 0, 0] } ]
+}
+JSON
+  "$HDEFORM" run "$TMP/job.json" -o "$TMP/out-job" >"$TMP/out" 2>"$TMP/progress" \
+    || { cat "$TMP/progress" "$TMP/out" >&2; fail "run exited $?"; }
+  cat "$TMP/progress" "$TMP/out"
+  $CHECK summary "$TMP/out-job/summary.csv" 4 || fail "bad summary"
+  grep -Eq '^\[2/4\] cactus top side β=auto … ok [0-9]+ ms \(picked β=0\.(1|15|2|25)\)' "$TMP/progress" \
+    || fail "run: no 'picked' β in the auto item's progress line"
+  grep -Eq '^cactus +top +side +auto=0\.(1|15|2|25) ' "$TMP/out" || fail "run table: no auto=PICK"
+  ;;
 bad-inputs)
   cd "$TMP" || exit 1
   expect_fail "unknown option" 'hdeform: .*--bogus' -- "$HDEFORM" deform cactus --bogus
@@ -126,6 +191,25 @@ bad-inputs)
   expect_fail "JSON syntax" '^bad1\.json:3: ' -- "$HDEFORM" run bad1.json
   printf '{"meshes": ["cactus"], "constraints": [{"nme": "a"}]}\n' >bad2.json
   expect_fail "JSON schema" "^bad2\.json: constraints\[0\]: unknown key 'nme'" -- "$HDEFORM" run bad2.json
+  expect_fail "--beta not a number" "hdeform: --beta \\(a number or 'auto'\\): 'x' is not a number" -- \
+    "$HDEFORM" deform cactus --sel "$BS/cactus.sel" --beta x
+  expect_fail "--local-beta without @" "hdeform: --local-beta 'ids:1': expected SEL@BETA or SEL@BETA@RADIUS" -- \
+    "$HDEFORM" deform cactus --sel "$BS/cactus.sel" --local-beta ids:1
+  expect_fail "--local-beta bad beta" "hdeform: --local-beta 'ids:1@x': BETA: 'x' is not a number" -- \
+    "$HDEFORM" deform cactus --sel "$BS/cactus.sel" --local-beta 'ids:1@x'
+  expect_fail "--local-beta beta out of range" "hdeform: --local-beta 'ids:1@1.5@0.1': beta 1\\.5 is outside \\[0, 1\\)" -- \
+    "$HDEFORM" sweep cactus --sel "$BS/cactus.sel" --betas 0 --local-beta 'ids:1@1.5@0.1'
+  expect_fail "--local-beta bad selector" "hdeform: --local-beta 'sphere:0,0,1': expected 4" -- \
+    "$HDEFORM" deform cactus --sel "$BS/cactus.sel" --local-beta 'sphere:0,0,1@0.3'
+  expect_fail "--local-beta negative radius" "hdeform: --local-beta 'ids:1@0.3@-1': radius must be >= 0" -- \
+    "$HDEFORM" deform cactus --sel "$BS/cactus.sel" --local-beta 'ids:1@0.3@-1'
+  expect_fail "--local-beta empty region" 'hdeform: SetBeta: INVALID_ARGUMENT: beta.local\[0\]: region selects no vertices' -- \
+    "$HDEFORM" deform cactus --sel "$BS/cactus.sel" --local-beta 'sphere:100,0,0,0.01@0.3'
+  printf '{"meshes": ["cactus"], "betas": ["autp"], "constraints": [{"handles": ["ids:1"]}]}\n' >bad3.json
+  expect_fail "job betas" '^bad3\.json: betas\[0\]: expected a number or "auto"' -- "$HDEFORM" run bad3.json
+  printf '{"meshes": ["cactus"], "constraints": [{"handles": ["ids:1"], "local_beta": ["ids:2@0.5@x"]}]}\n' >bad4.json
+  expect_fail "job local_beta" "^bad4\.json: constraints\[0\]\.local_beta\[0\] 'ids:2@0\.5@x': BETA: 'x' is not a number" -- \
+    "$HDEFORM" run bad4.json
   expect_fail "sweep beta list" 'hdeform: --betas: ' -- \
     "$HDEFORM" sweep cactus --sel "$BS/cactus.sel" --betas 0,x
   expect_fail "no server" 'hdeform: cannot connect to hdeform-server at 127\.0\.0\.1:1$' -- \
@@ -146,6 +230,11 @@ remote)
   "$HDEFORM" sweep cactus --server "$ADDR" --sel "$BS/cactus.sel" --def "$BS/cactus.def" \
     --betas 0,0.1 --csv "$TMP/remote.csv" >/dev/null || fail "remote sweep exited $?"
   $CHECK sweep-csv "$TMP/remote.csv" 0,0.1 || fail "bad CSV"
+  # --beta auto and --local-beta over TCP
+  "$HDEFORM" --server "$ADDR" deform cactus "${SINGLE[@]}" --beta auto --beta-units raw \
+    --local-beta "$TOP@0.3@0.03" >"$TMP/auto" || fail "remote deform --beta auto exited $?"
+  grep -Eq '^automatic beta: picked 0\.(1|15|2|25) \(raw units\)$' "$TMP/auto" \
+    || { cat "$TMP/auto" >&2; fail "remote deform --beta auto: no pick in [0.1, 0.25]"; }
 
   # watch: keep a session, watch it, move its handle from another client
   "$HDEFORM" --server "$ADDR" deform cactus --sel "$BS/cactus.sel" --def "$BS/cactus.def" --keep \

@@ -5,7 +5,8 @@
 # Starts two hdeform-server replicas on loopback and a non-daemon nginx in front of them,
 # its config rendered from docker/nginx.conf.template (the same template as docker/nginx.conf)
 # into a temp dir (pid, logs and temp files there too). Then shows:
-#   1. each session created through nginx with an x-session-id header answers 20 GetSession
+#   1. each session created through nginx with an x-session-id header (and the same id as
+#      CreateSessionHeader.session_id) is named sessions/{that id} and answers 20 GetSession
 #      calls through nginx with that header: all OK (a session exists on one replica only, so
 #      a wrong route would be NOT_FOUND);
 #   2. different ids spread over both replicas (counted on each replica directly);
@@ -13,7 +14,8 @@
 #      header is what makes 1. work);
 #   4. the hdeform CLI works through nginx (it sends the header on every call);
 #   5. failover: a replica dies; a client re-imports its snapshot under the same id through
-#      nginx, and the session answers again (docs/deployment.md).
+#      nginx, gets the same session name back, and the session answers again
+#      (docs/deployment.md).
 # Also checks that docker/nginx.conf is the template's current rendering.
 set -uo pipefail
 
@@ -93,6 +95,7 @@ declare -A NAME
 for i in $(seq 1 $N); do
   key=routing-$i-$RANDOM
   name=$("$PROBE" create "$LB" "$key" knight) || fail "CreateSession via nginx ($key)"
+  [ "$name" = "sessions/$key" ] || fail "CreateSession with session_id $key named the session '$name'"
   NAME[$key]=$name
   got=$("$PROBE" get "$LB" "$name" "$key" 20)
   [ "$got" = "ok=20" ] || fail "$name (x-session-id $key): 20 GetSession calls via nginx gave '$got'"
@@ -100,7 +103,8 @@ done
 echo "1. $N sessions x 20 GetSession calls through nginx: all OK"
 honored=0
 for key in "${!NAME[@]}"; do [ "${NAME[$key]}" = "sessions/$key" ] && honored=$((honored + 1)); done
-echo "   (the server used the client's session_id for $honored of $N sessions)"
+echo "   the server used the client's session_id for $honored of $N sessions"
+[ "$honored" -eq "$N" ] || fail "the server ignored session_id for $((N - honored)) of $N sessions"
 
 # --- 2. spread over both replicas
 c1=$("$PROBE" count "$ADDR1") || fail "ListSessions on $ADDR1"
@@ -157,6 +161,7 @@ got=$("$PROBE" get "$LB" "$vname" "$victim" 3)
 [ "$got" != "ok=3" ] || fail "$vname still answers after its replica died"
 echo "5. replica 2 stopped: $vname now gives '$got'"
 newname=$("$PROBE" import "$LB" "$TMP/snapshot.pb" "$victim") || fail "ImportSession via nginx"
+[ "$newname" = "$vname" ] || fail "re-imported under id $victim as '$newname', expected $vname"
 got=$("$PROBE" get "$LB" "$newname" "$victim" 20)
 [ "$got" = "ok=20" ] || fail "re-imported $newname: 20 GetSession calls via nginx gave '$got'"
 echo "   re-imported as $newname under x-session-id $victim: 20 GetSession calls OK"
