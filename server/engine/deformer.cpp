@@ -338,40 +338,6 @@ std::shared_ptr<const BetaSystem> ConstraintSet::local_system(const LocalBeta& f
   return sys;
 }
 
-Eigen::VectorXd falloff_beta(const PreparedMesh& pm, const std::vector<int>& around,
-                             double beta, double radius) {
-  if (!(beta >= 0 && beta < 1)) throw InvalidInput("falloff beta must be in [0, 1)");
-  if (!(radius > 0)) throw InvalidInput("falloff radius must be positive");
-  const Vertices& V = pm.mesh().V;
-  const Triangles& F = pm.mesh().F;
-  Eigen::VectorXd field(pm.m());
-  for (Eigen::Index l = 0; l < pm.m(); ++l) {
-    const Eigen::RowVector3d c = (V.row(F(l, 0)) + V.row(F(l, 1)) + V.row(F(l, 2))) / 3.0;
-    double d = std::numeric_limits<double>::infinity();
-    for (int v : around) d = std::min(d, (V.row(v) - c).norm());
-    const double t = std::max(0.0, 1.0 - d / radius);
-    field[l] = beta * t * t;
-  }
-  return field;
-}
-
-Eigen::VectorXd region_beta(const PreparedMesh& pm, const std::vector<int>& region,
-                            double beta) {
-  if (!(beta >= 0 && beta < 1)) throw InvalidInput("local beta must be in [0, 1)");
-  std::vector<char> in(static_cast<std::size_t>(pm.n()), 0);
-  for (int v : region) {
-    if (v < 0 || v >= pm.n())
-      throw InvalidInput("local beta region has vertex id " + std::to_string(v) +
-                         " out of range [0, " + std::to_string(pm.n()) + ")");
-    in[v] = 1;
-  }
-  const Triangles& F = pm.mesh().F;
-  Eigen::VectorXd field = Eigen::VectorXd::Zero(pm.m());
-  for (Eigen::Index l = 0; l < pm.m(); ++l)
-    if (in[F(l, 0)] || in[F(l, 1)] || in[F(l, 2)]) field[l] = beta;
-  return field;
-}
-
 void ConstraintSet::prepare(Beta beta) { system(mesh_->raw_beta(beta)); }
 
 void ConstraintSet::guidance(std::span<const HandleTransform> transforms, Eigen::MatrixX3d& g,

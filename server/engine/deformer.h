@@ -85,16 +85,6 @@ struct LocalBeta {
   BetaUnits units = BetaUnits::area;
 };
 
-// β_l = beta · max(0, 1 − d_l / radius)², d_l the distance from triangle l's centroid to
-// the nearest vertex of `around` (e.g. the handle vertices): strong near the handles,
-// exactly 0 beyond `radius` (model units).
-Eigen::VectorXd falloff_beta(const PreparedMesh& mesh, const std::vector<int>& around,
-                             double beta, double radius);
-
-// β_l = beta on every triangle with a vertex in `region`, 0 elsewhere.
-Eigen::VectorXd region_beta(const PreparedMesh& mesh, const std::vector<int>& region,
-                            double beta);
-
 struct UpdateOptions {
   bool energies = true;  // fill Frame::energies
   bool normals = true;   // fill Frame::normals
@@ -174,3 +164,5 @@ class ConstraintSet {
 };
 
 }  // namespace hdeform
+
+#include "local_beta.h"  // the per-triangle β fields that update_local takes

@@ -60,6 +60,30 @@ TEST(LocalBeta, UniformFieldEqualsGlobalBeta) {
   }
 }
 
+TEST(LocalBeta, FalloffFieldEqualsBruteForceDistances) {
+  const SingleVertexPull s;
+  const Vertices& V = s.b.mesh->mesh().V;
+  const Triangles& F = s.b.mesh->mesh().F;
+  const std::vector<int>& region = s.b.constraints.handles[0];
+  const double radius = 0.07;
+  const Eigen::VectorXd field = falloff_beta(*s.b.mesh, region, 0.5, radius);
+  int inside = 0;
+  for (int l = 0; l < s.b.mesh->m(); ++l) {
+    const Eigen::RowVector3d c = (V.row(F(l, 0)) + V.row(F(l, 1)) + V.row(F(l, 2))) / 3.0;
+    double d = 1e300;
+    for (int v : region) d = std::min(d, (V.row(v) - c).norm());
+    const double t = std::max(0.0, 1.0 - d / radius);
+    ASSERT_NEAR(field[l], 0.5 * t * t, 1e-15) << "triangle " << l;
+    inside += field[l] > 0;
+  }
+  EXPECT_GT(inside, 100);
+  EXPECT_LT(inside, s.b.mesh->m() / 2);
+  const Eigen::VectorXd flat = region_beta(*s.b.mesh, region, 0.2);
+  EXPECT_EQ(flat.maxCoeff(), 0.2);
+  EXPECT_THROW(region_beta(*s.b.mesh, {-1}, 0.2), InvalidInput);
+  EXPECT_THROW(falloff_beta(*s.b.mesh, region, 0.2, 0.0), InvalidInput);
+}
+
 TEST(LocalBeta, RejectsBadFields) {
   const SingleVertexPull s;
   const ConstraintSet cs(s.b.mesh, s.c);
