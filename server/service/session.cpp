@@ -255,6 +255,8 @@ std::shared_ptr<pb::Frame> Session::update(const Update& u) {
   const bool keep = u.keep_transforms_if_empty && (!u.transforms || u.transforms->empty());
   {
     std::lock_guard lock(mutex_);
+    // A Deform stream holds its session directly: after DeleteSession it must stop too.
+    if (closed_) fail(grpc::StatusCode::NOT_FOUND, name_ + " was deleted");
     if (!cs_) fail(grpc::StatusCode::FAILED_PRECONDITION, kNoConstraints);
     check_version_locked(u.expected_version);
     cs = cs_;

@@ -267,3 +267,33 @@ TEST(ServiceStreams, ClientsThatGoAwayDoNotHurtTheServer) {
   }
   EXPECT_EQ(now.observers(), 0);
 }
+
+TEST(ServiceStreams, DeformStreamEndsWhenItsSessionIsDeleted) {
+  TestServer t;
+  const pb::Session s = constrained_cactus(t);
+  grpc::ClientContext ctx;
+  auto stream = t.stub->Deform(&ctx);
+  pb::DeformRequest req;
+  req.set_name(s.name());
+  req.set_sequence(1);
+  *req.add_transforms() = translation(0, 0.01, 0);
+  ASSERT_TRUE(stream->Write(req));
+  pb::Frame f;
+  ASSERT_TRUE(stream->Read(&f));
+  EXPECT_EQ(f.sequence(), 1);
+
+  grpc::ClientContext dctx;
+  pb::DeleteSessionRequest dreq;
+  dreq.set_name(s.name());
+  pb::DeleteSessionResponse dres;
+  ASSERT_TRUE(t.stub->DeleteSession(&dctx, dreq, &dres).ok());
+
+  pb::DeformRequest next;
+  next.set_sequence(2);
+  *next.add_transforms() = translation(0, 0.02, 0);
+  stream->Write(next);  // may already fail if the server ended the stream
+  stream->WritesDone();
+  while (stream->Read(&f)) EXPECT_NE(f.sequence(), 2) << "a deleted session answered";
+  const grpc::Status st = stream->Finish();
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::NOT_FOUND) << st.error_message();
+}
