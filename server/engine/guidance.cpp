@@ -32,6 +32,7 @@ void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::Ma
     stretched = !transforms[0].stretch.isIdentity(0.0);
   }
 
+#pragma omp parallel for schedule(static)
   for (Eigen::Index l = 0; l < m; ++l) {
     Eigen::Quaterniond R;
     Eigen::Matrix3d S;

@@ -16,7 +16,12 @@ Measures measure(const PreparedMesh& pm, const Vertices& X, const Eigen::MatrixX
   if (ef2) ef2->resize(m);
 
   Measures out;
+  double E = 0, max_ef2 = 0, max_iso = 0, max_conf = 0;
   double iso_sum = 0, conf_sum = 0, area_deformed = 0;
+  int flips = 0;
+  // Independent per triangle: the two cores split the loop (a third of an update at 100K).
+#pragma omp parallel for schedule(static) reduction(+ : E, iso_sum, conf_sum, area_deformed, flips) \
+    reduction(max : max_ef2, max_iso, max_conf)
   for (Eigen::Index l = 0; l < m; ++l) {
     // Y'_l = Σ_i ∇φ_i x'_iᵀ, block l of G X' without forming G X'.
     const Eigen::Vector3d x0 = X.row(F(l, 0)).transpose();
@@ -26,8 +31,8 @@ Measures measure(const PreparedMesh& pm, const Vertices& X, const Eigen::MatrixX
                                grads.row(l).segment<3>(3).transpose() * x1.transpose() +
                                grads.row(l).segment<3>(6).transpose() * x2.transpose();
     const double r2 = (Yl - g.middleRows<3>(3 * l)).squaredNorm();
-    out.E += a[l] * r2;
-    out.max_ef2 = std::max(out.max_ef2, r2);
+    E += a[l] * r2;
+    max_ef2 = std::max(max_ef2, r2);
     if (ef2) (*ef2)[l] = static_cast<float>(r2);
 
     const Eigen::Vector3d c = (x1 - x0).cross(x2 - x0);
@@ -42,12 +47,17 @@ Measures measure(const PreparedMesh& pm, const Vertices& X, const Eigen::MatrixX
     const double e_conf = 0.5 * std::max(0.0, sum_sq - 2 * prod);  // ½(σ₁−σ₂)²
     iso_sum += a[l] * e_iso;
     conf_sum += a[l] * e_conf;
-    out.max_e_iso = std::max(out.max_e_iso, e_iso);
-    out.max_e_conf = std::max(out.max_e_conf, e_conf);
+    max_iso = std::max(max_iso, e_iso);
+    max_conf = std::max(max_conf, e_conf);
 
     const Eigen::Vector3d n_rest = pm.normals().row(l).transpose();
-    if (c.dot(R_l[l] * n_rest) < 0) ++out.flips;
+    if (c.dot(R_l[l] * n_rest) < 0) ++flips;
   }
+  out.E = E;
+  out.max_ef2 = max_ef2;
+  out.max_e_iso = max_iso;
+  out.max_e_conf = max_conf;
+  out.flips = flips;
   const double total = pm.total_area();
   out.E_iso_N = iso_sum / total;
   out.E_conf_N = conf_sum / total;
