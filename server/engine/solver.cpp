@@ -34,16 +34,14 @@ std::size_t CholmodLLT::factor_nnz() const {
 Factorization::Factorization(const SparseMatrix& K_FF) : size_(static_cast<int>(K_FF.rows())) {
   llt_.analyzePattern(K_FF);
   check("analysis");
+  analysis_.adopt_analysis(llt_);  // before the numeric factorization fills in values
   llt_.factorize(K_FF);
   check("factorization");
 }
 
 Factorization::Factorization(const Factorization& analysis, const SparseMatrix& K_FF)
     : size_(static_cast<int>(K_FF.rows())) {
-  {
-    std::lock_guard lock(analysis.mutex_);
-    llt_.adopt_analysis(analysis.llt_);
-  }
+  llt_.adopt_analysis(analysis.analysis_);  // analysis_ is immutable: no lock needed
   llt_.factorize(K_FF);
   check("factorization");
 }
@@ -61,7 +59,9 @@ Eigen::MatrixXd Factorization::solve(const Eigen::MatrixXd& B) const {
 
 std::size_t Factorization::memory_bytes() const {
   // Values (double) plus row indices (int) of the factor, roughly.
-  return llt_.factor_nnz() * (sizeof(double) + sizeof(int)) + sizeof(*this);
+  // The symbolic copy holds row indices only.
+  return llt_.factor_nnz() * (sizeof(double) + sizeof(int)) + analysis_.factor_nnz() * sizeof(int) +
+         sizeof(*this);
 }
 
 }  // namespace hdeform

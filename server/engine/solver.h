@@ -19,7 +19,8 @@ class CholmodLLT : public Eigen::CholmodBase<SparseMatrix, Eigen::Lower, Cholmod
 
  public:
   CholmodLLT();
-  // Adopts a copy of `other`'s analysis (which must be of the same pattern).
+  // Adopts a copy of `other`'s factor, which must be a symbolic analysis of the same
+  // pattern (no numeric values: copying those would cost as much as reading the factor).
   void adopt_analysis(const CholmodLLT& other);
   // Nonzeros stored in the factor L.
   std::size_t factor_nnz() const;
@@ -46,6 +47,7 @@ class Factorization {
  private:
   void check(const char* what) const;
   mutable CholmodLLT llt_;
+  CholmodLLT analysis_;  // the symbolic analysis alone, kept to seed later β; never modified
   mutable std::mutex mutex_;  // CHOLMOD's common workspace is per object
   int size_ = 0;
 };
