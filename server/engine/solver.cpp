@@ -2,6 +2,7 @@
 
 #include "mesh.h"
 
+#include <stdexcept>
 #include <string>
 
 namespace hdeform {
@@ -23,6 +24,31 @@ void CholmodLLT::adopt_analysis(const CholmodLLT& other) {
   this->m_info = Eigen::Success;
   this->m_analysisIsOk = true;
   this->m_factorizationIsOk = false;
+}
+
+Eigen::MatrixXd CholmodLLT::solve_concurrently(const Eigen::MatrixXd& B) const {
+  cholmod_common common;
+  cholmod_start(&common);
+  common.final_asis = m_cholmod.final_asis;
+  cholmod_dense b;
+  b.nrow = static_cast<std::size_t>(B.rows());
+  b.ncol = static_cast<std::size_t>(B.cols());
+  b.nzmax = b.nrow * b.ncol;
+  b.d = b.nrow;
+  b.x = const_cast<double*>(B.data());  // cholmod_solve only reads B
+  b.z = nullptr;
+  b.xtype = CHOLMOD_REAL;
+  b.dtype = CHOLMOD_DOUBLE;
+  cholmod_dense* x = cholmod_solve(CHOLMOD_A, m_cholmodFactor, &b, &common);
+  if (!x) {
+    cholmod_finish(&common);
+    throw std::runtime_error("CHOLMOD solve failed (status " + std::to_string(common.status) + ")");
+  }
+  Eigen::MatrixXd X = Eigen::Map<const Eigen::MatrixXd>(static_cast<const double*>(x->x),
+                                                       B.rows(), B.cols());
+  cholmod_free_dense(&x, &common);
+  cholmod_finish(&common);
+  return X;
 }
 
 std::size_t CholmodLLT::factor_nnz() const {
@@ -53,8 +79,7 @@ void Factorization::check(const char* what) const {
 }
 
 Eigen::MatrixXd Factorization::solve(const Eigen::MatrixXd& B) const {
-  std::lock_guard lock(mutex_);
-  return llt_.solve(B);
+  return llt_.solve_concurrently(B);
 }
 
 std::size_t Factorization::memory_bytes() const {

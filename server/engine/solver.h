@@ -7,7 +7,6 @@
 #include <Eigen/CholmodSupport>
 
 #include <memory>
-#include <mutex>
 
 namespace hdeform {
 
@@ -24,6 +23,10 @@ class CholmodLLT : public Eigen::CholmodBase<SparseMatrix, Eigen::Lower, Cholmod
   void adopt_analysis(const CholmodLLT& other);
   // Nonzeros stored in the factor L.
   std::size_t factor_nnz() const;
+  // X = A⁻¹ B with a CHOLMOD workspace of the caller's own: the factor is only read, so
+  // several threads may solve with one factorization at once (Eigen's solve() shares the
+  // object's workspace).
+  Eigen::MatrixXd solve_concurrently(const Eigen::MatrixXd& B) const;
 
  private:
   using Base::m_cholmod;
@@ -46,9 +49,8 @@ class Factorization {
 
  private:
   void check(const char* what) const;
-  mutable CholmodLLT llt_;
+  CholmodLLT llt_;
   CholmodLLT analysis_;  // the symbolic analysis alone, kept to seed later β; never modified
-  mutable std::mutex mutex_;  // CHOLMOD's common workspace is per object
   int size_ = 0;
 };
 

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <thread>
 
 namespace hdeform {
 namespace {
@@ -283,6 +284,32 @@ TEST(Deformer, PolarDecompositionRoundTripsTheMatrix) {
     EXPECT_LT((h.apply(x, p) - (T * x.homogeneous()).head<3>()).norm(), 1e-12);
   }
   EXPECT_NEAR(h.rotation.norm(), 1.0, 1e-12);
+}
+
+}  // namespace
+}  // namespace hdeform
+
+namespace hdeform {
+namespace {
+
+// update() is const and thread-safe: concurrent solves on one factorization (each with its
+// own CHOLMOD workspace) give exactly the sequential results.
+TEST(Deformer, ConcurrentUpdatesMatchSequentialOnes) {
+  const auto& b = cactus();
+  const ConstraintSet cs(b.mesh, b.constraints);
+  std::vector<HandleTransform> hs(8);
+  for (int i = 0; i < 8; ++i) hs[i].translation = Eigen::Vector3d(0.01 * i, 0.0, 0.02);
+  std::vector<Vertices> expected;
+  for (const auto& h : hs) expected.push_back(cs.update(std::span(&h, 1), {0.1, BetaUnits::area}).positions);
+  std::vector<Vertices> got(hs.size());
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 2; ++t)
+    threads.emplace_back([&, t] {
+      for (std::size_t i = t; i < hs.size(); i += 2)
+        got[i] = cs.update(std::span(&hs[i], 1), {0.1, BetaUnits::area}).positions;
+    });
+  for (auto& th : threads) th.join();
+  for (std::size_t i = 0; i < hs.size(); ++i) EXPECT_EQ(max_abs(got[i] - expected[i]), 0.0);
 }
 
 }  // namespace
