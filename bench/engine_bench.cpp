@@ -8,6 +8,7 @@
 // freed before the next size is built.
 //
 // Extra flag (ours): --hdeform_smoke  one repetition everywhere (ctest bench-smoke).
+#include "bench_common.h"
 #include "deformer.h"
 #include "measures.h"
 #include "mesh_io.h"
@@ -41,22 +42,12 @@ constexpr double kFraction = 0.05;       // fixed base / cap handle: 5 % of the 
 bool g_smoke = false;
 
 // ---------------------------------------------------------------------------------------
-// Memory: /proc/self/status (kB), and resetting the peak (Linux ≥ 4.0: "5" > clear_refs).
+// Memory: /proc/self/status (kB → MB; -1 when absent), peak reset by bench::reset_peak.
 double status_mb(const char* key) {
-  std::ifstream f("/proc/self/status");
-  std::string line;
-  const std::size_t len = std::strlen(key);
-  while (std::getline(f, line))
-    if (line.compare(0, len, key) == 0 && line.size() > len && line[len] == ':')
-      return std::stod(line.substr(len + 1)) / 1024.0;
-  return -1;
+  const double kb = bench::status_kb(key);
+  return kb < 0 ? -1 : kb / 1024.0;
 }
-bool reset_peak() {
-  std::ofstream f("/proc/self/clear_refs");
-  f << "5";
-  f.flush();
-  return f.good();
-}
+using bench::reset_peak;
 double mb(std::size_t bytes) { return static_cast<double>(bytes) / (1024.0 * 1024.0); }
 
 // ---------------------------------------------------------------------------------------
@@ -251,6 +242,25 @@ void size_counters(benchmark::State& state, const Case& c) {
   state.counters["nF"] = static_cast<double>(c.free_.size());
 }
 
+// A copy of x made with the timer paused (the input a timed step consumes).
+template <class T>
+T copy_untimed(benchmark::State& state, const T& x) {
+  state.PauseTiming();
+  T copy = x;
+  state.ResumeTiming();
+  return copy;
+}
+
+// What the timed region built (smart pointers), kept alive up to here and then freed, in
+// order, with the timer paused.
+template <class... Ptr>
+void free_untimed(benchmark::State& state, Ptr&&... p) {
+  (benchmark::DoNotOptimize(p.get()), ...);
+  state.PauseTiming();
+  (p.reset(), ...);
+  state.ResumeTiming();
+}
+
 // ---------------------------------------------------------------------------------------
 // Benchmarks. `get` returns the case (built on first use, outside any timed region).
 Case& get(const std::string& key) {
@@ -262,14 +272,8 @@ Case& get(const std::string& key) {
 void BM_Operators(benchmark::State& state, std::string key) {
   Case& c = get(key);
   for (auto _ : state) {
-    state.PauseTiming();
-    TriMesh copy = c.mesh;
-    state.ResumeTiming();
-    auto pm = PreparedMesh::create(std::move(copy));
-    benchmark::DoNotOptimize(pm.get());
-    state.PauseTiming();
-    pm.reset();
-    state.ResumeTiming();
+    auto pm = PreparedMesh::create(copy_untimed(state, c.mesh));
+    free_untimed(state, pm);
   }
   size_counters(state, c);
   state.counters["nnz_L"] = static_cast<double>(c.pm->L().nonZeros());
@@ -282,10 +286,7 @@ void BM_ConstraintSet(benchmark::State& state, std::string key) {
   Case& c = get(key);
   for (auto _ : state) {
     auto cs = std::make_shared<ConstraintSet>(c.pm, c.constraints);
-    benchmark::DoNotOptimize(cs.get());
-    state.PauseTiming();
-    cs.reset();
-    state.ResumeTiming();
+    free_untimed(state, cs);
   }
   size_counters(state, c);
   state.counters["cs_MB"] = mb(c.cs_bytes_open);
@@ -295,16 +296,9 @@ void BM_ConstraintSet(benchmark::State& state, std::string key) {
 void BM_SessionOpen(benchmark::State& state, std::string key) {
   Case& c = get(key);
   for (auto _ : state) {
-    state.PauseTiming();
-    TriMesh copy = c.mesh;
-    state.ResumeTiming();
-    auto pm = PreparedMesh::create(std::move(copy));
+    auto pm = PreparedMesh::create(copy_untimed(state, c.mesh));
     auto cs = std::make_shared<ConstraintSet>(pm, c.constraints);
-    benchmark::DoNotOptimize(cs.get());
-    state.PauseTiming();
-    cs.reset();
-    pm.reset();
-    state.ResumeTiming();
+    free_untimed(state, cs, pm);
   }
   size_counters(state, c);
 }
@@ -317,9 +311,7 @@ void BM_BetaFirst(benchmark::State& state, std::string key) {
     auto cs = std::make_shared<ConstraintSet>(c.pm, c.constraints);
     state.ResumeTiming();
     cs->prepare(Beta{0.5});
-    state.PauseTiming();
-    cs.reset();
-    state.ResumeTiming();
+    free_untimed(state, cs);
   }
   size_counters(state, c);
 }
@@ -481,6 +473,20 @@ void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta
 // Factorization) vs Eigen SimplicialLLT (AMD; the thesis's solver).
 enum class Op { analyze_factor, factor, solve3 };
 
+// The three right-hand sides solved with an analysed and factored solver.
+template <class Solver>
+void solve_once(const Solver& solver, const Eigen::MatrixXd& B) {
+  Eigen::MatrixXd X = solver.solve(B);
+  benchmark::DoNotOptimize(X.data());
+}
+
+void solver_counters(benchmark::State& state, const Case& c, const System& s,
+                     std::size_t factor_bytes) {
+  size_counters(state, c);
+  state.counters["nnz_K"] = static_cast<double>(s.K_FF.nonZeros());
+  state.counters["factor_MB"] = mb(factor_bytes);
+}
+
 void BM_Cholmod(benchmark::State& state, std::string key, double beta, Op op) {
   Case& c = get(key);
   System& s = system(c, beta);
@@ -488,32 +494,18 @@ void BM_Cholmod(benchmark::State& state, std::string key, double beta, Op op) {
   const Factorization& analysed = cholmod(s);
   for (auto _ : state) {
     switch (op) {
-      case Op::analyze_factor: {
-        auto f = std::make_unique<Factorization>(s.K_FF);
-        benchmark::DoNotOptimize(f.get());
-        state.PauseTiming();  // exclude freeing the factor
-        f.reset();
-        state.ResumeTiming();
+      case Op::analyze_factor:
+        free_untimed(state, std::make_unique<Factorization>(s.K_FF));
         break;
-      }
-      case Op::factor: {
-        auto f = std::make_unique<Factorization>(analysed, s.K_FF);
-        benchmark::DoNotOptimize(f.get());
-        state.PauseTiming();
-        f.reset();
-        state.ResumeTiming();
+      case Op::factor:
+        free_untimed(state, std::make_unique<Factorization>(analysed, s.K_FF));
         break;
-      }
-      case Op::solve3: {
-        Eigen::MatrixXd X = analysed.solve(B);
-        benchmark::DoNotOptimize(X.data());
+      case Op::solve3:
+        solve_once(analysed, B);
         break;
-      }
     }
   }
-  size_counters(state, c);
-  state.counters["nnz_K"] = static_cast<double>(s.K_FF.nonZeros());
-  state.counters["factor_MB"] = mb(analysed.memory_bytes());
+  solver_counters(state, c, s, analysed.memory_bytes());
 }
 
 void BM_Simplicial(benchmark::State& state, std::string key, double beta, Op op) {
@@ -526,28 +518,21 @@ void BM_Simplicial(benchmark::State& state, std::string key, double beta, Op op)
       case Op::analyze_factor: {
         auto f = std::make_unique<System::Simplicial>();
         f->compute(s.K_FF);
-        benchmark::DoNotOptimize(f.get());
-        state.PauseTiming();
-        f.reset();
-        state.ResumeTiming();
+        free_untimed(state, std::move(f));
         break;
       }
       case Op::factor:
         analysed.factorize(s.K_FF);
         benchmark::DoNotOptimize(&analysed);
         break;
-      case Op::solve3: {
-        Eigen::MatrixXd X = analysed.solve(B);
-        benchmark::DoNotOptimize(X.data());
+      case Op::solve3:
+        solve_once(analysed, B);
         break;
-      }
     }
   }
-  size_counters(state, c);
-  state.counters["nnz_K"] = static_cast<double>(s.K_FF.nonZeros());
   // Eigen's simplicial L: values (double) + row indices (int).
-  state.counters["factor_MB"] =
-      mb(static_cast<std::size_t>(analysed.matrixL().nestedExpression().nonZeros()) * 12);
+  solver_counters(state, c, s,
+                  static_cast<std::size_t>(analysed.matrixL().nestedExpression().nonZeros()) * 12);
 }
 
 // Memory measured while the case was built (see finish_case). Iterations(1); the time
@@ -670,16 +655,7 @@ void register_botsch_sorkine(const std::string& model) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::vector<char*> args;
-  for (int i = 0; i < argc; ++i) {
-    if (std::strcmp(argv[i], "--hdeform_smoke") == 0)
-      g_smoke = true;
-    else
-      args.push_back(argv[i]);
-  }
-  int nargs = static_cast<int>(args.size());
-  benchmark::Initialize(&nargs, args.data());
-  if (benchmark::ReportUnrecognizedArguments(nargs, args.data())) return 1;
+  if (!bench::initialize(argc, argv, g_smoke)) return 1;
 
   for (const char* model : {"cactus", "bar", "cylinder", "plane"}) register_botsch_sorkine(model);
   for (int n : kSizes) register_size(n);

@@ -26,6 +26,7 @@
 // time column is the mean).
 //
 // Extra flag (ours): --hdeform_smoke  a handful of iterations everywhere (ctest bench-smoke).
+#include "bench_common.h"
 #include "hdeform/v1/deform.grpc.pb.h"
 #include "procedural.h"
 #include "server.h"
@@ -69,18 +70,10 @@ double percentile(std::vector<double> v, double q) {
   return v[std::min(v.size() - 1, k == 0 ? 0 : k - 1)];
 }
 
-double status_bytes(const char* key) {  // /proc/self/status, kB → bytes
-  std::ifstream f("/proc/self/status");
-  std::string line;
-  const std::size_t len = std::strlen(key);
-  while (std::getline(f, line))
-    if (line.compare(0, len, key) == 0 && line.size() > len && line[len] == ':')
-      return std::stod(line.substr(len + 1)) * 1024.0;
-  return -1;
-}
 double rss_bytes() {
   malloc_trim(0);  // return freed heap pages so the delta counts live memory
-  return status_bytes("VmRSS");
+  const double kb = bench::status_kb("VmRSS");
+  return kb < 0 ? -1 : kb * 1024.0;
 }
 
 // Binary little-endian PLY: double x y z, uchar/int faces (the service's own reader).
@@ -491,16 +484,7 @@ std::string loadavg() {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::vector<char*> args;
-  for (int i = 0; i < argc; ++i) {
-    if (std::strcmp(argv[i], "--hdeform_smoke") == 0)
-      g_smoke = true;
-    else
-      args.push_back(argv[i]);
-  }
-  int nargs = static_cast<int>(args.size());
-  benchmark::Initialize(&nargs, args.data());
-  if (benchmark::ReportUnrecognizedArguments(nargs, args.data())) return 1;
+  if (!bench::initialize(argc, argv, g_smoke)) return 1;
   spdlog::set_level(spdlog::level::warn);
   register_all();
   benchmark::AddCustomContext("loadavg_start", loadavg());

@@ -40,13 +40,11 @@ Command add_deform_command(CLI::App& app, const GlobalOptions& global) {
     if (!o.output.empty()) format = mesh_format_for(o.output);
     const pb::Beta beta = build_beta(o.c);  // syntax errors before any call
     const bool automatic = beta_is_auto(o.c);
-    std::unique_ptr<ConstraintSpec> spec;
-    if (has_constraints(o.c)) spec = std::make_unique<ConstraintSpec>(build_constraint_spec(o.c));
+    const std::unique_ptr<ConstraintSpec> spec = constraint_spec_for(o.c);
 
     Connection conn(global);
     WorkSession w = open_work_session(conn, o.mesh, o.c);
-    SessionClient& s = *w.client;
-    try {
+    run_in_work_session(conn, w, o.keep, std::cout, [&](SessionClient& s) {
       if (spec) s.set_constraints(spec->constraints);
       const auto transforms = transforms_for(o.c, s, spec.get());
       pb::Frame frame;
@@ -79,21 +77,7 @@ Command add_deform_command(CLI::App& app, const GlobalOptions& global) {
         const std::size_t bytes = s.download(o.output, format);
         std::cout << "wrote " << o.output << " (" << bytes << " bytes)\n";
       }
-      if (w.created && conn.remote()) {  // in-process sessions end with the process
-        if (o.keep)
-          std::cout << "session " << s.name() << "\n";
-        else
-          s.remove();
-      }
-    } catch (...) {
-      if (w.created && conn.remote() && !o.keep) {
-        try {
-          s.remove();
-        } catch (...) {
-        }
-      }
-      throw;
-    }
+    });
     std::cout.flush();
     return 0;
   };

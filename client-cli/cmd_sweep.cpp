@@ -46,38 +46,22 @@ Command add_sweep_command(CLI::App& app, const GlobalOptions& global) {
       if (b < 0 || b >= 1) throw CliError("--betas: " + g6(b) + " is outside [0, 1)");
     const pb::BetaUnits units = parse_beta_units(o.c.beta_units);
     const pb::Beta local = build_beta(o.c);  // value 0 + the --local-beta entries
-    std::unique_ptr<ConstraintSpec> spec;
-    if (has_constraints(o.c)) spec = std::make_unique<ConstraintSpec>(build_constraint_spec(o.c));
+    const std::unique_ptr<ConstraintSpec> spec = constraint_spec_for(o.c);
 
     Connection conn(global);
     WorkSession w = open_work_session(conn, o.mesh, o.c);
-    SessionClient& s = *w.client;
     std::vector<SweepPoint> rows;
-    try {
+    run_in_work_session(conn, w, o.keep, std::cerr, [&](SessionClient& s) {
       if (spec) s.set_constraints(spec->constraints);
       // --local-beta: the session's local entries, applied at every swept β.
       if (!o.c.local_betas.empty()) s.set_beta(local);
       const auto transforms = transforms_for(o.c, s, spec.get());
       const pb::SweepResponse resp = s.sweep(betas, units, transforms);
       for (const auto& r : resp.rows()) rows.push_back({r.beta(), r.measures()});
-      if (w.created && conn.remote()) {
-        if (o.keep)
-          std::cerr << "session " << s.name() << "\n";
-        else
-          s.remove();
-      }
-    } catch (...) {
-      if (w.created && conn.remote() && !o.keep) {
-        try {
-          s.remove();
-        } catch (...) {
-        }
-      }
-      throw;
-    }
+    });
 
-    const std::string mesh_name =
-        s.info().mesh_name().empty() ? o.mesh : s.info().mesh_name();
+    const pb::Session& info = w.client->info();
+    const std::string mesh_name = info.mesh_name().empty() ? o.mesh : info.mesh_name();
     if (o.csv == "-") {
       std::cout << sweep_csv(rows);
     } else {

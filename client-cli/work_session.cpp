@@ -1,6 +1,7 @@
 #include "work_session.h"
 
 #include <filesystem>
+#include <ostream>
 
 namespace hdeform::cli {
 
@@ -15,6 +16,34 @@ WorkSession open_work_session(Connection& conn, const std::string& mesh,
     w.created = true;
   }
   return w;
+}
+
+std::unique_ptr<ConstraintSpec> constraint_spec_for(const ConstraintOptions& c) {
+  if (!has_constraints(c)) return nullptr;
+  return std::make_unique<ConstraintSpec>(build_constraint_spec(c));
+}
+
+void run_in_work_session(const Connection& conn, WorkSession& w, bool keep,
+                         std::ostream& keep_out, const std::function<void(SessionClient&)>& body) {
+  SessionClient& s = *w.client;
+  const bool ours = w.created && conn.remote();  // in-process sessions end with the process
+  try {
+    body(s);
+    if (ours) {
+      if (keep)
+        keep_out << "session " << s.name() << "\n";
+      else
+        s.remove();
+    }
+  } catch (...) {
+    if (ours && !keep) {
+      try {
+        s.remove();
+      } catch (...) {
+      }
+    }
+    throw;
+  }
 }
 
 void check_mesh_or_session(const std::string& mesh, const ConstraintOptions& c,

@@ -5,6 +5,8 @@
 #include "common.h"
 #include "constraint_options.h"
 
+#include <functional>
+#include <iosfwd>
 #include <memory>
 #include <string>
 #include <vector>
@@ -21,6 +23,14 @@ void check_mesh_or_session(const std::string& mesh, const ConstraintOptions& c,
                            const GlobalOptions& global);
 WorkSession open_work_session(Connection& conn, const std::string& mesh,
                               const ConstraintOptions& c);
+// The constraint spec the options give (regions were given), else nullptr: an existing
+// --session keeps its own.
+std::unique_ptr<ConstraintSpec> constraint_spec_for(const ConstraintOptions& c);
+// Runs body on the session; then a session this command created on a remote server is
+// removed, or with keep its name is printed to keep_out ("session NAME"). When anything
+// throws, the created session is removed (unless keep) and the exception goes on.
+void run_in_work_session(const Connection& conn, WorkSession& w, bool keep,
+                         std::ostream& keep_out, const std::function<void(SessionClient&)>& body);
 // One transform per handle: the spec's when regions were given (spec != nullptr), else the
 // options' transform for each handle the existing session already has.
 std::vector<pb::HandleTransform> transforms_for(const ConstraintOptions& c, SessionClient& s,

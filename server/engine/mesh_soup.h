@@ -1,6 +1,6 @@
 // Internal header of the mesh readers (namespace detail), not part of the public API: use mesh_io.h.
 // The polygon soup every reader produces, error helpers, and the line/token cursor the
-// text parsers (OBJ, OFF, PLY) share.
+// text parsers (OBJ, OFF, PLY; also .sel/.def in selection.cpp) share.
 #pragma once
 
 #include "mesh_io.h"
@@ -101,8 +101,9 @@ struct Cursor {
     Cursor c = *this;
     return c.token();
   }
-  // A whole whitespace-delimited token that is a number.
-  bool read_double(double& v) {
+  // A whole whitespace-delimited token that is a number (a leading '+' allowed).
+  template <class T>
+  bool read_number(T& v) {
     skip_ws();
     const char* q = p;
     if (q < e && *q == '+') ++q;
@@ -111,15 +112,8 @@ struct Cursor {
     p = r.ptr;
     return true;
   }
-  bool read_int(long long& v) {
-    skip_ws();
-    const char* q = p;
-    if (q < e && *q == '+') ++q;
-    auto r = std::from_chars(q, e, v);
-    if (r.ec != std::errc() || (r.ptr < e && !is_space(*r.ptr))) return false;
-    p = r.ptr;
-    return true;
-  }
+  bool read_double(double& v) { return read_number(v); }
+  bool read_int(long long& v) { return read_number(v); }
 };
 
 // Reads 3 coordinates from `c`, or throws "NAME:LINE: expected 3 coordinates ...".

@@ -2,6 +2,8 @@
 
 #include "selection.h"
 
+#include "mesh_soup.h"
+
 #include <algorithm>
 #include <charconv>
 #include <cmath>
@@ -10,11 +12,12 @@
 namespace hdeform {
 namespace {
 
-[[noreturn]] void fail_line(const std::string& name, int line, const std::string& msg) {
-  throw InvalidInput(name + ":" + std::to_string(line) + ": " + msg);
-}
-
-bool is_space(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
+// The text helpers of the mesh readers (mesh_soup.h).
+using detail::Cursor;
+using detail::fail_line;
+using detail::is_space;
+using detail::Lines;
+using detail::quoted;
 
 std::string_view trim(std::string_view s) {
   while (!s.empty() && is_space(s.front())) s.remove_prefix(1);
@@ -22,33 +25,17 @@ std::string_view trim(std::string_view s) {
   return s;
 }
 
-std::string quoted(std::string_view t) {
-  // Appends, not operator+: GCC 12 -O3 gives a false -Wrestrict on "'" + std::string(...).
-  std::string q;
-  q.reserve(t.size() + 8);
-  q += '\'';
-  q.append(t.substr(0, 40));
-  if (t.size() > 40) q += "…";
-  q += '\'';
-  return q;
-}
-
 // Calls f(line_number, trimmed_line) for every line that is neither blank nor a '#' comment.
 // Returns the number of the last line.
 template <class F>
 int for_each_content_line(std::string_view content, F&& f) {
-  int lineno = 0;
-  size_t pos = 0;
-  while (pos < content.size()) {
-    size_t e = content.find('\n', pos);
-    if (e == std::string_view::npos) e = content.size();
-    std::string_view line = trim(content.substr(pos, e - pos));
-    pos = e + 1;
-    ++lineno;
+  Lines lines(content);
+  for (std::string_view line; lines.next(line);) {
+    line = trim(line);
     if (line.empty() || line.front() == '#') continue;
-    f(lineno, line);
+    f(lines.lineno(), line);
   }
-  return std::max(lineno, 1);
+  return std::max(lines.lineno(), 1);
 }
 
 }  // namespace
@@ -78,14 +65,8 @@ Eigen::Matrix4d parse_def(std::string_view content, const std::string& name) {
   const int last = for_each_content_line(content, [&](int ln, std::string_view line) {
     if (rows == 4) fail_line(name, ln, "unexpected content after the 4×4 matrix: " + quoted(line));
     int k = 0;
-    const char* p = line.data();
-    const char* e = p + line.size();
-    while (p < e) {
-      while (p < e && is_space(*p)) ++p;
-      if (p == e) break;
-      const char* b = p;
-      while (p < e && !is_space(*p)) ++p;
-      std::string_view tok(b, static_cast<size_t>(p - b));
+    for (Cursor c(line); !c.at_end();) {
+      const std::string_view tok = c.token();
       if (k == 4) fail_line(name, ln, "more than 4 numbers in matrix row " + std::to_string(rows + 1));
       double v = 0;
       const char* q = tok.data();

@@ -40,11 +40,35 @@ void append_row(std::string& out, const char* prefix, const Vertices& V, Eigen::
   }
 }
 
+// Room for a text mesh: about 60 characters a vertex (120 with normals), 30 a triangle.
+void reserve_text(std::string& out, const Vertices& V, const Triangles& F, const Vertices* N) {
+  out.reserve(static_cast<size_t>(V.rows()) * (N ? 120 : 60) + static_cast<size_t>(F.rows()) * 30);
+}
+
+// The body OFF and ASCII PLY share: a line per vertex ("x y z", then " nx ny nz" with
+// normals), then a line per triangle "3 a b c" (0-based).
+void append_vertices_and_faces(std::string& out, const Vertices& V, const Triangles& F,
+                               const Vertices* N) {
+  for (Eigen::Index i = 0; i < V.rows(); ++i) {
+    append_row(out, "", V, i);
+    if (N) append_row(out, " ", *N, i);
+    out += '\n';
+  }
+  for (Eigen::Index t = 0; t < F.rows(); ++t) {
+    out += '3';
+    for (int k = 0; k < 3; ++k) {
+      out += ' ';
+      append_int(out, F(t, k));
+    }
+    out += '\n';
+  }
+}
+
 }  // namespace
 
 std::string write_obj(const Vertices& V, const Triangles& F, const Vertices* N) {
   std::string out = "# hdeform\n";
-  out.reserve(static_cast<size_t>(V.rows()) * (N ? 120 : 60) + static_cast<size_t>(F.rows()) * 30);
+  reserve_text(out, V, F, N);
   for (Eigen::Index i = 0; i < V.rows(); ++i) {
     append_row(out, "v ", V, i);
     out += '\n';
@@ -71,49 +95,25 @@ std::string write_obj(const Vertices& V, const Triangles& F, const Vertices* N) 
 
 std::string write_off(const Vertices& V, const Triangles& F, const Vertices* N) {
   std::string out = N ? "NOFF\n" : "OFF\n";
-  out.reserve(static_cast<size_t>(V.rows()) * (N ? 120 : 60) + static_cast<size_t>(F.rows()) * 30);
+  reserve_text(out, V, F, N);
   append_int(out, V.rows());
   out += ' ';
   append_int(out, F.rows());
   out += " 0\n";
-  for (Eigen::Index i = 0; i < V.rows(); ++i) {
-    append_row(out, "", V, i);
-    if (N) append_row(out, " ", *N, i);
-    out += '\n';
-  }
-  for (Eigen::Index t = 0; t < F.rows(); ++t) {
-    out += '3';
-    for (int k = 0; k < 3; ++k) {
-      out += ' ';
-      append_int(out, F(t, k));
-    }
-    out += '\n';
-  }
+  append_vertices_and_faces(out, V, F, N);
   return out;
 }
 
 std::string write_ply(const Vertices& V, const Triangles& F, const Vertices* N) {
   std::string out = "ply\nformat ascii 1.0\ncomment hdeform\nelement vertex ";
-  out.reserve(static_cast<size_t>(V.rows()) * (N ? 120 : 60) + static_cast<size_t>(F.rows()) * 30);
+  reserve_text(out, V, F, N);
   append_int(out, V.rows());
   out += "\nproperty double x\nproperty double y\nproperty double z\n";
   if (N) out += "property double nx\nproperty double ny\nproperty double nz\n";
   out += "element face ";
   append_int(out, F.rows());
   out += "\nproperty list uchar int vertex_indices\nend_header\n";
-  for (Eigen::Index i = 0; i < V.rows(); ++i) {
-    append_row(out, "", V, i);
-    if (N) append_row(out, " ", *N, i);
-    out += '\n';
-  }
-  for (Eigen::Index t = 0; t < F.rows(); ++t) {
-    out += '3';
-    for (int k = 0; k < 3; ++k) {
-      out += ' ';
-      append_int(out, F(t, k));
-    }
-    out += '\n';
-  }
+  append_vertices_and_faces(out, V, F, N);
   return out;
 }
 

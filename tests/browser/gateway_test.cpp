@@ -154,6 +154,23 @@ class GatewayTest : public ::testing::Test {
     return res;
   }
 
+  // Starts a streaming WatchSession call and reads the response header; the frames follow
+  // through `parser` (read_frames).
+  tcp::socket watch(const std::string& session, beast::flat_buffer& buffer,
+                    http::response_parser<http::buffer_body>& parser) {
+    auto s = connect();
+    WatchSessionRequest req;
+    req.set_name(session);
+    http::request<http::string_body> r{http::verb::post, "/hdeform.v1.Deformation/WatchSession",
+                                       11};
+    r.set(http::field::content_type, "application/grpc-web+proto");
+    r.body() = grpc_web_body(req);
+    r.prepare_payload();
+    http::write(s, r);
+    http::read_header(s, buffer, parser);
+    return s;
+  }
+
   http::response<http::string_body> call(const std::string& method, const google::protobuf::Message& msg) {
     return request(http::verb::post, "/hdeform.v1.Deformation/" + method, grpc_web_body(msg));
   }
@@ -279,17 +296,9 @@ std::string read_frames(tcp::socket& s, beast::flat_buffer& buffer,
 }
 
 TEST_F(GatewayTest, ServerStreamIsRelayedAndCancelledWhenTheBrowserLeaves) {
-  auto s = connect();
-  WatchSessionRequest req;
-  req.set_name("sessions/w");
-  http::request<http::string_body> r{http::verb::post, "/hdeform.v1.Deformation/WatchSession", 11};
-  r.set(http::field::content_type, "application/grpc-web+proto");
-  r.body() = grpc_web_body(req);
-  r.prepare_payload();
-  http::write(s, r);
   beast::flat_buffer buffer;
   http::response_parser<http::buffer_body> parser;
-  http::read_header(s, buffer, parser);
+  auto s = watch("sessions/w", buffer, parser);
   EXPECT_TRUE(parser.get().chunked());
   const auto frames = frames_of(read_frames(s, buffer, parser, 3));
   ASSERT_GE(frames.size(), 3u);
@@ -305,17 +314,9 @@ TEST_F(GatewayTest, ServerStreamIsRelayedAndCancelledWhenTheBrowserLeaves) {
 }
 
 TEST_F(GatewayTest, StopEndsStreamsWithUnavailable) {
-  auto s = connect();
-  WatchSessionRequest req;
-  req.set_name("sessions/w");
-  http::request<http::string_body> r{http::verb::post, "/hdeform.v1.Deformation/WatchSession", 11};
-  r.set(http::field::content_type, "application/grpc-web+proto");
-  r.body() = grpc_web_body(req);
-  r.prepare_payload();
-  http::write(s, r);
   beast::flat_buffer buffer;
   http::response_parser<http::buffer_body> parser;
-  http::read_header(s, buffer, parser);
+  auto s = watch("sessions/w", buffer, parser);
   read_frames(s, buffer, parser, 1);
   auto idle = connect();  // an idle keep-alive connection must not block stop()
 

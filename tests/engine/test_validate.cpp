@@ -21,6 +21,34 @@ TriMesh tetra() {
   return m;
 }
 
+void add_vertex(TriMesh& m, double x, double y, double z) {
+  m.V.conservativeResize(m.V.rows() + 1, 3);
+  m.V.row(m.V.rows() - 1) << x, y, z;
+}
+
+void add_triangle(TriMesh& m, int a, int b, int c) {
+  m.F.conservativeResize(m.F.rows() + 1, 3);
+  m.F.row(m.F.rows() - 1) << a, b, c;
+}
+
+// An nx × ny grid of vertices (i, j, height(i, j)), two triangles a cell.
+template <class Height>
+TriMesh grid(int nx, int ny, Height height) {
+  TriMesh m;
+  m.V.resize(nx * ny, 3);
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) m.V.row(j * nx + i) << i, j, height(i, j);
+  m.F.resize(2 * (nx - 1) * (ny - 1), 3);
+  int t = 0;
+  for (int j = 0; j + 1 < ny; ++j)
+    for (int i = 0; i + 1 < nx; ++i) {
+      const int a = j * nx + i;
+      m.F.row(t++) << a, a + 1, a + nx + 1;
+      m.F.row(t++) << a, a + nx + 1, a + nx;
+    }
+  return m;
+}
+
 // The message of the InvalidInput validate_mesh throws ("" if it does not throw).
 std::string error_of(const TriMesh& m) {
   try {
@@ -42,19 +70,7 @@ TEST(Validate, TetrahedronIsValid) {
 
 TEST(Validate, OpenSurfaceWithBoundaryIsValid) {
   // A 30×20 grid: boundary edges (one triangle) are fine, so is every boundary vertex fan.
-  const int nx = 30, ny = 20;
-  TriMesh m;
-  m.V.resize(nx * ny, 3);
-  for (int j = 0; j < ny; ++j)
-    for (int i = 0; i < nx; ++i) m.V.row(j * nx + i) << i, j, 0.1 * std::sin(i + j);
-  m.F.resize(2 * (nx - 1) * (ny - 1), 3);
-  int t = 0;
-  for (int j = 0; j + 1 < ny; ++j)
-    for (int i = 0; i + 1 < nx; ++i) {
-      const int a = j * nx + i;
-      m.F.row(t++) << a, a + 1, a + nx + 1;
-      m.F.row(t++) << a, a + nx + 1, a + nx;
-    }
+  const TriMesh m = grid(30, 20, [](int i, int j) { return 0.1 * std::sin(i + j); });
   EXPECT_EQ(error_of(m), "");
 }
 
@@ -88,11 +104,9 @@ TEST(Validate, NonFiniteCoordinates) {
 TEST(Validate, ZeroAreaTriangles) {
   // Vertex 4 on edge 0–1 (collinear triangle 4) and triangle 5 with a repeated corner.
   TriMesh m = tetra();
-  m.V.conservativeResize(5, 3);
-  m.V.row(4) << 0.5, 0, 0;
-  m.F.conservativeResize(6, 3);
-  m.F.row(4) << 0, 4, 1;
-  m.F.row(5) << 2, 2, 3;
+  add_vertex(m, 0.5, 0, 0);
+  add_triangle(m, 0, 4, 1);
+  add_triangle(m, 2, 2, 3);
   const std::string e = error_of(m);
   EXPECT_CONTAINS(e, "zero-area triangles: 2 triangles have area");
   EXPECT_CONTAINS(e, "triangles 4, 5");
@@ -102,8 +116,7 @@ TEST(Validate, TinyButNonZeroTrianglesPass) {
   // Area 1e-10 with bbox diagonal² = 3: well above the 1e-14 · 3 threshold.
   TriMesh m = tetra();
   m.V.row(3) << 0, 0, 1e-5;
-  m.V.conservativeResize(5, 3);
-  m.V.row(4) << 1, 1, 1;  // keeps the bbox diagonal² at 3
+  add_vertex(m, 1, 1, 1);  // keeps the bbox diagonal² at 3
   const ValidationResult r = validate_mesh(m);
   EXPECT_EQ(r.unreferenced, std::vector<int>{4});
 }
@@ -160,9 +173,8 @@ TEST(Validate, NonManifoldVertexTwoClosedTetrahedra) {
 
 TEST(Validate, UnreferencedVerticesAreReportedNotRejected) {
   TriMesh m = tetra();
-  m.V.conservativeResize(6, 3);
-  m.V.row(4) << 5, 5, 5;
-  m.V.row(5) << 6, 6, 6;
+  add_vertex(m, 5, 5, 5);
+  add_vertex(m, 6, 6, 6);
   const ValidationResult r = validate_mesh(m);
   EXPECT_EQ(r.unreferenced, (std::vector<int>{4, 5}));
   ASSERT_EQ(r.warnings.size(), 1u);
@@ -171,19 +183,7 @@ TEST(Validate, UnreferencedVerticesAreReportedNotRejected) {
 
 TEST(Validate, LargeGridIsFast) {
   // 500×500 = 250K vertices, ~500K triangles; the check is near-linear.
-  const int n = 500;
-  TriMesh m;
-  m.V.resize(n * n, 3);
-  for (int j = 0; j < n; ++j)
-    for (int i = 0; i < n; ++i) m.V.row(j * n + i) << i, j, 0;
-  m.F.resize(2 * (n - 1) * (n - 1), 3);
-  int t = 0;
-  for (int j = 0; j + 1 < n; ++j)
-    for (int i = 0; i + 1 < n; ++i) {
-      const int a = j * n + i;
-      m.F.row(t++) << a, a + 1, a + n + 1;
-      m.F.row(t++) << a, a + n + 1, a + n;
-    }
+  const TriMesh m = grid(500, 500, [](int, int) { return 0.0; });
   const auto t0 = std::chrono::steady_clock::now();
   EXPECT_NO_THROW(validate_mesh(m));
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

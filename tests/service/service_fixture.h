@@ -96,14 +96,21 @@ struct TestServer {
     return stub->SetConstraints(&ctx, req, out);
   }
 
-  grpc::Status set_beta(const std::string& name, double beta, pb::Session* out,
+  grpc::Status set_beta(const std::string& name, const pb::Beta& beta, pb::Session* out,
                         std::int64_t expected_version = 0) {
     grpc::ClientContext ctx;
     pb::SetBetaRequest req;
     req.set_name(name);
-    req.mutable_beta()->set_value(beta);
+    *req.mutable_beta() = beta;
     req.set_expected_version(expected_version);
     return stub->SetBeta(&ctx, req, out);
+  }
+  // A uniform β (area units).
+  grpc::Status set_beta(const std::string& name, double beta, pb::Session* out,
+                        std::int64_t expected_version = 0) {
+    pb::Beta b;
+    b.set_value(beta);
+    return set_beta(name, b, out, expected_version);
   }
 
   grpc::Status update(const std::string& name, std::int64_t seq,
@@ -134,11 +141,57 @@ struct TestServer {
     }
     return reader->Finish();
   }
+  // The deformed mesh (GetMesh rest = false) in `format`; expects success.
+  std::string deformed(const std::string& name, pb::MeshFormat format) {
+    std::string bytes;
+    auto st = get_mesh(name, false, format, &bytes);
+    EXPECT_TRUE(st.ok()) << st.error_message();
+    return bytes;
+  }
+
+  grpc::Status get_session(const std::string& name, pb::Session* out) {
+    grpc::ClientContext ctx;
+    pb::GetSessionRequest req;
+    req.set_name(name);
+    return stub->GetSession(&ctx, req, out);
+  }
+
+  grpc::Status list_sessions(pb::ListSessionsResponse* out) {
+    grpc::ClientContext ctx;
+    return stub->ListSessions(&ctx, {}, out);
+  }
+
+  grpc::Status delete_session(const std::string& name) {
+    grpc::ClientContext ctx;
+    pb::DeleteSessionRequest req;
+    req.set_name(name);
+    pb::DeleteSessionResponse resp;
+    return stub->DeleteSession(&ctx, req, &resp);
+  }
+
+  grpc::Status export_session(const std::string& name, pb::Snapshot* out,
+                              bool include_mesh = false) {
+    grpc::ClientContext ctx;
+    pb::ExportSessionRequest req;
+    req.set_name(name);
+    req.set_include_mesh(include_mesh);
+    return stub->ExportSession(&ctx, req, out);
+  }
+
+  grpc::Status import_session(const pb::Snapshot& snap, pb::Session* out,
+                              const std::string& session_id = "") {
+    grpc::ClientContext ctx;
+    pb::ImportSessionRequest req;
+    *req.mutable_snapshot() = snap;
+    req.set_session_id(session_id);
+    return stub->ImportSession(&ctx, req, out);
+  }
 };
 
-// The Botsch–Sorkine cactus benchmark: fixed = label 0, handle = label 2 of cactus.sel.
-inline pb::Constraints cactus_constraints() {
-  const std::string sel = slurp(data_path("botsch-sorkine/cactus.sel"));
+// A Botsch–Sorkine benchmark ("cactus", "cylinder", …): fixed = label 0, handle = label 2
+// of MODEL.sel.
+inline pb::Constraints benchmark_constraints(const std::string& model) {
+  const std::string sel = slurp(data_path("botsch-sorkine/" + model + ".sel"));
   pb::Constraints c;
   auto* f = c.mutable_fixed()->add_selectors()->mutable_sel();
   f->set_content(sel);
@@ -149,9 +202,9 @@ inline pb::Constraints cactus_constraints() {
   return c;
 }
 
-// cactus.def as a 4×4 matrix transform.
-inline pb::HandleTransform cactus_transform() {
-  std::istringstream in(slurp(data_path("botsch-sorkine/cactus.def")));
+// MODEL.def as a 4×4 matrix transform.
+inline pb::HandleTransform benchmark_transform(const std::string& model) {
+  std::istringstream in(slurp(data_path("botsch-sorkine/" + model + ".def")));
   std::string header;
   std::getline(in, header);
   pb::HandleTransform t;
@@ -161,6 +214,28 @@ inline pb::HandleTransform cactus_transform() {
     t.add_matrix(v);
   }
   return t;
+}
+
+inline pb::Constraints cactus_constraints() { return benchmark_constraints("cactus"); }
+inline pb::HandleTransform cactus_transform() { return benchmark_transform("cactus"); }
+
+// A library cactus with its benchmark constraints; expects success.
+inline pb::Session constrained_cactus(TestServer& t) {
+  const pb::Session s = t.library_session("cactus");
+  pb::Session c;
+  auto st = t.set_constraints(s.name(), cactus_constraints(), &c);
+  EXPECT_TRUE(st.ok()) << st.error_message();
+  return c;
+}
+
+// One Deform stream message: NAME (empty: the stream's session), SEQUENCE, one transform.
+inline pb::DeformRequest deform_request(const std::string& name, std::int64_t sequence,
+                                        const pb::HandleTransform& transform) {
+  pb::DeformRequest req;
+  req.set_name(name);
+  req.set_sequence(sequence);
+  *req.add_transforms() = transform;
+  return req;
 }
 
 inline pb::HandleTransform translation(double x, double y, double z) {

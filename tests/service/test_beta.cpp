@@ -34,15 +34,6 @@ pb::Beta automatic(pb::BetaUnits units) {
   return b;
 }
 
-grpc::Status set_beta(TestServer& t, const std::string& name, const pb::Beta& beta,
-                      pb::Session* out) {
-  grpc::ClientContext ctx;
-  pb::SetBetaRequest req;
-  req.set_name(name);
-  *req.mutable_beta() = beta;
-  return t.stub->SetBeta(&ctx, req, out);
-}
-
 // β with one falloff entry around the top vertex (β = 0.3 within 0.03, area units).
 pb::Beta local_around_top(const pb::Session& s, double beta = 0.3, double radius = 0.03) {
   pb::Beta b;
@@ -69,19 +60,12 @@ struct SingleVertex {
   }
 };
 
-std::string deformed_off(TestServer& t, const std::string& name) {
-  std::string bytes;
-  auto st = t.get_mesh(name, false, pb::MESH_FORMAT_OFF, &bytes);
-  EXPECT_TRUE(st.ok()) << st.error_message();
-  return bytes;
-}
-
 }  // namespace
 
 TEST(ServiceBeta, AutomaticPicksTheRecommendedRangeForASingleVertexPull) {
   SingleVertex f;
   pb::Session after;
-  auto st = set_beta(f.t, f.s.name(), automatic(pb::BETA_UNITS_RAW), &after);
+  auto st = f.t.set_beta(f.s.name(), automatic(pb::BETA_UNITS_RAW), &after);
   ASSERT_TRUE(st.ok()) << st.error_message();
   EXPECT_TRUE(after.beta().automatic());
   EXPECT_EQ(after.beta().units(), pb::BETA_UNITS_RAW);
@@ -99,28 +83,11 @@ TEST(ServiceBeta, AutomaticPicksTheRecommendedRangeForASingleVertexPull) {
 TEST(ServiceBeta, AutomaticOnTheCylinderBenchmarkPicksZero) {
   TestServer t;
   const pb::Session s = t.library_session("cylinder");
-  const std::string sel = slurp(data_path("botsch-sorkine/cylinder.sel"));
-  pb::Constraints c;
-  auto* fx = c.mutable_fixed()->add_selectors()->mutable_sel();
-  fx->set_content(sel);
-  fx->set_label(0);
-  auto* h = c.add_handles()->add_selectors()->mutable_sel();
-  h->set_content(sel);
-  h->set_label(2);
   pb::Session out;
-  ASSERT_TRUE(t.set_constraints(s.name(), c, &out).ok());
-  std::istringstream in(slurp(data_path("botsch-sorkine/cylinder.def")));
-  std::string header;
-  std::getline(in, header);
-  pb::HandleTransform T;
-  for (int i = 0; i < 16; ++i) {
-    double v = 0;
-    in >> v;
-    T.add_matrix(v);
-  }
+  ASSERT_TRUE(t.set_constraints(s.name(), benchmark_constraints("cylinder"), &out).ok());
   pb::Frame f;
-  ASSERT_TRUE(t.update(s.name(), 1, {T}, &f).ok());
-  auto st = set_beta(t, s.name(), automatic(pb::BETA_UNITS_RAW), &out);
+  ASSERT_TRUE(t.update(s.name(), 1, {benchmark_transform("cylinder")}, &f).ok());
+  auto st = t.set_beta(s.name(), automatic(pb::BETA_UNITS_RAW), &out);
   ASSERT_TRUE(st.ok()) << st.error_message();
   EXPECT_TRUE(out.beta().automatic());
   EXPECT_EQ(out.beta().value(), 0.0);
@@ -130,7 +97,7 @@ TEST(ServiceBeta, AutomaticNeedsConstraints) {
   TestServer t;
   const pb::Session s = t.library_session("cactus");
   pb::Session out;
-  auto st = set_beta(t, s.name(), automatic(pb::BETA_UNITS_AREA), &out);
+  auto st = t.set_beta(s.name(), automatic(pb::BETA_UNITS_AREA), &out);
   EXPECT_EQ(st.error_code(), grpc::StatusCode::FAILED_PRECONDITION) << st.error_message();
 }
 
@@ -138,10 +105,7 @@ TEST(ServiceBeta, DeformStreamPicksAtTheMessagesTransforms) {
   SingleVertex f;
   grpc::ClientContext ctx;
   auto stream = f.t.stub->Deform(&ctx);
-  pb::DeformRequest req;
-  req.set_name(f.s.name());
-  req.set_sequence(7);
-  *req.add_transforms() = pull();
+  pb::DeformRequest req = deform_request(f.s.name(), 7, pull());
   *req.mutable_beta() = automatic(pb::BETA_UNITS_RAW);
   ASSERT_TRUE(stream->Write(req));
   stream->WritesDone();
@@ -161,7 +125,7 @@ TEST(ServiceBeta, DeformStreamPicksAtTheMessagesTransforms) {
 TEST(ServiceBeta, LocalFalloffAroundTheHandleRemovesTheSpike) {
   SingleVertex f;
   pb::Session after;
-  auto st = set_beta(f.t, f.s.name(), local_around_top(f.s), &after);
+  auto st = f.t.set_beta(f.s.name(), local_around_top(f.s), &after);
   ASSERT_TRUE(st.ok()) << st.error_message();
   EXPECT_EQ(after.beta().value(), 0.0);
   ASSERT_EQ(after.beta().local_size(), 1);
@@ -176,14 +140,14 @@ TEST(ServiceBeta, LocalFalloffAroundTheHandleRemovesTheSpike) {
   pb::Beta zero;
   auto* e = zero.add_local();
   *e->mutable_region()->add_selectors() = top_vertex(f.s);
-  ASSERT_TRUE(set_beta(f.t, f.s.name(), zero, &after).ok());
+  ASSERT_TRUE(f.t.set_beta(f.s.name(), zero, &after).ok());
   pb::Frame same;
   ASSERT_TRUE(f.t.update(f.s.name(), 3, {pull()}, &same).ok());
   EXPECT_NEAR(same.measures().max_e_iso(), f.naive.measures().max_e_iso(),
               1e-6 * f.naive.measures().max_e_iso());
 
   // Sweep applies the session's local entries at every β (value = that β).
-  ASSERT_TRUE(set_beta(f.t, f.s.name(), local_around_top(f.s), &after).ok());
+  ASSERT_TRUE(f.t.set_beta(f.s.name(), local_around_top(f.s), &after).ok());
   grpc::ClientContext ctx;
   pb::SweepRequest sreq;
   sreq.set_name(f.s.name());
@@ -253,19 +217,14 @@ TEST(ServiceBeta, BadLocalEntriesAreInvalidArgument) {
   }
   for (const auto& c : cases) {
     pb::Session out;
-    auto st = set_beta(t, s.name(), c.beta, &out);
+    auto st = t.set_beta(s.name(), c.beta, &out);
     EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << c.what;
     EXPECT_NE(st.error_message().find(c.message), std::string::npos)
         << c.what << ": " << st.error_message();
   }
   // Nothing changed.
   pb::Session now;
-  {
-    grpc::ClientContext ctx;
-    pb::GetSessionRequest req;
-    req.set_name(s.name());
-    ASSERT_TRUE(t.stub->GetSession(&ctx, req, &now).ok());
-  }
+  ASSERT_TRUE(t.get_session(s.name(), &now).ok());
   EXPECT_EQ(now.version(), s.version());
   EXPECT_EQ(now.beta().local_size(), 0);
 }
@@ -276,7 +235,7 @@ TEST(ServiceBeta, SnapshotKeepsAutomaticAndLocal) {
   b.set_automatic(true);
   b.set_units(pb::BETA_UNITS_RAW);
   pb::Session after;
-  auto st = set_beta(f.t, f.s.name(), b, &after);
+  auto st = f.t.set_beta(f.s.name(), b, &after);
   ASSERT_TRUE(st.ok()) << st.error_message();
   EXPECT_TRUE(after.beta().automatic());
   EXPECT_EQ(after.beta().local_size(), 1);
@@ -284,12 +243,7 @@ TEST(ServiceBeta, SnapshotKeepsAutomaticAndLocal) {
   ASSERT_TRUE(f.t.update(f.s.name(), 2, {pull()}, &frame).ok());
 
   pb::Snapshot snap;
-  {
-    grpc::ClientContext ctx;
-    pb::ExportSessionRequest req;
-    req.set_name(f.s.name());
-    ASSERT_TRUE(f.t.stub->ExportSession(&ctx, req, &snap).ok());
-  }
+  ASSERT_TRUE(f.t.export_session(f.s.name(), &snap).ok());
   EXPECT_TRUE(snap.beta().automatic());
   EXPECT_EQ(snap.beta().value(), after.beta().value());
   EXPECT_EQ(snap.beta().units(), pb::BETA_UNITS_RAW);
@@ -297,19 +251,15 @@ TEST(ServiceBeta, SnapshotKeepsAutomaticAndLocal) {
   EXPECT_EQ(snap.beta().local(0).falloff_radius(), 0.03);
 
   pb::Session imported;
-  {
-    grpc::ClientContext ctx;
-    pb::ImportSessionRequest req;
-    *req.mutable_snapshot() = snap;
-    st = f.t.stub->ImportSession(&ctx, req, &imported);
-    ASSERT_TRUE(st.ok()) << st.error_message();
-  }
+  st = f.t.import_session(snap, &imported);
+  ASSERT_TRUE(st.ok()) << st.error_message();
   EXPECT_TRUE(imported.beta().automatic());
   EXPECT_EQ(imported.beta().value(), after.beta().value());
   ASSERT_EQ(imported.beta().local_size(), 1);
   EXPECT_EQ(imported.beta().local(0).SerializeAsString(),
             after.beta().local(0).SerializeAsString());
-  EXPECT_EQ(deformed_off(f.t, imported.name()), deformed_off(f.t, f.s.name()));
+  EXPECT_EQ(f.t.deformed(imported.name(), pb::MESH_FORMAT_OFF),
+            f.t.deformed(f.s.name(), pb::MESH_FORMAT_OFF));
   pb::Frame again;
   ASSERT_TRUE(f.t.update(imported.name(), 2, {pull()}, &again).ok());
   EXPECT_EQ(again.positions(), frame.positions());

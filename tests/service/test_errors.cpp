@@ -7,14 +7,6 @@ using namespace hdeform::testing;
 using grpc::StatusCode;
 
 namespace {
-pb::Session constrained_cactus(TestServer& t) {
-  const pb::Session s = t.library_session("cactus");
-  pb::Session c;
-  auto st = t.set_constraints(s.name(), cactus_constraints(), &c);
-  EXPECT_TRUE(st.ok()) << st.error_message();
-  return c;
-}
-
 pb::Constraints by_ids(std::vector<int> fixed, std::vector<int> handle) {
   pb::Constraints c;
   for (int i : fixed) c.mutable_fixed()->add_selectors()->mutable_ids()->add_ids(i);
@@ -62,11 +54,8 @@ TEST(ServiceErrors, InvalidArgument) {
   st = t.update(c.name(), 1, {translation(0, 0, 0), translation(0, 0, 0)}, &f);
   EXPECT_EQ(st.error_code(), StatusCode::INVALID_ARGUMENT) << st.error_message();
   // The failed updates changed nothing.
-  grpc::ClientContext ctx;
-  pb::GetSessionRequest req;
-  req.set_name(c.name());
   pb::Session now;
-  ASSERT_TRUE(t.stub->GetSession(&ctx, req, &now).ok());
+  ASSERT_TRUE(t.get_session(c.name(), &now).ok());
   EXPECT_EQ(now.version(), c.version());
 }
 
@@ -74,12 +63,7 @@ TEST(ServiceErrors, NotFound) {
   TestServer t;
   pb::Session s;
   EXPECT_EQ(t.create_library("no-such-mesh", &s).error_code(), StatusCode::NOT_FOUND);
-  {
-    grpc::ClientContext ctx;
-    pb::GetSessionRequest req;
-    req.set_name("sessions/nope");
-    EXPECT_EQ(t.stub->GetSession(&ctx, req, &s).error_code(), StatusCode::NOT_FOUND);
-  }
+  EXPECT_EQ(t.get_session("sessions/nope", &s).error_code(), StatusCode::NOT_FOUND);
   pb::Frame f;
   EXPECT_EQ(t.update("sessions/nope", 1, {}, &f).error_code(), StatusCode::NOT_FOUND);
   EXPECT_EQ(t.set_beta("sessions/nope", 0.1, &s).error_code(), StatusCode::NOT_FOUND);
@@ -106,13 +90,7 @@ TEST(ServiceErrors, NotFound) {
     EXPECT_FALSE(stream->Read(&fr));
     EXPECT_EQ(stream->Finish().error_code(), StatusCode::NOT_FOUND);
   }
-  {
-    grpc::ClientContext ctx;
-    pb::DeleteSessionRequest req;
-    req.set_name("sessions/nope");
-    pb::DeleteSessionResponse resp;
-    EXPECT_EQ(t.stub->DeleteSession(&ctx, req, &resp).error_code(), StatusCode::NOT_FOUND);
-  }
+  EXPECT_EQ(t.delete_session("sessions/nope").error_code(), StatusCode::NOT_FOUND);
 }
 
 TEST(ServiceErrors, FailedPreconditionBeforeConstraints) {
@@ -212,14 +190,10 @@ TEST(ServiceErrors, IdleSessionsExpire) {
   o.session_ttl = std::chrono::seconds(1);
   TestServer t(o);
   const pb::Session s = t.library_session("knight");
-  grpc::ClientContext ctx;
-  pb::GetSessionRequest req;
-  req.set_name(s.name());
   pb::Session got;
-  ASSERT_TRUE(t.stub->GetSession(&ctx, req, &got).ok());
+  ASSERT_TRUE(t.get_session(s.name(), &got).ok());
   std::this_thread::sleep_for(std::chrono::milliseconds(2600));
-  grpc::ClientContext ctx2;
-  EXPECT_EQ(t.stub->GetSession(&ctx2, req, &got).error_code(), StatusCode::NOT_FOUND);
+  EXPECT_EQ(t.get_session(s.name(), &got).error_code(), StatusCode::NOT_FOUND);
 }
 
 TEST(ServiceErrors, OneSessionsFailureDoesNotHarmAnother) {

@@ -3,17 +3,6 @@
 
 using namespace hdeform::testing;
 
-namespace {
-grpc::Status import_as(TestServer& t, const pb::Snapshot& snap, const std::string& id,
-                       pb::Session* out) {
-  grpc::ClientContext ctx;
-  pb::ImportSessionRequest req;
-  *req.mutable_snapshot() = snap;
-  req.set_session_id(id);
-  return t.stub->ImportSession(&ctx, req, out);
-}
-}  // namespace
-
 TEST(ServiceSessionId, CreateUsesTheClientsId) {
   TestServer t;
   pb::Session s;
@@ -54,16 +43,12 @@ TEST(ServiceSessionId, CreateUsesTheClientsId) {
   EXPECT_EQ(dup.name().size(), std::string("sessions/").size() + 16);
 
   pb::ListSessionsResponse list;
-  grpc::ClientContext ctx;
-  ASSERT_TRUE(t.stub->ListSessions(&ctx, {}, &list).ok());
+  ASSERT_TRUE(t.list_sessions(&list).ok());
   EXPECT_EQ(list.sessions_size(), 3);
 
   // The id works as a name, with or without the prefix.
   pb::Session got;
-  grpc::ClientContext g;
-  pb::GetSessionRequest req;
-  req.set_name("my-Session_01");
-  ASSERT_TRUE(t.stub->GetSession(&g, req, &got).ok());
+  ASSERT_TRUE(t.get_session("my-Session_01", &got).ok());
   EXPECT_EQ(got.name(), s.name());
 }
 
@@ -74,32 +59,21 @@ TEST(ServiceSessionId, ImportUsesTheClientsId) {
   pb::Session c;
   ASSERT_TRUE(t.set_constraints(s.name(), cactus_constraints(), &c).ok());
   pb::Snapshot snap;
-  {
-    grpc::ClientContext ctx;
-    pb::ExportSessionRequest req;
-    req.set_name(s.name());
-    ASSERT_TRUE(t.stub->ExportSession(&ctx, req, &snap).ok());
-  }
+  ASSERT_TRUE(t.export_session(s.name(), &snap).ok());
   pb::Session imported;
-  auto st = import_as(t, snap, "original", &imported);
+  auto st = t.import_session(snap, &imported, "original");
   EXPECT_EQ(st.error_code(), grpc::StatusCode::ALREADY_EXISTS) << st.error_message();
-  st = import_as(t, snap, "no/slash", &imported);
+  st = t.import_session(snap, &imported, "no/slash");
   EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << st.error_message();
 
-  st = import_as(t, snap, "copy-1", &imported);
+  st = t.import_session(snap, &imported, "copy-1");
   ASSERT_TRUE(st.ok()) << st.error_message();
   EXPECT_EQ(imported.name(), "sessions/copy-1");
   EXPECT_TRUE(imported.constrained());
 
   // After the original is gone its id is free again (the failover re-import).
-  {
-    grpc::ClientContext ctx;
-    pb::DeleteSessionRequest req;
-    req.set_name(s.name());
-    pb::DeleteSessionResponse resp;
-    ASSERT_TRUE(t.stub->DeleteSession(&ctx, req, &resp).ok());
-  }
-  st = import_as(t, snap, "original", &imported);
+  ASSERT_TRUE(t.delete_session(s.name()).ok());
+  st = t.import_session(snap, &imported, "original");
   ASSERT_TRUE(st.ok()) << st.error_message();
   EXPECT_EQ(imported.name(), "sessions/original");
 
@@ -108,8 +82,8 @@ TEST(ServiceSessionId, ImportUsesTheClientsId) {
   broken.clear_transforms();
   broken.add_transforms();
   broken.add_transforms();  // 2 transforms for 1 handle
-  st = import_as(t, broken, "broken", &imported);
+  st = t.import_session(broken, &imported, "broken");
   EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << st.error_message();
-  st = import_as(t, snap, "broken", &imported);
+  st = t.import_session(snap, &imported, "broken");
   EXPECT_TRUE(st.ok()) << st.error_message();
 }

@@ -35,33 +35,13 @@ TEST(ServiceSessions, CreateGetListDelete) {
   EXPECT_EQ(a.mesh_hash().size(), 16u);
 
   pb::ListSessionsResponse list;
-  {
-    grpc::ClientContext ctx;
-    ASSERT_TRUE(t.stub->ListSessions(&ctx, {}, &list).ok());
-  }
+  ASSERT_TRUE(t.list_sessions(&list).ok());
   EXPECT_EQ(list.sessions_size(), 2);
-  {
-    grpc::ClientContext ctx;
-    pb::GetSessionRequest req;
-    req.set_name(a.name());
-    pb::Session got;
-    ASSERT_TRUE(t.stub->GetSession(&ctx, req, &got).ok());
-    EXPECT_EQ(got.name(), a.name());
-  }
-  {
-    grpc::ClientContext ctx;
-    pb::DeleteSessionRequest req;
-    req.set_name(a.name());
-    pb::DeleteSessionResponse resp;
-    ASSERT_TRUE(t.stub->DeleteSession(&ctx, req, &resp).ok());
-  }
-  {
-    grpc::ClientContext ctx;
-    pb::GetSessionRequest req;
-    req.set_name(a.name());
-    pb::Session got;
-    EXPECT_EQ(t.stub->GetSession(&ctx, req, &got).error_code(), grpc::StatusCode::NOT_FOUND);
-  }
+  pb::Session got;
+  ASSERT_TRUE(t.get_session(a.name(), &got).ok());
+  EXPECT_EQ(got.name(), a.name());
+  ASSERT_TRUE(t.delete_session(a.name()).ok());
+  EXPECT_EQ(t.get_session(a.name(), &got).error_code(), grpc::StatusCode::NOT_FOUND);
 }
 
 TEST(ServiceSessions, UploadLargerThanFourMiB) {

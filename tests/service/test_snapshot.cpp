@@ -5,28 +5,10 @@ using namespace hdeform::testing;
 
 namespace {
 pb::Snapshot export_session(TestServer& t, const std::string& name, bool include_mesh) {
-  grpc::ClientContext ctx;
-  pb::ExportSessionRequest req;
-  req.set_name(name);
-  req.set_include_mesh(include_mesh);
   pb::Snapshot snap;
-  auto st = t.stub->ExportSession(&ctx, req, &snap);
+  auto st = t.export_session(name, &snap, include_mesh);
   EXPECT_TRUE(st.ok()) << st.error_message();
   return snap;
-}
-
-grpc::Status import_session(TestServer& t, const pb::Snapshot& snap, pb::Session* out) {
-  grpc::ClientContext ctx;
-  pb::ImportSessionRequest req;
-  *req.mutable_snapshot() = snap;
-  return t.stub->ImportSession(&ctx, req, out);
-}
-
-std::string deformed(TestServer& t, const std::string& name, pb::MeshFormat format) {
-  std::string bytes;
-  auto st = t.get_mesh(name, false, format, &bytes);
-  EXPECT_TRUE(st.ok()) << st.error_message();
-  return bytes;
 }
 }  // namespace
 
@@ -46,17 +28,17 @@ TEST(ServiceSnapshot, LibraryMeshRoundTripIsBitForBit) {
   ASSERT_EQ(snap.transforms_size(), 1);
 
   pb::Session imported;
-  auto st = import_session(t, snap, &imported);
+  auto st = t.import_session(snap, &imported);
   ASSERT_TRUE(st.ok()) << st.error_message();
   EXPECT_NE(imported.name(), s.name());
   EXPECT_EQ(imported.mesh_hash(), s.mesh_hash());
   EXPECT_DOUBLE_EQ(imported.beta().value(), 0.3);
   EXPECT_TRUE(imported.constrained());
 
-  EXPECT_EQ(deformed(t, imported.name(), pb::MESH_FORMAT_OFF),
-            deformed(t, s.name(), pb::MESH_FORMAT_OFF));
-  EXPECT_EQ(deformed(t, imported.name(), pb::MESH_FORMAT_GLB),
-            deformed(t, s.name(), pb::MESH_FORMAT_GLB));
+  EXPECT_EQ(t.deformed(imported.name(), pb::MESH_FORMAT_OFF),
+            t.deformed(s.name(), pb::MESH_FORMAT_OFF));
+  EXPECT_EQ(t.deformed(imported.name(), pb::MESH_FORMAT_GLB),
+            t.deformed(s.name(), pb::MESH_FORMAT_GLB));
   // And the imported session's own frames match the original's.
   pb::Frame g;
   ASSERT_TRUE(t.update(imported.name(), 1, {cactus_transform()}, &g).ok());
@@ -86,20 +68,20 @@ TEST(ServiceSnapshot, UploadWithMeshMovesToAnotherServer) {
 
   // Without the mesh, another server cannot know it.
   pb::Session imported;
-  EXPECT_EQ(import_session(b, export_session(a, s.name(), false), &imported).error_code(),
+  EXPECT_EQ(b.import_session(export_session(a, s.name(), false), &imported).error_code(),
             grpc::StatusCode::NOT_FOUND);
 
   const pb::Snapshot snap = export_session(a, s.name(), true);
   EXPECT_FALSE(snap.mesh_bytes().empty());
-  st = import_session(b, snap, &imported);
+  st = b.import_session(snap, &imported);
   ASSERT_TRUE(st.ok()) << st.error_message();
   EXPECT_EQ(imported.mesh_hash(), s.mesh_hash());
-  EXPECT_EQ(deformed(b, imported.name(), pb::MESH_FORMAT_OFF),
-            deformed(a, s.name(), pb::MESH_FORMAT_OFF));
+  EXPECT_EQ(b.deformed(imported.name(), pb::MESH_FORMAT_OFF),
+            a.deformed(s.name(), pb::MESH_FORMAT_OFF));
 
   // A snapshot whose hash does not match its mesh is refused.
   pb::Snapshot wrong = snap;
   wrong.set_mesh_hash("0123456789abcdef");
-  EXPECT_EQ(import_session(b, wrong, &imported).error_code(),
+  EXPECT_EQ(b.import_session(wrong, &imported).error_code(),
             grpc::StatusCode::INVALID_ARGUMENT);
 }

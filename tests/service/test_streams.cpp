@@ -10,16 +10,6 @@
 
 using namespace hdeform::testing;
 
-namespace {
-pb::Session constrained_cactus(TestServer& t) {
-  const pb::Session s = t.library_session("cactus");
-  pb::Session c;
-  auto st = t.set_constraints(s.name(), cactus_constraints(), &c);
-  EXPECT_TRUE(st.ok()) << st.error_message();
-  return c;
-}
-}  // namespace
-
 TEST(ServiceStreams, DeformBurstIsLatestWins) {
   TestServer t;
   const pb::Session s = constrained_cactus(t);
@@ -28,11 +18,8 @@ TEST(ServiceStreams, DeformBurstIsLatestWins) {
   grpc::ClientContext ctx;
   auto stream = t.stub->Deform(&ctx);
   for (int i = 1; i <= kUpdates; ++i) {
-    pb::DeformRequest req;
-    if (i == 1) req.set_name(s.name());
-    req.set_sequence(i);
-    *req.add_transforms() = translation(0, 0.0005 * i, 0);
-    ASSERT_TRUE(stream->Write(req));
+    const std::string name = i == 1 ? s.name() : "";  // the first message names the session
+    ASSERT_TRUE(stream->Write(deform_request(name, i, translation(0, 0.0005 * i, 0))));
   }
   stream->WritesDone();
   std::vector<std::int64_t> seqs;
@@ -51,11 +38,8 @@ TEST(ServiceStreams, DeformBurstIsLatestWins) {
   EXPECT_EQ(last.positions().size(), 5261u * 12);
 
   // The session now holds the last update's transform.
-  grpc::ClientContext gctx;
-  pb::GetSessionRequest greq;
-  greq.set_name(s.name());
   pb::Session now;
-  ASSERT_TRUE(t.stub->GetSession(&gctx, greq, &now).ok());
+  ASSERT_TRUE(t.get_session(s.name(), &now).ok());
   ASSERT_EQ(now.transforms_size(), 1);
   EXPECT_DOUBLE_EQ(now.transforms(0).translation().y(), 0.0005 * kUpdates);
   EXPECT_EQ(now.version(), last.version());
@@ -68,11 +52,7 @@ TEST(ServiceStreams, DeformChangesBetaAndAnswersEachUpdate) {
   auto stream = t.stub->Deform(&ctx);
   pb::Frame f0, f1;
   {
-    pb::DeformRequest req;
-    req.set_name(s.name());
-    req.set_sequence(1);
-    *req.add_transforms() = cactus_transform();
-    ASSERT_TRUE(stream->Write(req));
+    ASSERT_TRUE(stream->Write(deform_request(s.name(), 1, cactus_transform())));
     ASSERT_TRUE(stream->Read(&f0));
     EXPECT_EQ(f0.sequence(), 1);
   }
@@ -145,11 +125,8 @@ TEST(ServiceStreams, TwoWatchersSeeTheSameFrames) {
   ASSERT_TRUE(a.wait([&] { return a.states > 0; }));
   ASSERT_TRUE(b.wait([&] { return b.states > 0; }));
   {
-    grpc::ClientContext ctx;
-    pb::GetSessionRequest req;
-    req.set_name(s.name());
     pb::Session now;
-    ASSERT_TRUE(t.stub->GetSession(&ctx, req, &now).ok());
+    ASSERT_TRUE(t.get_session(s.name(), &now).ok());
     EXPECT_EQ(now.observers(), 2);
   }
   for (int i = 1; i <= 5; ++i) {
@@ -166,11 +143,7 @@ TEST(ServiceStreams, TwoWatchersSeeTheSameFrames) {
   {
     grpc::ClientContext ctx;
     auto stream = t.stub->Deform(&ctx);
-    pb::DeformRequest req;
-    req.set_name(s.name());
-    req.set_sequence(100);
-    *req.add_transforms() = cactus_transform();
-    ASSERT_TRUE(stream->Write(req));
+    ASSERT_TRUE(stream->Write(deform_request(s.name(), 100, cactus_transform())));
     stream->WritesDone();
     pb::Frame f;
     ASSERT_TRUE(stream->Read(&f));
@@ -182,13 +155,7 @@ TEST(ServiceStreams, TwoWatchersSeeTheSameFrames) {
     EXPECT_EQ(b.frames[100], f.positions());
   }
   // Deleting the session ends both streams with a `deleted` event.
-  {
-    grpc::ClientContext ctx;
-    pb::DeleteSessionRequest req;
-    req.set_name(s.name());
-    pb::DeleteSessionResponse resp;
-    ASSERT_TRUE(t.stub->DeleteSession(&ctx, req, &resp).ok());
-  }
+  ASSERT_TRUE(t.delete_session(s.name()).ok());
   ASSERT_TRUE(a.wait([&] { return a.ended; }));
   ASSERT_TRUE(b.wait([&] { return b.ended; }));
   EXPECT_EQ(a.deleted, s.name());
@@ -236,11 +203,8 @@ TEST(ServiceStreams, ClientsThatGoAwayDoNotHurtTheServer) {
     wreq.set_name(s.name());
     auto watch = t.stub->WatchSession(&wctx, wreq);
     for (int i = 1; i <= 20; ++i) {
-      pb::DeformRequest req;
-      if (i == 1) req.set_name(s.name());
-      req.set_sequence(i);
-      *req.add_transforms() = translation(0.001 * i, 0, 0);
-      if (!stream->Write(req)) break;
+      const std::string name = i == 1 ? s.name() : "";
+      if (!stream->Write(deform_request(name, i, translation(0.001 * i, 0, 0)))) break;
     }
     if (round % 2) {
       pb::Frame f;
@@ -254,16 +218,12 @@ TEST(ServiceStreams, ClientsThatGoAwayDoNotHurtTheServer) {
   pb::Frame f;
   auto st = t.update(s.name(), 1, {cactus_transform()}, &f);
   ASSERT_TRUE(st.ok()) << st.error_message();
-  grpc::ClientContext ctx;
-  pb::GetSessionRequest req;
-  req.set_name(s.name());
   pb::Session now;
-  ASSERT_TRUE(t.stub->GetSession(&ctx, req, &now).ok());
+  ASSERT_TRUE(t.get_session(s.name(), &now).ok());
   // Cancelled watchers are gone (their OnDone may trail the client's Finish briefly).
   for (int i = 0; i < 100 && now.observers() != 0; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    grpc::ClientContext c2;
-    ASSERT_TRUE(t.stub->GetSession(&c2, req, &now).ok());
+    ASSERT_TRUE(t.get_session(s.name(), &now).ok());
   }
   EXPECT_EQ(now.observers(), 0);
 }
@@ -273,25 +233,15 @@ TEST(ServiceStreams, DeformStreamEndsWhenItsSessionIsDeleted) {
   const pb::Session s = constrained_cactus(t);
   grpc::ClientContext ctx;
   auto stream = t.stub->Deform(&ctx);
-  pb::DeformRequest req;
-  req.set_name(s.name());
-  req.set_sequence(1);
-  *req.add_transforms() = translation(0, 0.01, 0);
-  ASSERT_TRUE(stream->Write(req));
+  ASSERT_TRUE(stream->Write(deform_request(s.name(), 1, translation(0, 0.01, 0))));
   pb::Frame f;
   ASSERT_TRUE(stream->Read(&f));
   EXPECT_EQ(f.sequence(), 1);
 
-  grpc::ClientContext dctx;
-  pb::DeleteSessionRequest dreq;
-  dreq.set_name(s.name());
-  pb::DeleteSessionResponse dres;
-  ASSERT_TRUE(t.stub->DeleteSession(&dctx, dreq, &dres).ok());
+  ASSERT_TRUE(t.delete_session(s.name()).ok());
 
-  pb::DeformRequest next;
-  next.set_sequence(2);
-  *next.add_transforms() = translation(0, 0.02, 0);
-  stream->Write(next);  // may already fail if the server ended the stream
+  // may already fail if the server ended the stream
+  stream->Write(deform_request("", 2, translation(0, 0.02, 0)));
   stream->WritesDone();
   while (stream->Read(&f)) EXPECT_NE(f.sequence(), 2) << "a deleted session answered";
   const grpc::Status st = stream->Finish();
