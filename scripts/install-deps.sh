@@ -14,8 +14,8 @@ packages=(
   libspdlog-dev libcli11-dev libboost-dev nlohmann-json3-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
-  # routing test (docker/ nginx config), browser tests
-  nginx-light chromium
+  # routing test (docker/ nginx config; curl plays the browser), browser tests
+  nginx-light curl chromium
 )
 # The machine image ships Node.js 20 (with npm); Debian's npm conflicts with it.
 command -v npm >/dev/null 2>&1 || packages+=(nodejs npm)

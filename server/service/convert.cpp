@@ -130,8 +130,9 @@ void to_proto(const Measures& m, pb::Measures* out) {
 }
 
 std::vector<int> resolve_region(const pb::Region& region, const Vertices& V,
-                                const std::string& what) {
+                                const std::string& what, std::span<const int> base_to_engine) {
   const int n = static_cast<int>(V.rows());
+  const int base_n = base_to_engine.empty() ? n : static_cast<int>(base_to_engine.size());
   std::vector<int> ids;
   for (int s = 0; s < region.selectors_size(); ++s) {
     const auto& sel = region.selectors(s);
@@ -144,6 +145,17 @@ std::vector<int> resolve_region(const pb::Region& region, const Vertices& V,
             throw InvalidInput(where + ": vertex id " + std::to_string(id) +
                                " out of range [0, " + std::to_string(n) + ")");
           part.push_back(id);
+        }
+        std::sort(part.begin(), part.end());
+        part.erase(std::unique(part.begin(), part.end()), part.end());
+        break;
+      case pb::Selector::kBaseIds:
+        for (int id : sel.base_ids().ids()) {
+          if (id < 0 || id >= base_n)
+            throw InvalidInput(where + ": base vertex id " + std::to_string(id) +
+                               " out of range [0, " + std::to_string(base_n) +
+                               ") (base GLB vertices)");
+          part.push_back(base_to_engine.empty() ? id : base_to_engine[id]);
         }
         std::sort(part.begin(), part.end());
         part.erase(std::unique(part.begin(), part.end()), part.end());
@@ -176,12 +188,14 @@ std::vector<int> resolve_region(const pb::Region& region, const Vertices& V,
   return ids;
 }
 
-Constraints resolve_constraints(const pb::Constraints& c, const Vertices& V) {
+Constraints resolve_constraints(const pb::Constraints& c, const Vertices& V,
+                                std::span<const int> base_to_engine) {
   Constraints out;
-  out.fixed = resolve_region(c.fixed(), V, "fixed");
+  out.fixed = resolve_region(c.fixed(), V, "fixed", base_to_engine);
   out.handles.reserve(c.handles_size());
   for (int j = 0; j < c.handles_size(); ++j)
-    out.handles.push_back(resolve_region(c.handles(j), V, "handle " + std::to_string(j)));
+    out.handles.push_back(
+        resolve_region(c.handles(j), V, "handle " + std::to_string(j), base_to_engine));
   return out;
 }
 

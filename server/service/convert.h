@@ -7,6 +7,7 @@
 
 #include <google/protobuf/repeated_field.h>
 
+#include <span>
 #include <vector>
 
 namespace hdeform::service {
@@ -37,10 +38,14 @@ double convert_beta(const PreparedMesh& mesh, double value, BetaUnits from, Beta
 
 void to_proto(const Measures& m, pb::Measures* out);
 
-// Selectors → sorted unique vertex ids on the rest mesh (engine order).
+// Selectors → sorted unique vertex ids on the rest mesh (engine order). `base_ids`
+// selectors map through `base_to_engine` (base-GLB vertex → engine vertex; empty: the
+// identity on V's rows, as for OBJ/OFF/PLY/STL).
 std::vector<int> resolve_region(const pb::Region& region, const Vertices& V,
-                                const std::string& what);
-Constraints resolve_constraints(const pb::Constraints& c, const Vertices& V);
+                                const std::string& what,
+                                std::span<const int> base_to_engine = {});
+Constraints resolve_constraints(const pb::Constraints& c, const Vertices& V,
+                                std::span<const int> base_to_engine = {});
 void to_proto(const Constraints& c, pb::ResolvedConstraints* out);
 
 }  // namespace hdeform::service

@@ -1,5 +1,6 @@
 #include "frames.h"
 
+#include <algorithm>
 #include <bit>
 #include <cstring>
 
@@ -18,6 +19,32 @@ FrameLayout::FrameLayout(LoadedMesh layout, std::shared_ptr<const PreparedMesh> 
   }
   input_vertices_ = identity_ ? mesh_->n() : static_cast<int>(layout_.input_to_engine.size());
   if (layout_.input_triangles.rows() == 0) layout_.input_triangles = mesh_->mesh().F;
+  if (!identity_) {
+    const int n = mesh_->n();
+    engine_offsets_.assign(static_cast<std::size_t>(n) + 1, 0);
+    for (int e : layout_.input_to_engine) ++engine_offsets_[static_cast<std::size_t>(e) + 1];
+    for (int e = 0; e < n; ++e) engine_offsets_[e + 1] += engine_offsets_[e];
+    engine_to_base_.resize(layout_.input_to_engine.size());
+    std::vector<int> next(engine_offsets_.begin(), engine_offsets_.end() - 1);
+    for (int i = 0; i < input_vertices_; ++i)  // ascending i: each list comes out sorted
+      engine_to_base_[next[layout_.input_to_engine[i]]++] = i;
+  }
+}
+
+std::span<const int> FrameLayout::base_to_engine() const {
+  if (identity_) return {};
+  return layout_.input_to_engine;
+}
+
+std::vector<int> FrameLayout::base_vertices(const std::vector<int>& engine_ids) const {
+  if (identity_) return engine_ids;
+  std::vector<int> out;
+  out.reserve(engine_ids.size());
+  for (int e : engine_ids)
+    out.insert(out.end(), engine_to_base_.begin() + engine_offsets_[e],
+               engine_to_base_.begin() + engine_offsets_[e + 1]);
+  std::sort(out.begin(), out.end());
+  return out;
 }
 
 int FrameLayout::vertex_count() const { return input_vertices_; }
@@ -68,8 +95,15 @@ std::string FrameLayout::mesh_file(MeshFileFormat format, const Vertices& V) con
   if (format != MeshFileFormat::glb) return write_mesh_bytes(format, V, F);
   const Vertices N = vertex_normals(V, F);
   if (identity_) return write_mesh_bytes(format, V, layout_.input_triangles, &N);
-  const Vertices Vi = layout_.to_input_layout(V);
-  const Vertices Ni = layout_.to_input_layout(N);
+  // Not LoadedMesh::to_input_layout: layout_'s engine mesh was moved into the PreparedMesh
+  // (its row check would see 0 vertices).
+  auto to_base = [&](const Vertices& rows) {
+    Vertices out(input_vertices_, 3);
+    for (int i = 0; i < input_vertices_; ++i) out.row(i) = rows.row(input_vertex(i));
+    return out;
+  };
+  const Vertices Vi = to_base(V);
+  const Vertices Ni = to_base(N);
   return write_mesh_bytes(format, Vi, layout_.input_triangles, &Ni);
 }
 

@@ -9,6 +9,7 @@
 
 #include <memory>
 #include <mutex>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -36,6 +37,15 @@ class FrameLayout {
   // The rest mesh as GLB, built once.
   const std::string& base_glb() const;
 
+  // False when base-GLB vertex i is engine vertex i for every i (OBJ/OFF/PLY/STL, and glTF
+  // files without split vertices).
+  bool remapped() const { return !identity_; }
+  // Base-GLB vertex → engine vertex (the weld map); empty when !remapped().
+  std::span<const int> base_to_engine() const;
+  // Sorted engine ids → every base-GLB vertex on them (sorted); the ids themselves when
+  // !remapped().
+  std::vector<int> base_vertices(const std::vector<int>& engine_ids) const;
+
  private:
   int input_vertex(int i) const { return identity_ ? i : layout_.input_to_engine[i]; }
 
@@ -43,6 +53,8 @@ class FrameLayout {
   std::shared_ptr<const PreparedMesh> mesh_;
   bool identity_;
   int input_vertices_;
+  // Engine vertex e's base vertices: engine_to_base_[engine_offsets_[e] .. [e+1]) (remapped).
+  std::vector<int> engine_offsets_, engine_to_base_;
   mutable std::once_flag glb_once_;
   mutable std::string glb_;
 };

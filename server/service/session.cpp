@@ -132,7 +132,8 @@ SessionBeta Session::parse_beta(const pb::Beta& b, bool keep_automatic_value) co
                          fmt::format("{}", e.falloff_radius()));
     if (e.region().selectors_size() == 0)
       throw InvalidInput(where + ": region has no selectors");
-    const std::vector<int> ids = resolve_region(e.region(), pm.mesh().V, where + " region");
+    const std::vector<int> ids = resolve_region(e.region(), pm.mesh().V, where + " region",
+                                                mesh_->layout->base_to_engine());
     if (ids.empty()) throw InvalidInput(where + ": region selects no vertices");
     const Eigen::VectorXd f = e.falloff_radius() > 0
                                   ? falloff_beta(pm, ids, e.beta(), e.falloff_radius())
@@ -185,7 +186,8 @@ pb::Session Session::set_constraints(const pb::Constraints& constraints,
     check_version_locked(expected_version);
     beta = beta_;
   }
-  const Constraints resolved = resolve_constraints(constraints, mesh_->prepared->mesh().V);
+  const Constraints resolved = resolve_constraints(constraints, mesh_->prepared->mesh().V,
+                                                   mesh_->layout->base_to_engine());
   auto cs = constraint_set_for(resolved);
   const std::string key = "cs/" + mesh_->hash + "/" + constraints_digest(resolved);
   // ConstraintSet is shared: prepare() is thread-safe (it builds each β once). An automatic
@@ -452,6 +454,16 @@ void Session::describe_locked(pb::Session* out) const {
   out->set_constrained(cs_ != nullptr);
   if (cs_) {
     to_proto(cs_->constraints(), out->mutable_constraints());
+    if (mesh_->layout->remapped()) {
+      const Constraints& c = cs_->constraints();
+      auto* base = out->mutable_base_constraints();
+      const std::vector<int> fixed = mesh_->layout->base_vertices(c.fixed);
+      base->mutable_fixed()->mutable_ids()->Add(fixed.begin(), fixed.end());
+      for (const auto& h : c.handles) {
+        const std::vector<int> ids = mesh_->layout->base_vertices(h);
+        base->add_handles()->mutable_ids()->Add(ids.begin(), ids.end());
+      }
+    }
     for (int j = 0; j < cs_->num_handles(); ++j) to_proto(cs_->centroid(j), out->add_pivots());
   }
   beta_to_proto(beta_, out->mutable_beta());

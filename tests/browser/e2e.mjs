@@ -10,13 +10,65 @@
 // (handle moved, fixed region still) and the measures changed; open the share link in a
 // second page and compare positions; drag again and check the second page follows live
 // (WatchSession); open the watch-only link (no editing tools); upload a broken file and
-// check the error banner; check the gateway's 413 for an oversized body.
+// check the error banner; upload a glTF split at a seam and check that regions picked in its
+// base GLB are accepted and shown where they were picked (base_ids / base_constraints);
+// check the gateway's 413 for an oversized body.
 import { spawn } from "node:child_process";
 import { mkdirSync, mkdtempSync, rmSync, writeFileSync } from "node:fs";
 import http from "node:http";
 import { createRequire } from "node:module";
 import { tmpdir } from "node:os";
 import { join, resolve } from "node:path";
+
+/**
+ * A flat 7×5 grid (x = 0.5 i, y = 0.5 j) as GLB in two vertex blocks that both carry the
+ * seam column i = 3 (tests/service/test_gltf_ids.cpp builds the same mesh): 40 vertices, of
+ * which the server welds 5 pairs.
+ */
+function seamGridGlb() {
+  const L = (i, j) => 4 * j + i;
+  const R = (i, j) => 20 + 4 * j + (i - 3);
+  const pos = new Float32Array(40 * 3);
+  for (let j = 0; j < 5; j++) {
+    for (let i = 0; i <= 3; i++) pos.set([0.5 * i, 0.5 * j, 0], 3 * L(i, j));
+    for (let i = 3; i <= 6; i++) pos.set([0.5 * i, 0.5 * j, 0], 3 * R(i, j));
+  }
+  const idx = [];
+  for (const [i0, i1, id] of [[0, 3, L], [3, 6, R]])
+    for (let j = 0; j < 4; j++)
+      for (let i = i0; i < i1; i++) idx.push(id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j), id(i + 1, j + 1), id(i, j + 1));
+  const indices = new Uint32Array(idx);
+  const bin = Buffer.concat([Buffer.from(pos.buffer), Buffer.from(indices.buffer)]);
+  const gltf = {
+    asset: { version: "2.0" },
+    buffers: [{ byteLength: bin.length }],
+    bufferViews: [
+      { buffer: 0, byteOffset: 0, byteLength: pos.byteLength, target: 34962 },
+      { buffer: 0, byteOffset: pos.byteLength, byteLength: indices.byteLength, target: 34963 },
+    ],
+    accessors: [
+      { bufferView: 0, componentType: 5126, count: 40, type: "VEC3", min: [0, 0, 0], max: [3, 2, 0] },
+      { bufferView: 1, componentType: 5125, count: indices.length, type: "SCALAR" },
+    ],
+    meshes: [{ primitives: [{ attributes: { POSITION: 0 }, indices: 1 }] }],
+    nodes: [{ mesh: 0 }],
+    scenes: [{ nodes: [0] }],
+    scene: 0,
+  };
+  let json = Buffer.from(JSON.stringify(gltf));
+  json = Buffer.concat([json, Buffer.alloc((4 - (json.length % 4)) % 4, 0x20)]);
+  const header = Buffer.alloc(12);
+  header.writeUInt32LE(0x46546c67, 0);
+  header.writeUInt32LE(2, 4);
+  header.writeUInt32LE(12 + 8 + json.length + 8 + bin.length, 8);
+  const chunk = (type, data) => {
+    const h = Buffer.alloc(8);
+    h.writeUInt32LE(data.length, 0);
+    h.writeUInt32LE(type, 4);
+    return Buffer.concat([h, data]);
+  };
+  return Buffer.concat([header, chunk(0x4e4f534a, json), chunk(0x004e4942, bin)]);
+}
 
 const args = Object.fromEntries(
   process.argv.slice(2).reduce((acc, a, i, all) => (a.startsWith("--") ? [...acc, [a.slice(2), all[i + 1]]] : acc), []),
@@ -366,6 +418,34 @@ try {
   await page1.waitForFunction((b) => window.hdeform.loaded && window.hdeform.sessionName !== b && window.hdeform.meshName !== "", before, { timeout: 60_000 });
   check((await page1.evaluate(() => window.hdeform.lastError)) === "", `upload of knight.off opened ${await page1.evaluate(() => window.hdeform.sessionName)}`);
   await shot(page1, "08b-upload-knight");
+
+  // 8c. A glTF upload whose vertices are split at a seam (40 GLB vertices, 35 welded): the
+  // viewer's selections are base-GLB ids (base_ids), and the regions it shows after Apply
+  // come from Session.base_constraints. Column x = 3 has base ids 23, 27, …, 39 — beyond
+  // the 35 engine vertices, so they only resolve through the weld map.
+  const before8c = await page1.evaluate(() => window.hdeform.sessionName);
+  await page1.setInputFiles("#upload-input", { name: "seam-grid.glb", mimeType: "model/gltf-binary", buffer: seamGridGlb() });
+  await page1.waitForFunction((b) => window.hdeform.loaded && window.hdeform.sessionName !== b, before8c, { timeout: 60_000 });
+  const nBase = await page1.evaluate(() => window.hdeform.labels().length);
+  check(nBase === 40, `seam glTF upload: the viewer holds the 40 base-GLB vertices (${nBase})`);
+  const nF = await page1.evaluate(() => window.hdeform.selectBox([-0.1, -0.1, -1], [0.1, 2.1, 1], 0));
+  const nH = await page1.evaluate(() => window.hdeform.selectBox([2.9, -0.1, -1], [3.1, 2.1, 1], 1));
+  const nSeam = await page1.evaluate(() => window.hdeform.selectBox([1.4, 0.9, -1], [1.6, 1.1, 1], 2));
+  check(nF === 5 && nH === 5 && nSeam === 2, `seam glTF: selected 5 fixed, 5 handle and the 2 copies of a seam vertex (${nF}, ${nH}, ${nSeam})`);
+  await page1.evaluate(() => window.hdeform.applyConstraints());
+  await page1.waitForFunction(() => window.hdeform.constraintsApplied || window.hdeform.lastError !== "", null, { timeout: 60_000 });
+  const err8c = await page1.evaluate(() => window.hdeform.lastError);
+  check(err8c === "", `seam glTF: constraints by base ids accepted${err8c ? ` (${err8c})` : ""}`);
+  const seamLabels = await page1.evaluate(() => window.hdeform.labels());
+  const seamRest = await page1.evaluate(() => window.hdeform.restPositions());
+  let labelsOk = true;
+  for (let v = 0; v < seamLabels.length; v++) {
+    const x = seamRest[3 * v], y = seamRest[3 * v + 1];
+    const want = x === 0 ? 0 : x === 3 ? 1 : x === 1.5 && y === 1 ? 2 : -1;
+    if (seamLabels[v] !== want) labelsOk = false;
+  }
+  check(labelsOk, "seam glTF: the regions adopted from the server (base_constraints) sit on the selected base vertices");
+  await shot(page1, "08c-seam-gltf");
 
   // 9. An unknown session in the link: a plain error, not a blank page.
   const page4 = await context.newPage();

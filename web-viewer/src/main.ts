@@ -24,6 +24,7 @@ import {
   floats,
   isAbort,
   makeClient,
+  newSessionId,
   setRoutingSession,
 } from "./api";
 import { drawChart, type SweepPoint } from "./chart";
@@ -404,7 +405,8 @@ function adoptSession(s: Session, { labels = true, transforms = true } = {}): vo
   constraintsApplied = s.constrained;
   if (labels && mesh && !labelsDirty) {
     mesh.labels.fill(-1);
-    const c = s.constraints;
+    // base-GLB ids (set when they differ from the engine ids in `constraints`: glTF uploads)
+    const c = s.baseConstraints ?? s.constraints;
     if (c) {
       for (const id of c.fixed?.ids ?? []) if (id >= 0 && id < mesh.n) mesh.labels[id] = 0;
       c.handles.forEach((h, k) => {
@@ -827,6 +829,21 @@ function assign(ids: Iterable<number>, label: number): number {
   return count;
 }
 
+/**
+ * `v` and every other base vertex at exactly its rest position: the copies of a glTF vertex
+ * split at a UV seam, which the server welds into one (so they must share a label). Brush
+ * and box selections pick all copies by themselves; a vertex click picks one corner.
+ */
+function withTwins(v: number): number[] {
+  const { rest, n } = mesh!;
+  const x = rest[3 * v], y = rest[3 * v + 1], z = rest[3 * v + 2];
+  const out: number[] = [];
+  for (let u = 0; u < n; u++) {
+    if (rest[3 * u] === x && rest[3 * u + 1] === y && rest[3 * u + 2] === z) out.push(u);
+  }
+  return out;
+}
+
 function nearestCorner(point: THREE.Vector3, triangle: number): number {
   const { index, cur } = mesh!;
   let best = index[3 * triangle];
@@ -865,7 +882,7 @@ canvas.addEventListener("pointerdown", (ev) => {
   if (ev.button !== 0 || !mesh || watchOnly) return;
   if (mode === "vertex") {
     const hit = pick(ev);
-    if (hit) assign([nearestCorner(hit.point, hit.triangle)], currentLabel);
+    if (hit) assign(withTwins(nearestCorner(hit.point, hit.triangle)), currentLabel);
   } else if (mode === "brush") {
     brushing = true;
     canvas.setPointerCapture(ev.pointerId);
@@ -951,7 +968,9 @@ async function applyConstraints(): Promise<void> {
     showError("Select at least one handle region before applying constraints", "rejected");
     return;
   }
-  const region = (ids: number[]) => ({ selectors: ids.length ? [{ kind: { case: "ids" as const, value: { ids } } }] : [] });
+  // Vertex indices of the base GLB this viewer loaded: the server maps them through its weld
+  // map (glTF uploads), so they need not be engine ids.
+  const region = (ids: number[]) => ({ selectors: ids.length ? [{ kind: { case: "baseIds" as const, value: { ids } } }] : [] });
   try {
     setStatus("factorizing…");
     const s = await client.setConstraints({
@@ -1174,10 +1193,15 @@ $<HTMLInputElement>("import-input").addEventListener("change", async (e) => {
     const snapshot = file.name.endsWith(".json")
       ? fromJsonString(SnapshotSchema, new TextDecoder().decode(bytes))
       : fromBinary(SnapshotSchema, bytes);
-    const s = await client.importSession({ snapshot });
+    // A client-chosen id, sent as the routing header too: behind a load balancer the import
+    // then lands on the replica that every later call of the new session reaches.
+    const id = newSessionId();
+    setRoutingSession(id);
+    const s = await client.importSession({ snapshot, sessionId: id });
     await loadSession(s);
     clearError();
   } catch (err) {
+    if (sessionName) setRoutingSession(sessionName);  // still showing the previous session
     showError(`Import failed: ${describeError(err)}`);
   }
 });
