@@ -22,8 +22,11 @@
 #include <poll.h>
 #include <spdlog/spdlog.h>
 #include <sys/socket.h>
+#include <sys/time.h>
 
+#include <array>
 #include <atomic>
+#include <chrono>
 #include <boost/asio.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
@@ -347,6 +350,30 @@ struct HttpGateway::Impl {
     send(conn, res);
   }
 
+  // After an early answer (413) the client may still be sending the body. Closing with
+  // unread data makes the kernel reset the connection, which can destroy the answer before
+  // the client reads it; so half-close and drain for a bounded time first (as nginx's
+  // lingering close does).
+  static void linger_close(Connection& conn) {
+    beast::error_code ec;
+    conn.socket.shutdown(tcp::socket::shutdown_send, ec);
+    timeval tv{0, 200 * 1000};
+    ::setsockopt(conn.socket.native_handle(), SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+    std::array<char, 64 * 1024> sink;
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(2);
+    std::size_t drained = 0;
+    while (drained < (256u << 20) && std::chrono::steady_clock::now() < deadline) {
+      const std::size_t n = conn.socket.read_some(asio::buffer(sink), ec);
+      if (ec) break;
+      drained += n;
+    }
+  }
+
+  void too_large(Connection& conn, const std::string& text, unsigned version) {
+    send_text(conn, http::status::payload_too_large, text, version, false);
+    linger_close(conn);
+  }
+
   void serve(Connection& conn) {
     beast::flat_buffer buffer;
     for (;;) {
@@ -357,10 +384,10 @@ struct HttpGateway::Impl {
       http::read_header(conn.socket, buffer, header_parser, ec);
       if (ec == http::error::end_of_stream || ec == asio::error::eof || stopping) return;
       if (ec == http::error::body_limit) {  // Content-Length above the limit
-        send_text(conn, http::status::payload_too_large,
+        too_large(conn,
                   "request body too large: the limit is " +
                       std::to_string(options.max_body_bytes) + " bytes\n",
-                  header_parser.get().version(), false);
+                  header_parser.get().version());
         return;
       }
       if (ec) {
@@ -380,10 +407,10 @@ struct HttpGateway::Impl {
 
       if (const auto length = header_parser.content_length();
           length && *length > options.max_body_bytes) {
-        send_text(conn, http::status::payload_too_large,
+        too_large(conn,
                   "request body too large: " + std::to_string(*length) + " bytes; the limit is " +
                       std::to_string(options.max_body_bytes) + " bytes\n",
-                  version, false);
+                  version);
         return;  // the body is unread: close the connection
       }
 
@@ -398,10 +425,10 @@ struct HttpGateway::Impl {
         parser.body_limit(options.max_body_bytes);
         http::read(conn.socket, buffer, parser, ec);
         if (ec == http::error::body_limit) {
-          send_text(conn, http::status::payload_too_large,
+          too_large(conn,
                     "request body too large: the limit is " +
                         std::to_string(options.max_body_bytes) + " bytes\n",
-                    version, false);
+                    version);
           return;
         }
         if (ec) return;
@@ -591,7 +618,7 @@ struct HttpGateway::Impl {
       call.cancel();
       call.finish();
       if (ec == http::error::body_limit) {
-        send_text(conn, http::status::payload_too_large, body_error + "\n", version, false);
+        too_large(conn, body_error + "\n", version);
       }
       return false;
     }
