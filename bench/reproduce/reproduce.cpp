@@ -85,8 +85,8 @@ struct Report {
                          colours, s.view);
       md << "![" << tag << " β=" << num(betas[i]) << "](reproduction/" << file << ") | ";
     }
-    md << "\n\n*Colour: per-triangle e_f² = ‖r_l‖²_F, white 0 → red ≥ " << num(truncate)
-       << " (truncated linear mapping).*\n";
+    md << "\n\n*Colour: per-triangle e_f² = ‖r_l‖²_F, linear from white at 0 to red at "
+       << num(truncate) << ", saturated above (the thesis's TLM at " << num(truncate) << ").*\n";
   }
 };
 
