@@ -5,7 +5,9 @@ set -euo pipefail
 
 packages=(
   # build
-  build-essential cmake pkg-config clang
+  build-essential cmake pkg-config
+  # sanitizer builds (scripts/sanitize.sh): clang with its ASan/UBSan runtime and OpenMP
+  clang libclang-rt-14-dev libomp-dev
   # engine
   libopenmesh-dev libeigen3-dev libsuitesparse-dev libopenblas0-pthread
   libtinygltf-dev libstb-dev
