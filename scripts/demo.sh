@@ -8,4 +8,3 @@ build --target hdeform
 B="$ROOT/data/botsch-sorkine"
 "$BUILD/client-cli/hdeform" deform "$B/cactus.off" --sel "$B/cactus.sel" --def "$B/cactus.def" \
   --beta "${BETA:-0.1}" -o "${OUT:-cactus-deformed.glb}"
-echo "wrote ${OUT:-cactus-deformed.glb}"
