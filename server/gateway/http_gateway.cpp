@@ -350,6 +350,13 @@ struct HttpGateway::Impl {
     send(conn, res);
   }
 
+  // Clears the connection's registered call (set by set_call) when the call's scope ends.
+  struct CallRegistration {
+    Impl* self;
+    Connection& conn;
+    ~CallRegistration() { self->set_call(conn, nullptr); }
+  };
+
   // After an early answer (413) the client may still be sending the body. Closing with
   // unread data makes the kernel reset the connection, which can destroy the answer before
   // the client reads it; so half-close and drain for a bounded time first (as nginx's
@@ -499,11 +506,7 @@ struct HttpGateway::Impl {
       call.context().set_deadline(std::chrono::system_clock::now() + *timeout);
     }
     set_call(conn, &call.context());
-    struct Unset {
-      Impl* self;
-      Connection& conn;
-      ~Unset() { self->set_call(conn, nullptr); }
-    } unset{this, conn};
+    const CallRegistration unset{this, conn};
 
     const auto started = std::chrono::steady_clock::now();
     bool ok = call.start();
@@ -579,11 +582,7 @@ struct HttpGateway::Impl {
     GenericCall call(stub, std::string(kServicePrefix) + "CreateSession",
                      conn.socket.native_handle());
     set_call(conn, &call.context());
-    struct Unset {
-      Impl* self;
-      Connection& conn;
-      ~Unset() { self->set_call(conn, nullptr); }
-    } unset{this, conn};
+    const CallRegistration unset{this, conn};
 
     bool ok = call.start() && call.write(first.SerializeAsString());
 

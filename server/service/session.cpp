@@ -201,10 +201,7 @@ pb::Session Session::set_constraints(const pb::Constraints& constraints,
     cs_key_ = key;
     given_ = constraints;
     transforms_.assign(cs->num_handles(), HandleTransform{});
-    ++version_;
-    last_frame_.reset();
-    update_ms_ = unix_ms_now();
-    describe_locked(&out);
+    changed_locked(&out);
   }
   broadcast_state();
   return out;
@@ -238,10 +235,7 @@ pb::Session Session::set_beta(const pb::Beta& beta_msg, std::int64_t expected_ve
   {
     std::lock_guard lock(mutex_);
     beta_ = std::move(beta);
-    ++version_;
-    last_frame_.reset();
-    update_ms_ = unix_ms_now();
-    describe_locked(&out);
+    changed_locked(&out);
   }
   broadcast_state();
   return out;
@@ -442,6 +436,13 @@ void Session::restore(const pb::Snapshot& s) {
   transforms_ = std::move(transforms);
   ++version_;
   last_frame_.reset();
+}
+
+void Session::changed_locked(pb::Session* out) {
+  ++version_;
+  last_frame_.reset();  // computed for the old state
+  update_ms_ = unix_ms_now();
+  describe_locked(out);
 }
 
 void Session::describe_locked(pb::Session* out) const {

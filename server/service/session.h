@@ -97,6 +97,8 @@ class Session : public std::enable_shared_from_this<Session> {
  private:
   void check_version_locked(std::int64_t expected) const;
   void describe_locked(pb::Session* out) const;
+  // A state change under the lock: new version, stale frame dropped, `out` describes it.
+  void changed_locked(pb::Session* out);
   void broadcast(std::shared_ptr<const pb::SessionEvent> event);
   void broadcast_state();
   std::shared_ptr<const ConstraintSet> constraint_set_for(const Constraints& c);
