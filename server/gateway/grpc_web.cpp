@@ -1,7 +1,6 @@
 #include "grpc_web.h"
 
 #include <array>
-#include <cctype>
 
 namespace hdeform::gateway::grpc_web {
 
@@ -12,6 +11,8 @@ std::array<char, 5> frame_prefix(std::uint8_t flag, std::uint32_t length) {
 }
 
 ParsedBody parse_frames(std::string_view body) {
+  // Every length is checked against the bytes present before use, and nothing is allocated
+  // from a length: a prefix claiming 4 GiB in a short body is "truncated", not an allocation.
   ParsedBody out;
   std::size_t at = 0;
   while (at < body.size()) {
@@ -64,22 +65,28 @@ std::string trailers_frame(const grpc::Status& status) {
 }
 
 std::optional<std::chrono::nanoseconds> parse_timeout(std::string_view value) {
+  // At most 8 digits and a unit (PROTOCOL-HTTP2.md), so n < 10^8 and the arithmetic below
+  // cannot overflow; "99999999H" would still overflow nanoseconds (and `now() + timeout`),
+  // so every value is clamped to kMaxTimeout first.
   if (value.size() < 2 || value.size() > 9) return std::nullopt;
   std::int64_t n = 0;
   for (std::size_t i = 0; i + 1 < value.size(); ++i) {
-    if (!std::isdigit(static_cast<unsigned char>(value[i]))) return std::nullopt;
+    if (value[i] < '0' || value[i] > '9') return std::nullopt;
     n = n * 10 + (value[i] - '0');
   }
   using namespace std::chrono;
+  std::int64_t nanos_per_unit = 0;
   switch (value.back()) {
-    case 'H': return duration_cast<nanoseconds>(hours(n));
-    case 'M': return duration_cast<nanoseconds>(minutes(n));
-    case 'S': return duration_cast<nanoseconds>(seconds(n));
-    case 'm': return duration_cast<nanoseconds>(milliseconds(n));
-    case 'u': return duration_cast<nanoseconds>(microseconds(n));
-    case 'n': return nanoseconds(n);
+    case 'H': nanos_per_unit = 3'600'000'000'000; break;
+    case 'M': nanos_per_unit = 60'000'000'000; break;
+    case 'S': nanos_per_unit = 1'000'000'000; break;
+    case 'm': nanos_per_unit = 1'000'000; break;
+    case 'u': nanos_per_unit = 1'000; break;
+    case 'n': nanos_per_unit = 1; break;
     default: return std::nullopt;
   }
+  const auto max_units = duration_cast<nanoseconds>(kMaxTimeout).count() / nanos_per_unit;
+  return n > max_units ? duration_cast<nanoseconds>(kMaxTimeout) : nanoseconds(n * nanos_per_unit);
 }
 
 int http_status_for(grpc::StatusCode code) {

@@ -27,6 +27,8 @@ struct ParsedBody {
   std::string error;                       // non-empty: malformed
 };
 // Splits a request body into its data frames (trailer frames from the client are ignored).
+// Pure and total: any input gives either the messages or an error (truncated frame, frame
+// header or compressed frame), never an allocation larger than O(body.size()).
 ParsedBody parse_frames(std::string_view body);
 
 // A whole trailers frame: grpc-status / grpc-message (percent-encoded).
@@ -35,7 +37,11 @@ std::string trailers_frame(const grpc::Status& status);
 // Percent-encoding of grpc-message (PROTOCOL-HTTP2.md: bytes outside 0x20–0x7E and '%').
 std::string percent_encode(std::string_view text);
 
-// grpc-timeout header ("100m", "5S", …) → duration; nullopt when absent or malformed.
+// Longest deadline a grpc-timeout may set (so that now() + timeout cannot overflow).
+inline constexpr std::chrono::hours kMaxTimeout{24 * 365 * 10};
+
+// grpc-timeout header ("100m", "5S", …: 1–8 digits and a unit) → duration, clamped to
+// kMaxTimeout; nullopt when absent or malformed. Pure and total, like parse_frames.
 std::optional<std::chrono::nanoseconds> parse_timeout(std::string_view value);
 
 // HTTP status for a gRPC status, for the plain-HTTP endpoints (/upload).

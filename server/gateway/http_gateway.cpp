@@ -31,10 +31,12 @@
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 #include <condition_variable>
+#include <algorithm>
 #include <filesystem>
 #include <grpcpp/generic/generic_stub.h>
 #include <list>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include "grpc_web.h"
@@ -77,14 +79,25 @@ std::string_view mime_type(std::string_view path) {
   return "application/octet-stream";
 }
 
-// Decodes %XX escapes in a URL component ('+' stays '+'; it is a path, not a form).
+// Value of one hex digit, or -1.
+int hex_value(char c) {
+  if (c >= '0' && c <= '9') return c - '0';
+  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+  return -1;
+}
+
+// Decodes %XX escapes in a URL component ('+' stays '+'; it is a path, not a form). A '%' not
+// followed by two hex digits stays as it is. Decodes once: "%252F" becomes "%2F", never "/".
+// Never throws; the result may contain NUL, which callers that build paths must reject.
 std::string url_decode(std::string_view in) {
   std::string out;
   out.reserve(in.size());
   for (std::size_t i = 0; i < in.size(); ++i) {
-    if (in[i] == '%' && i + 2 < in.size() && std::isxdigit(static_cast<unsigned char>(in[i + 1])) &&
-        std::isxdigit(static_cast<unsigned char>(in[i + 2]))) {
-      out += static_cast<char>(std::stoi(std::string(in.substr(i + 1, 2)), nullptr, 16));
+    const int hi = in[i] == '%' && i + 2 < in.size() ? hex_value(in[i + 1]) : -1;
+    const int lo = hi >= 0 ? hex_value(in[i + 2]) : -1;
+    if (lo >= 0) {
+      out += static_cast<char>(hi * 16 + lo);
       i += 2;
     } else {
       out += in[i];
@@ -110,6 +123,60 @@ std::string query_param(std::string_view query, std::string_view key) {
 grpc::ByteBuffer to_byte_buffer(std::string_view bytes) {
   grpc::Slice slice(bytes.data(), bytes.size());
   return grpc::ByteBuffer(&slice, 1);
+}
+
+// ---- static files --------------------------------------------------------------------------
+// A request path must never name a file outside the web root. Joining strings is not enough:
+// `root / "/etc/passwd"` is "/etc/passwd", and symlinks inside the root may point anywhere. So
+// the path is rebuilt one segment at a time (no segment can be absolute or "..") and the
+// result is accepted only if its canonical form (symlinks resolved) still lies in the root.
+
+// The decoded URL path as a path under `root`; nullopt for a malformed path (400).
+std::optional<std::filesystem::path> join_under(const std::filesystem::path& root,
+                                                std::string_view path) {
+  if (path.empty() || path.front() != '/') return std::nullopt;
+  if (path.find('\0') != std::string_view::npos || path.find('\\') != std::string_view::npos) {
+    return std::nullopt;
+  }
+  std::filesystem::path out = root;
+  while (!path.empty()) {
+    const auto slash = path.find('/');
+    const auto segment = path.substr(0, slash);
+    path.remove_prefix(slash == std::string_view::npos ? path.size() : slash + 1);
+    if (segment.empty() || segment == ".") continue;  // "//" and "/./" add nothing
+    if (segment == "..") return std::nullopt;
+    out /= std::filesystem::path(segment);  // no '/' inside: always one relative component
+  }
+  return out;
+}
+
+// The canonical form of `candidate` if it exists and lies inside `root` (itself canonical).
+std::optional<std::filesystem::path> inside(const std::filesystem::path& root,
+                                            const std::filesystem::path& candidate) {
+  std::error_code ec;
+  auto canonical = std::filesystem::canonical(candidate, ec);
+  if (ec) return std::nullopt;
+  // Component-wise prefix test: "/srv/www" contains "/srv/www/a" but not "/srv/www2/a".
+  const auto [r, c] = std::mismatch(root.begin(), root.end(), canonical.begin(), canonical.end());
+  if (r != root.end()) return std::nullopt;
+  return canonical;
+}
+
+struct StaticLookup {
+  http::status status = http::status::ok;  // ok, bad_request or not_found
+  std::filesystem::path file;               // canonical, a regular file, when ok
+};
+
+// Maps a decoded URL path to a regular file inside `root` ("/" and folders: index.html).
+// FIFOs, devices and sockets are refused before anything opens them (opening a FIFO blocks).
+StaticLookup find_static(const std::filesystem::path& root, std::string_view path) {
+  const auto joined = join_under(root, path);
+  if (!joined) return {http::status::bad_request, {}};
+  auto file = inside(root, *joined);
+  std::error_code ec;
+  if (file && std::filesystem::is_directory(*file, ec)) file = inside(root, *file / "index.html");
+  if (!file || !std::filesystem::is_regular_file(*file, ec)) return {http::status::not_found, {}};
+  return {http::status::ok, std::move(*file)};
 }
 
 // One generic gRPC call driven synchronously on its own completion queue. While waiting it
@@ -223,7 +290,7 @@ struct HttpGateway::Impl {
       : options(opts), backend(channel), stub(channel) {
     if (!options.web_root.empty()) {
       std::error_code ec;
-      web_root = std::filesystem::weakly_canonical(options.web_root, ec);
+      web_root = std::filesystem::canonical(options.web_root, ec);
       if (ec || !std::filesystem::is_directory(web_root)) {
         spdlog::warn("hdeform-gateway: web root '{}' is not a folder; serving the API only",
                      options.web_root);
@@ -665,21 +732,19 @@ struct HttpGateway::Impl {
                 keep_alive);
       return;
     }
-    if (path.empty() || path[0] != '/' || path.find("..") != std::string::npos ||
-        path.find('\0') != std::string::npos || path.find('\\') != std::string::npos) {
+    const auto found = find_static(web_root, path);
+    if (found.status == http::status::bad_request) {
       send_text(conn, http::status::bad_request, "bad path\n", version, keep_alive);
       return;
     }
-    std::filesystem::path file = web_root / std::filesystem::path(path.substr(1));
-    std::error_code fec;
-    if (path == "/" || std::filesystem::is_directory(file, fec)) file /= "index.html";
     http::file_body::value_type body;
     beast::error_code ec;
-    body.open(file.c_str(), beast::file_mode::scan, ec);
-    if (ec) {
-      send_text(conn, http::status::not_found, "not found: " + path + "\n", version, keep_alive);
+    if (found.status == http::status::ok) body.open(found.file.c_str(), beast::file_mode::scan, ec);
+    if (found.status != http::status::ok || ec) {
+      send_text(conn, http::status::not_found, "not found\n", version, keep_alive);
       return;
     }
+    const auto& file = found.file;
     const auto size = body.size();
     const bool immutable = path.starts_with("/assets/");  // vite's content-hashed files
     const auto type_sv = mime_type(file.string());

@@ -2,6 +2,8 @@
 // error and streaming calls, /upload → client-streaming CreateSession, the 413 limit, static
 // files, cancellation when the browser goes away, and stop() during a stream.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <boost/asio.hpp>
@@ -10,6 +12,8 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <string>
+#include <vector>
 #include <thread>
 
 #include "grpc_web.h"
@@ -108,13 +112,18 @@ std::string grpc_web_body(const google::protobuf::Message& msg) {
   return std::string(prefix.data(), prefix.size()) + bytes;
 }
 
+constexpr std::string_view kSecret = "TOP-SECRET-CONTENT";
+
 class GatewayTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    root_ = std::filesystem::temp_directory_path() /
+    // base_/www is the web root; base_/secret.txt lies next to it and must never be served.
+    base_ = std::filesystem::temp_directory_path() /
             ("hdeform-gw-" + std::to_string(::getpid()) + "-" +
              ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    root_ = base_ / "www";
     std::filesystem::create_directories(root_ / "assets");
+    std::ofstream(base_ / "secret.txt") << kSecret;
     std::ofstream(root_ / "index.html") << "<!doctype html><title>viewer</title>";
     std::ofstream(root_ / "assets" / "app-123.js") << "console.log(1)";
     grpc::ServerBuilder builder;
@@ -129,7 +138,7 @@ class GatewayTest : public ::testing::Test {
   void TearDown() override {
     gateway_.reset();
     server_->Shutdown(std::chrono::system_clock::now() + 1s);
-    std::filesystem::remove_all(root_);
+    std::filesystem::remove_all(base_);
   }
 
   tcp::socket connect() {
@@ -151,6 +160,19 @@ class GatewayTest : public ::testing::Test {
     beast::flat_buffer buffer;
     http::response<http::string_body> res;
     http::read(s, buffer, res);
+    return res;
+  }
+
+  // Sends `bytes` as they are (for targets an HTTP library would refuse to write) and reads one
+  // response; a connection closed without an answer gives status 0.
+  http::response<http::string_body> raw_request(const std::string& bytes) {
+    auto s = connect();
+    asio::write(s, asio::buffer(bytes));
+    beast::flat_buffer buffer;
+    http::response<http::string_body> res;
+    beast::error_code ec;
+    http::read(s, buffer, res, ec);
+    if (ec) res.result(0);
     return res;
   }
 
@@ -179,7 +201,7 @@ class GatewayTest : public ::testing::Test {
   FakeService service_;
   std::unique_ptr<grpc::Server> server_;
   std::unique_ptr<hdeform::gateway::HttpGateway> gateway_;
-  std::filesystem::path root_;
+  std::filesystem::path base_, root_;
 };
 
 TEST_F(GatewayTest, UnaryCallIsFramedWithTrailers) {
@@ -277,6 +299,61 @@ TEST_F(GatewayTest, StaticFilesWithContentTypes) {
   EXPECT_EQ(request(http::verb::get, "/../etc/passwd", "", "").result(), http::status::bad_request);
   EXPECT_EQ(request(http::verb::get, "/%2e%2e/etc/passwd", "", "").result(), http::status::bad_request);
   EXPECT_EQ(request(http::verb::get, "/healthz", "", "").body(), "ok\n");
+}
+
+// Every way of naming a file outside the web root (absolute after decoding, "..", encoded
+// and doubly encoded separators, backslashes, NUL, symlinks out of the root) and every
+// non-regular file gives 400 or 404, and never the bytes of the file next to the root.
+TEST_F(GatewayTest, StaticFilesNeverEscapeTheWebRoot) {
+  namespace fs = std::filesystem;
+  fs::create_symlink(base_ / "secret.txt", root_ / "escape.txt");        // file link out
+  fs::create_directory_symlink(base_, root_ / "up");                     // folder link out
+  fs::create_symlink("/dev/zero", root_ / "zero");                       // device
+  fs::create_directory(root_ / "empty");                                 // no index.html
+  ASSERT_EQ(::mkfifo((root_ / "pipe").c_str(), 0600), 0);                // opening would block
+  std::string secret = (base_ / "secret.txt").string();                  // "/tmp/…/secret.txt"
+  std::string secret_encoded;                                            // every '/' as %2F
+  for (const char c : secret) secret_encoded += c == '/' ? std::string("%2F") : std::string(1, c);
+  std::string secret_double;                                             // every '/' as %252F
+  for (const char c : secret) secret_double += c == '/' ? std::string("%252F") : std::string(1, c);
+
+  const std::vector<std::string> targets = {
+      "//etc/passwd", "/%2Fetc%2Fpasswd", "/%2fetc/passwd", "/%252Fetc%252Fpasswd",
+      "/" + secret, "/" + secret_encoded, "/" + secret_double, "/." + secret,
+      "/../secret.txt", "/./../secret.txt", "/assets/../../secret.txt", "/..%2Fsecret.txt",
+      "/%2e%2e/secret.txt", "/%2E%2E%2Fsecret.txt", "/%252e%252e/secret.txt",
+      "/%252e%252e%252Fsecret.txt", "/..\\secret.txt", "/..%5Csecret.txt", "/%5C..%5Csecret.txt",
+      "/index.html%00", "/%00/../secret.txt", "/escape.txt%00.js", "/escape.txt",
+      "/up/secret.txt", "/up%2Fsecret.txt", "/zero", "/pipe", "/empty",
+      "/empty/", "/assets", "/assets/"};
+  for (const auto& target : targets) {
+    const auto res = raw_request("GET " + target + " HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n");
+    EXPECT_TRUE(res.result() == http::status::bad_request ||
+                res.result() == http::status::not_found)
+        << target << " → " << res.result_int();
+    EXPECT_EQ(res.body().find(kSecret), std::string::npos) << target;
+    EXPECT_EQ(res.body().find("root:"), std::string::npos) << target;
+  }
+  // Links and folders that stay inside the root still work.
+  fs::create_symlink(root_ / "index.html", root_ / "home.html");
+  fs::create_directory(root_ / "sub");
+  std::ofstream(root_ / "sub" / "index.html") << "sub";
+  EXPECT_EQ(request(http::verb::get, "/home.html", "", "").result(), http::status::ok);
+  EXPECT_EQ(request(http::verb::get, "/sub/", "", "").body(), "sub");
+  EXPECT_EQ(request(http::verb::get, "/sub", "", "").body(), "sub");
+  EXPECT_EQ(request(http::verb::get, "//assets//app-123.js", "", "").body(), "console.log(1)");
+}
+
+// A web root that is itself reached through a symlink is resolved once, at start.
+TEST_F(GatewayTest, WebRootBehindASymlinkServesItsFiles) {
+  std::filesystem::create_directory_symlink(root_, base_ / "www-link");
+  gateway_.reset();
+  hdeform::gateway::GatewayOptions options;
+  options.port = 0;
+  options.web_root = (base_ / "www-link").string();
+  gateway_ = std::make_unique<hdeform::gateway::HttpGateway>(options, server_->InProcessChannel({}));
+  EXPECT_EQ(request(http::verb::get, "/assets/app-123.js", "", "").body(), "console.log(1)");
+  EXPECT_EQ(request(http::verb::get, "/../secret.txt", "", "").result(), http::status::bad_request);
 }
 
 // Reads a chunked streaming response until `count` data frames arrived.
