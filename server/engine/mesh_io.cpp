@@ -45,40 +45,25 @@ Vertices LoadedMesh::to_input_layout(const Vertices& engine_positions) const {
 
 namespace {
 
-LoadedMesh read_any(std::string_view bytes, const std::string& name, const std::string* base_dir) {
+LoadedMesh read_any(std::string_view bytes, const std::string& name, const std::string* base_dir,
+                    const ReadLimits& limits) {
   const std::string ext = detail::lower_extension(name);
   if (ext != "obj" && ext != "off" && ext != "ply" && ext != "stl" && ext != "gltf" && ext != "glb")
     detail::fail(name + ": unknown mesh format " +
                  (ext.empty() ? std::string("(no extension)") : "'." + ext + "'") +
                  " (expected .obj, .off, .ply, .stl, .gltf or .glb)");
   if (bytes.empty()) detail::fail(name + ": empty file");
-  std::vector<std::string> warnings;
-  LoadedMesh out;
+  detail::ReadContext ctx(name, limits);
+  ctx.poll();
   if (ext == "gltf" || ext == "glb") {
-    out = detail::read_gltf(bytes, name, ext == "glb", base_dir);
-  } else {
-    detail::Soup s;
-    if (ext == "obj") {
-      s = detail::parse_obj(bytes, name, warnings);
-    } else if (ext == "off") {
-      s = detail::parse_off(bytes, name, warnings);
-    } else if (ext == "ply") {
-      s = detail::parse_ply(bytes, name);
-    } else {
-      // Binary STL: 80-byte header, uint32 count, 50 bytes per triangle.
-      bool binary = false;
-      if (bytes.size() >= 84) {
-        const uint32_t n =
-            detail::load_raw<uint32_t>(reinterpret_cast<const unsigned char*>(bytes.data()) + 80,
-                                       std::endian::native != std::endian::little);
-        binary = bytes.size() == 84 + 50 * static_cast<uint64_t>(n);
-      }
-      s = detail::read_with_openmesh(bytes, "stl", name, binary, warnings);
-    }
-    out = detail::to_loaded(std::move(s), name);
+    LoadedMesh out = detail::read_gltf(bytes, ctx, ext == "glb", base_dir);
+    out.warnings.insert(out.warnings.begin(), ctx.warnings.begin(), ctx.warnings.end());
+    return out;
   }
-  out.warnings.insert(out.warnings.begin(), warnings.begin(), warnings.end());
-  return out;
+  if (ext == "obj") return detail::to_loaded(detail::parse_obj(bytes, ctx), ctx, "OBJ");
+  if (ext == "off") return detail::to_loaded(detail::parse_off(bytes, ctx), ctx, "OFF");
+  if (ext == "ply") return detail::to_loaded(detail::parse_ply(bytes, ctx), ctx, "PLY");
+  return detail::to_loaded(detail::parse_stl(bytes, ctx), ctx, "STL");
 }
 
 void check_write_input(const Vertices& V, const Triangles& F, const Vertices* N) {
@@ -109,19 +94,20 @@ std::string read_file(const std::string& path) {
 
 }  // namespace
 
-LoadedMesh read_mesh(const std::string& path) {
+LoadedMesh read_mesh(const std::string& path, const ReadLimits& limits) {
   const std::string ext = detail::lower_extension(path);
   if (ext != "obj" && ext != "off" && ext != "ply" && ext != "stl" && ext != "gltf" && ext != "glb")
-    return read_any({}, path, nullptr);  // throws the unknown-format error before touching the file
+    return read_any({}, path, nullptr, limits);  // throws the unknown-format error before touching the file
   const std::string data = read_file(path);
   std::string base = std::filesystem::path(path).parent_path().string();
   // push_back, not = ".": GCC 12 -O3 gives a false -Wrestrict on the assignment here.
   if (base.empty()) base.push_back('.');
-  return read_any(data, path, &base);
+  return read_any(data, path, &base, limits);
 }
 
-LoadedMesh read_mesh_bytes(std::string_view bytes, const std::string& filename) {
-  return read_any(bytes, filename, nullptr);
+LoadedMesh read_mesh_bytes(std::string_view bytes, const std::string& filename,
+                           const ReadLimits& limits) {
+  return read_any(bytes, filename, nullptr, limits);
 }
 
 MeshFileFormat format_from_path(const std::string& path) {

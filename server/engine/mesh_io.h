@@ -1,4 +1,4 @@
-// Mesh files: OBJ/OFF/PLY/STL through OpenMesh, glTF/GLB through tinygltf.
+// Mesh files: OBJ/OFF/PLY/STL by our own parsers, glTF/GLB through tinygltf.
 // Vertex ids are the file's vertex order. glTF vertices split only by attributes (same
 // position, e.g. UV seams) are welded into one surface; the map back keeps output in the
 // input's layout. glTF: all triangle primitives of all meshes, in mesh-local coordinates
@@ -8,6 +8,10 @@
 
 #include "mesh.h"
 
+#include <atomic>
+#include <cstddef>
+#include <functional>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -26,11 +30,43 @@ struct LoadedMesh {
   Vertices to_input_layout(const Vertices& engine_positions) const;
 };
 
+// Limits applied while a file is parsed (not after): a header that declares more vertices or
+// triangles than allowed fails before anything is allocated, and formats without declared
+// counts (OBJ, ASCII STL, glTF) fail as soon as the running count passes the limit. Every
+// reader's work and memory are bounded by the input's size whatever the limits.
+struct ReadLimits {
+  std::size_t max_vertices = 0;   // 0 = unlimited; input vertices (glTF: before welding)
+  std::size_t max_triangles = 0;  // 0 = unlimited; after fan triangulation
+  // Named in the messages: "x.ply: 5000000 vertices exceed the server's limit of 2000000
+  // (--max-vertices)". Empty: no parenthesis.
+  std::string vertices_option = "--max-vertices";
+  std::string triangles_option = "--max-triangles";
+  // Cooperative cancellation, polled every few thousand rows/lines/elements: when
+  // *cancel is true or should_cancel() returns true, the read throws ReadCancelled.
+  const std::atomic<bool>* cancel = nullptr;
+  std::function<bool()> should_cancel;
+};
+
+// A limit of ReadLimits was exceeded (a service maps it to RESOURCE_EXHAUSTED). An
+// InvalidInput, so code that only knows InvalidInput still reports it.
+class LimitExceeded : public InvalidInput {
+ public:
+  using InvalidInput::InvalidInput;
+};
+// The read was cancelled through ReadLimits::cancel / should_cancel. Not an InvalidInput:
+// the file may be fine. Message: "NAME: reading cancelled".
+class ReadCancelled : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 // Format from the extension (case-insensitive): .obj .off .ply .stl .gltf .glb.
-// Throws InvalidInput naming the file (and line, for text parse errors).
-LoadedMesh read_mesh(const std::string& path);
+// Throws InvalidInput naming the file, the format and where it failed ("x.obj:12: ...",
+// "x.stl: binary STL truncated: ..."); LimitExceeded / ReadCancelled as above.
+LoadedMesh read_mesh(const std::string& path, const ReadLimits& limits = {});
 // Same for an in-memory upload; `filename` only picks the format and names errors.
-LoadedMesh read_mesh_bytes(std::string_view bytes, const std::string& filename);
+LoadedMesh read_mesh_bytes(std::string_view bytes, const std::string& filename,
+                           const ReadLimits& limits = {});
 
 enum class MeshFileFormat { glb, obj, off, ply };
 MeshFileFormat format_from_path(const std::string& path);  // throws InvalidInput

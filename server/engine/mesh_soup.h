@@ -24,24 +24,71 @@ namespace hdeform::detail {
 std::string lower_extension(const std::string& path);
 // "1 vertex", "2 vertices".
 std::string plural(size_t n, const char* one, const char* many);
-// 't' for error messages, cut after 40 characters.
+// 't' for error messages, cut after 40 characters; bytes outside printable ASCII are shown
+// as \xNN, so a message quoting a binary or non-UTF-8 file is still valid UTF-8.
 std::string quoted(std::string_view t);
+// "50,084" (thousands separated by commas).
+std::string grouped(unsigned long long n);
 
 // ---------------------------------------------------------------------------------------
-// Polygon soup: what every reader produces before it becomes a LoadedMesh.
+// One read: the file name for messages, the limits, warnings, and the cancellation poll.
+class ReadContext {
+ public:
+  ReadContext(std::string name, const ReadLimits& limits);
+  const std::string name;
+  const ReadLimits& limits;
+  std::vector<std::string> warnings;
+
+  // Call once per row/line/element: polls cancellation every kPollEvery calls.
+  void tick() {
+    if (++ticks_ >= kPollEvery) {
+      ticks_ = 0;
+      poll();
+    }
+  }
+  void poll() const;  // throws ReadCancelled
+  // A count declared by a header (or known before reading): throws LimitExceeded
+  // "NAME: N vertices exceed the server's limit of L (--max-vertices)".
+  void declare_vertices(unsigned long long n) const;
+  void declare_triangles(unsigned long long n) const;
+  // The most vertices/triangles a Soup may hold (the limit, and at most what int ids allow).
+  size_t vertex_cap() const { return vertex_cap_; }
+  size_t triangle_cap() const { return triangle_cap_; }
+  // A running count passed the cap: "NAME: more than L vertices: the server's limit (...)".
+  [[noreturn]] void too_many_vertices() const;
+  [[noreturn]] void too_many_triangles() const;
+
+  static constexpr unsigned kPollEvery = 4096;
+
+ private:
+  size_t vertex_cap_;
+  size_t triangle_cap_;
+  unsigned ticks_ = 0;
+};
+
+// ---------------------------------------------------------------------------------------
+// Polygon soup: what every reader produces before it becomes a LoadedMesh. Adding a vertex
+// or a polygon checks the context's caps and polls cancellation.
 struct Soup {
+  explicit Soup(ReadContext& ctx) : ctx_(&ctx) {}
   std::vector<double> xyz;  // 3 per vertex
   std::vector<int> tri;     // 3 per triangle
   size_t polygons = 0;      // faces with more than 3 corners (fan-triangulated)
 
   int num_vertices() const { return static_cast<int>(xyz.size() / 3); }
+  size_t num_triangles() const { return tri.size() / 3; }
   void add_vertex(double x, double y, double z) {
+    if (xyz.size() / 3 >= ctx_->vertex_cap()) ctx_->too_many_vertices();
+    ctx_->tick();
     xyz.push_back(x);
     xyz.push_back(y);
     xyz.push_back(z);
   }
   // Fan triangulation around the first corner.
   void add_polygon(const int* idx, size_t k) {
+    if (k < 3) return;
+    if (k - 2 > ctx_->triangle_cap() - tri.size() / 3) ctx_->too_many_triangles();
+    ctx_->tick();
     if (k > 3) ++polygons;
     for (size_t c = 1; c + 1 < k; ++c) {
       tri.push_back(idx[0]);
@@ -49,10 +96,20 @@ struct Soup {
       tri.push_back(idx[c + 1]);
     }
   }
+  // Reserve for n more vertices / triangles: only call with counts already checked against
+  // the bytes present (never a bare header count).
+  void reserve(size_t vertices, size_t triangles) {
+    xyz.reserve(3 * std::min(vertices, ctx_->vertex_cap()));
+    tri.reserve(3 * std::min(triangles, ctx_->triangle_cap()));
+  }
+
+ private:
+  ReadContext* ctx_;
 };
 
-// Identity input layout; warns when polygons were triangulated.
-LoadedMesh to_loaded(Soup&& s, const std::string& name);
+// Identity input layout; warns when polygons were triangulated. A soup without vertices
+// fails with "NAME: no vertices found in the FORMAT file" (format = e.g. "OBJ").
+LoadedMesh to_loaded(Soup&& s, const ReadContext& ctx, const char* format);
 
 // ---------------------------------------------------------------------------------------
 // Line and token helpers for the text formats.

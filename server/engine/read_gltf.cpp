@@ -47,9 +47,11 @@ std::string trim(std::string s) {
   return s.substr(b);
 }
 
-// Start of element 0 and the stride; validates the accessor lies inside its buffer.
+// Start of element 0 and the stride; validates (without overflow) that every element lies
+// inside its bufferView and the view inside its buffer. `read` counts the bytes the caller
+// will touch (count × element size).
 const unsigned char* accessor_data(const tinygltf::Model& model, const tinygltf::Accessor& acc,
-                                   const std::string& what, size_t& stride) {
+                                   const std::string& what, size_t& stride, size_t& read) {
   if (acc.sparse.isSparse) fail(what + ": sparse accessors are not supported");
   if (acc.bufferView < 0 || acc.bufferView >= static_cast<int>(model.bufferViews.size()))
     fail(what + ": accessor without a valid bufferView");
@@ -57,16 +59,27 @@ const unsigned char* accessor_data(const tinygltf::Model& model, const tinygltf:
   if (bv.buffer < 0 || bv.buffer >= static_cast<int>(model.buffers.size()))
     fail(what + ": bufferView without a valid buffer");
   const tinygltf::Buffer& buf = model.buffers[static_cast<size_t>(bv.buffer)];
+  const int comp = tinygltf::GetComponentSizeInBytes(static_cast<uint32_t>(acc.componentType));
+  const int ncomp = tinygltf::GetNumComponentsInType(static_cast<uint32_t>(acc.type));
+  if (comp <= 0 || ncomp <= 0) fail(what + ": invalid accessor componentType or type");
   const int s = acc.ByteStride(bv);
   if (s <= 0) fail(what + ": invalid byte stride");
   stride = static_cast<size_t>(s);
-  const size_t elem = static_cast<size_t>(tinygltf::GetComponentSizeInBytes(static_cast<uint32_t>(acc.componentType))) *
-                      static_cast<size_t>(tinygltf::GetNumComponentsInType(static_cast<uint32_t>(acc.type)));
-  const size_t begin = bv.byteOffset + acc.byteOffset;
-  const size_t need = acc.count == 0 ? 0 : stride * (acc.count - 1) + elem;
-  if (begin + need > bv.byteOffset + bv.byteLength || bv.byteOffset + bv.byteLength > buf.data.size())
-    fail(what + ": accessor reads past the end of its buffer");
-  return buf.data.data() + begin;
+  const size_t elem = static_cast<size_t>(comp) * static_cast<size_t>(ncomp);
+  if (bv.byteOffset > buf.data.size() || bv.byteLength > buf.data.size() - bv.byteOffset)
+    fail(what + ": bufferView " + std::to_string(acc.bufferView) + " (offset " +
+         std::to_string(bv.byteOffset) + ", length " + std::to_string(bv.byteLength) +
+         ") lies outside its buffer of " + plural(buf.data.size(), "byte", "bytes"));
+  if (acc.count > 0) {
+    const size_t avail = acc.byteOffset <= bv.byteLength ? bv.byteLength - acc.byteOffset : 0;
+    if (acc.byteOffset > bv.byteLength || elem > avail || (acc.count - 1) > (avail - elem) / stride)
+      fail(what + ": accessor reads past the end of its bufferView (" +
+           std::to_string(acc.count) + " elements of " + plural(elem, "byte", "bytes") +
+           ", stride " + std::to_string(stride) + ", offset " + std::to_string(acc.byteOffset) +
+           ", view length " + std::to_string(bv.byteLength) + ")");
+  }
+  read = acc.count * elem;  // ≤ the view's length: no overflow
+  return buf.data.data() + bv.byteOffset + acc.byteOffset;
 }
 
 bool node_has_transform(const tinygltf::Node& n) {
@@ -95,8 +108,9 @@ struct PosKeyHash {
 
 }  // namespace
 
-LoadedMesh read_gltf(std::string_view bytes, const std::string& name, bool binary,
+LoadedMesh read_gltf(std::string_view bytes, ReadContext& ctx, bool binary,
                      const std::string* base_dir) {
+  const std::string& name = ctx.name;
   tinygltf::TinyGLTF loader;
   loader.SetImageLoader(skip_image, nullptr);
   if (!base_dir) loader.SetFsCallbacks({no_file_exists, no_expand, no_read, no_write, nullptr});
@@ -112,6 +126,20 @@ LoadedMesh read_gltf(std::string_view bytes, const std::string& name, bool binar
                                           static_cast<unsigned int>(bytes.size()),
                                           base_dir ? *base_dir : std::string());
   if (!ok) fail(name + ": invalid " + (binary ? "GLB" : "glTF") + ": " + trim(err.empty() ? warn : err));
+
+  // Work bound: accessors may share bufferViews, and primitives may share accessors, so the
+  // data read could be many times the file. Every accessor use is charged; more than twice
+  // the file and its buffers is refused.
+  size_t budget = 2 * bytes.size();
+  for (const tinygltf::Buffer& b : model.buffers) budget += 2 * b.data.size();
+  size_t charged = 0;
+  auto charge = [&](size_t n, const std::string& what) {
+    charged += n;
+    if (charged > budget)
+      fail(what + ": accessors read " + grouped(charged) + " bytes so far, more than twice the " +
+           "file and its buffers (" + grouped(budget / 2) + " bytes): accessors overlap or are reused");
+  };
+  size_t triangles = 0;
 
   LoadedMesh out;
   std::vector<double> input_xyz;               // input layout positions
@@ -140,11 +168,12 @@ LoadedMesh read_gltf(std::string_view bytes, const std::string& name, bool binar
       auto [bit, fresh] = accessor_base.try_emplace(it->second, static_cast<int>(input_xyz.size() / 3));
       const int base = bit->second;
       if (fresh) {
-        size_t stride = 0;
-        const unsigned char* d = accessor_data(model, pacc, what + " POSITION", stride);
-        if (input_xyz.size() / 3 + count > static_cast<size_t>(std::numeric_limits<int>::max()))
-          fail(what + ": too many vertices");
+        size_t stride = 0, read = 0;
+        const unsigned char* d = accessor_data(model, pacc, what + " POSITION", stride, read);
+        charge(read, what + " POSITION");
+        ctx.declare_vertices(input_xyz.size() / 3 + count);
         for (size_t v = 0; v < count; ++v) {
+          ctx.tick();
           float f[3];
           std::memcpy(f, d + v * stride, sizeof f);
           for (float x : f) input_xyz.push_back(static_cast<double>(x));
@@ -157,10 +186,16 @@ LoadedMesh read_gltf(std::string_view bytes, const std::string& name, bool binar
           fail(what + ": indices accessor " + std::to_string(prim.indices) + " does not exist");
         const tinygltf::Accessor& iacc = model.accessors[static_cast<size_t>(prim.indices)];
         if (iacc.type != TINYGLTF_TYPE_SCALAR) fail(what + ": indices must be SCALAR");
-        size_t stride = 0;
-        const unsigned char* d = accessor_data(model, iacc, what + " indices", stride);
+        if (iacc.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
+            iacc.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+            iacc.componentType != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT)
+          fail(what + ": indices must be unsigned byte, short or int");
+        size_t stride = 0, read = 0;
+        const unsigned char* d = accessor_data(model, iacc, what + " indices", stride, read);
+        charge(read, what + " indices");
         idx.resize(iacc.count);
         for (size_t k = 0; k < iacc.count; ++k) {
+          ctx.tick();
           const unsigned char* q = d + k * stride;
           switch (iacc.componentType) {
             case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: idx[k] = *q; break;
@@ -173,10 +208,17 @@ LoadedMesh read_gltf(std::string_view bytes, const std::string& name, bool binar
                  plural(count, "vertex", "vertices") + ")");
         }
       } else {
+        charge(12 * count, what + " POSITION (as indices)");
         idx.resize(count);
         for (size_t k = 0; k < count; ++k) idx[k] = static_cast<uint32_t>(k);
       }
+      const size_t prim_triangles = mode == TINYGLTF_MODE_TRIANGLES ? idx.size() / 3
+                                    : idx.size() >= 3               ? idx.size() - 2
+                                                                    : 0;
+      triangles += prim_triangles;
+      ctx.declare_triangles(triangles);
       auto push = [&](uint32_t a, uint32_t b, uint32_t c) {
+        ctx.tick();
         input_tri.push_back(base + static_cast<int>(a));
         input_tri.push_back(base + static_cast<int>(b));
         input_tri.push_back(base + static_cast<int>(c));
@@ -207,12 +249,16 @@ LoadedMesh read_gltf(std::string_view bytes, const std::string& name, bool binar
 
   // Weld bit-identical positions, engine ids in order of first occurrence.
   const size_t n_in = input_xyz.size() / 3;
+  if (n_in == 0)
+    fail(name + ": no vertices found in the " + (binary ? "GLB" : "glTF") +
+         " file (no triangle primitive with a POSITION accessor of at least one element)");
   out.input_to_engine.resize(n_in);
   std::unordered_map<PosKey, int, PosKeyHash> ids;
   ids.reserve(n_in);
   std::vector<double> engine_xyz;
   engine_xyz.reserve(input_xyz.size());
   for (size_t v = 0; v < n_in; ++v) {
+    ctx.tick();
     PosKey key;
     for (int k = 0; k < 3; ++k) {
       double x = input_xyz[3 * v + k];

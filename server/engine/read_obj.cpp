@@ -9,14 +9,35 @@
 
 namespace hdeform::detail {
 
-Soup parse_obj(std::string_view text, const std::string& name, std::vector<std::string>& warnings) {
-  Soup s;
+namespace {
+
+// Statements of the OBJ specification (and common extensions) that carry no triangle
+// geometry: ignored. Anything else in a file without vertices means it is not an OBJ file.
+bool known_statement(std::string_view kw) {
+  static constexpr std::string_view known[] = {
+      "vt", "vn", "vp", "g", "o", "s", "mg", "usemtl", "mtllib", "usemap", "maplib", "cstype",
+      "deg", "bmat", "step", "curv", "curv2", "surf", "parm", "trim", "hole", "scrv", "sp",
+      "end", "con", "bevel", "c_interp", "d_interp", "lod", "shadow_obj", "trace_obj", "ctech",
+      "stech", "call", "csh"};
+  for (std::string_view k : known)
+    if (kw == k) return true;
+  return false;
+}
+
+}  // namespace
+
+Soup parse_obj(std::string_view text, ReadContext& ctx) {
+  const std::string& name = ctx.name;
+  Soup s(ctx);
   Lines lines(text);
   std::string_view line;
   std::vector<int> corners;
   std::vector<std::pair<long long, int>> forward;  // (0-based index, line) ≥ count at the time
   size_t lines_points = 0;
+  int first_unknown_line = 0;
+  std::string_view first_unknown;
   while (lines.next(line)) {
+    ctx.tick();
     const int ln = lines.lineno();
     if (size_t h = line.find('#'); h != std::string_view::npos) line = line.substr(0, h);
     Cursor c(line);
@@ -62,14 +83,19 @@ Soup parse_obj(std::string_view text, const std::string& name, std::vector<std::
       s.add_polygon(corners.data(), corners.size());
     } else if (kw == "l" || kw == "p") {
       ++lines_points;
+    } else if (first_unknown_line == 0 && !known_statement(kw)) {
+      first_unknown_line = ln;
+      first_unknown = kw;
     }
   }
+  if (s.num_vertices() == 0 && first_unknown_line > 0)
+    fail_line(name, first_unknown_line, "not an OBJ file: unknown statement " + quoted(first_unknown));
   for (const auto& [idx, ln] : forward)
     if (idx >= s.num_vertices())
       fail_line(name, ln, "vertex index " + std::to_string(idx + 1) + " out of range (file has " +
                               plural(static_cast<size_t>(s.num_vertices()), "vertex", "vertices") + ")");
   if (lines_points > 0)
-    warnings.push_back(name + ": " + plural(lines_points, "line/point element", "line/point elements") +
+    ctx.warnings.push_back(name + ": " + plural(lines_points, "line/point element", "line/point elements") +
                        " ignored");
   return s;
 }

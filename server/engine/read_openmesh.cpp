@@ -1,124 +1,213 @@
-// STL and binary OFF through OpenMesh's IO layer (IOManager) with our own importer
-// (SoupImporter), which records the raw polygon soup and builds no connectivity. OpenMesh's
-// STL reader merges corners with identical positions into one vertex. See mesh_readers.h.
+// STL reader, binary and ASCII. (The file keeps its old name: STL and binary OFF used to go
+// through OpenMesh's IO layer, which accepted truncated ASCII STL silently, read a truncated
+// binary STL as an empty ASCII one and parsed no binary OFF at all; both are our own parsers
+// now — binary OFF in read_off.cpp.) Corners with identical positions (−0 = +0) are merged
+// into one vertex, in order of first occurrence, as OpenMesh did. See mesh_readers.h.
+//
+// Binary: 80-byte header, uint32 little-endian triangle count n, then n records of 50 bytes
+// (float32 normal, 3 × float32 xyz corners, uint16 attribute). A file of exactly
+// 84 + 50 n bytes is binary even when its header starts with "solid".
+// ASCII: solid NAME / facet normal ni nj nk / outer loop / vertex x y z (3×) / endloop /
+// endfacet ... endsolid NAME (keywords case-insensitive; several solids may follow each
+// other). Coordinates are read as doubles.
 
 #include "mesh_readers.h"
 
-#include <OpenMesh/Core/IO/MeshIO.hh>
-#include <OpenMesh/Core/IO/importer/BaseImporter.hh>
-#include <OpenMesh/Core/System/omstream.hh>
-
-#include <sstream>
+#include <array>
+#include <bit>
+#include <cctype>
+#include <cstdint>
+#include <unordered_map>
 
 namespace hdeform::detail {
 namespace {
 
-class SoupImporter : public OpenMesh::IO::BaseImporter {
+struct PosKey {
+  std::array<uint64_t, 3> b;
+  bool operator==(const PosKey&) const = default;
+};
+struct PosKeyHash {
+  size_t operator()(const PosKey& k) const {
+    uint64_t h = k.b[0] * 0x9E3779B97F4A7C15ULL;
+    h ^= (k.b[1] + 0x632BE59BD9B4E019ULL + (h << 6) + (h >> 2));
+    h ^= (k.b[2] * 0xC2B2AE3D27D4EB4FULL + (h << 6) + (h >> 2));
+    return static_cast<size_t>(h ^ (h >> 29));
+  }
+};
+
+// Merges corners with bit-identical positions into one soup vertex.
+class Welder {
  public:
-  explicit SoupImporter(Soup& s) : s_(s) {}
-  using VH = OpenMesh::VertexHandle;
-  using HH = OpenMesh::HalfedgeHandle;
-  using FH = OpenMesh::FaceHandle;
-  using EH = OpenMesh::EdgeHandle;
-
-  VH add_vertex(const OpenMesh::Vec3f& p) override {
-    s_.add_vertex(p[0], p[1], p[2]);
-    return VH(s_.num_vertices() - 1);
-  }
-  VH add_vertex(const OpenMesh::Vec3d& p) override {
-    s_.add_vertex(p[0], p[1], p[2]);
-    return VH(s_.num_vertices() - 1);
-  }
-  VH add_vertex() override {
-    s_.add_vertex(0, 0, 0);
-    return VH(s_.num_vertices() - 1);
-  }
-  HH add_edge(VH, VH) override { return HH(); }
-  FH add_face(const VHandles& idx) override {
-    corners_.clear();
-    for (const auto& vh : idx) {
-      if (vh.idx() < 0 || vh.idx() >= s_.num_vertices()) {
-        bad_index_ = true;
-        return FH();
-      }
-      corners_.push_back(vh.idx());
+  explicit Welder(Soup& s) : s_(s) {}
+  int add(const double p[3]) {
+    PosKey key;
+    for (int k = 0; k < 3; ++k) {
+      const double x = p[k] == 0 ? 0.0 : p[k];  // −0 and +0 weld
+      key.b[static_cast<size_t>(k)] = std::bit_cast<uint64_t>(x);
     }
-    if (corners_.size() < 3) {
-      ++short_faces_;
-      return FH();
-    }
-    s_.add_polygon(corners_.data(), corners_.size());
-    return FH(static_cast<int>(faces_++));
+    auto [it, fresh] = ids_.try_emplace(key, s_.num_vertices());
+    if (fresh) s_.add_vertex(p[0], p[1], p[2]);
+    return it->second;
   }
-  FH add_face(HH) override { return FH(); }
-  void add_face_texcoords(FH, VH, const std::vector<OpenMesh::Vec2f>&) override {}
-  void add_face_texcoords(FH, VH, const std::vector<OpenMesh::Vec3f>&) override {}
-  void set_face_texindex(FH, int) override {}
-  void set_point(VH vh, const OpenMesh::Vec3f& p) override {
-    if (vh.idx() < 0 || vh.idx() >= s_.num_vertices()) return;
-    for (int k = 0; k < 3; ++k) s_.xyz[3 * static_cast<size_t>(vh.idx()) + k] = p[k];
-  }
-  void set_halfedge(VH, HH) override {}
-  void set_normal(VH, const OpenMesh::Vec3f&) override {}
-  void set_normal(VH, const OpenMesh::Vec3d&) override {}
-  void set_color(VH, const OpenMesh::Vec3uc&) override {}
-  void set_color(VH, const OpenMesh::Vec4uc&) override {}
-  void set_color(VH, const OpenMesh::Vec3f&) override {}
-  void set_color(VH, const OpenMesh::Vec4f&) override {}
-  void set_texcoord(VH, const OpenMesh::Vec2f&) override {}
-  void set_status(VH, const OpenMesh::Attributes::StatusInfo&) override {}
-  void set_next(HH, HH) override {}
-  void set_face(HH, FH) override {}
-  void request_face_texcoords2D() override {}
-  void set_texcoord(HH, const OpenMesh::Vec2f&) override {}
-  void set_texcoord(VH, const OpenMesh::Vec3f&) override {}
-  void set_texcoord(HH, const OpenMesh::Vec3f&) override {}
-  void set_status(HH, const OpenMesh::Attributes::StatusInfo&) override {}
-  void set_color(EH, const OpenMesh::Vec3uc&) override {}
-  void set_color(EH, const OpenMesh::Vec4uc&) override {}
-  void set_color(EH, const OpenMesh::Vec3f&) override {}
-  void set_color(EH, const OpenMesh::Vec4f&) override {}
-  void set_status(EH, const OpenMesh::Attributes::StatusInfo&) override {}
-  void set_normal(FH, const OpenMesh::Vec3f&) override {}
-  void set_normal(FH, const OpenMesh::Vec3d&) override {}
-  void set_color(FH, const OpenMesh::Vec3uc&) override {}
-  void set_color(FH, const OpenMesh::Vec4uc&) override {}
-  void set_color(FH, const OpenMesh::Vec3f&) override {}
-  void set_color(FH, const OpenMesh::Vec4f&) override {}
-  void set_status(FH, const OpenMesh::Attributes::StatusInfo&) override {}
-  void add_texture_information(int, std::string) override {}
-  size_t n_vertices() const override { return static_cast<size_t>(s_.num_vertices()); }
-  size_t n_faces() const override { return faces_; }
-  size_t n_edges() const override { return 0; }
-
-  bool bad_index() const { return bad_index_; }
-  size_t short_faces() const { return short_faces_; }
 
  private:
   Soup& s_;
-  std::vector<int> corners_;
-  size_t faces_ = 0;
-  size_t short_faces_ = 0;
-  bool bad_index_ = false;
+  std::unordered_map<PosKey, int, PosKeyHash> ids_;
 };
+
+bool iequal(std::string_view a, std::string_view b) {
+  if (a.size() != b.size()) return false;
+  for (size_t i = 0; i < a.size(); ++i)
+    if (std::tolower(static_cast<unsigned char>(a[i])) != std::tolower(static_cast<unsigned char>(b[i])))
+      return false;
+  return true;
+}
+
+Soup parse_stl_binary(std::string_view bytes, ReadContext& ctx) {
+  const auto* b = reinterpret_cast<const unsigned char*>(bytes.data());
+  const bool swap = std::endian::native != std::endian::little;
+  const uint32_t n = load_raw<uint32_t>(b + 80, swap);
+  ctx.declare_triangles(n);
+  const unsigned long long expected = 84 + 50ULL * n;
+  if (bytes.size() > expected)
+    ctx.warnings.push_back(ctx.name + ": " + grouped(bytes.size() - expected) +
+                           " bytes after the " + plural(n, "triangle", "triangles") +
+                           " of the binary STL ignored");
+  Soup s(ctx);
+  s.reserve(0, n);
+  Welder weld(s);
+  for (uint32_t t = 0; t < n; ++t) {
+    const unsigned char* rec = b + 84 + 50 * static_cast<size_t>(t) + 12;  // skip the normal
+    int corner[3];
+    for (int c = 0; c < 3; ++c) {
+      double p[3];
+      for (int k = 0; k < 3; ++k) p[k] = load_raw<float>(rec + 12 * c + 4 * k, swap);
+      corner[c] = weld.add(p);
+    }
+    s.add_polygon(corner, 3);
+  }
+  return s;
+}
+
+// Whitespace-separated tokens with line numbers.
+class Tokens {
+ public:
+  explicit Tokens(std::string_view s) : s_(s) {}
+  // False at the end of the text.
+  bool next(std::string_view& tok) {
+    while (pos_ < s_.size() && std::isspace(static_cast<unsigned char>(s_[pos_]))) {
+      if (s_[pos_] == '\n') ++line_;
+      ++pos_;
+    }
+    if (pos_ == s_.size()) return false;
+    const size_t b = pos_;
+    while (pos_ < s_.size() && !std::isspace(static_cast<unsigned char>(s_[pos_]))) ++pos_;
+    tok = s_.substr(b, pos_ - b);
+    return true;
+  }
+  void skip_line() {  // the rest of the current line (a solid's name)
+    while (pos_ < s_.size() && s_[pos_] != '\n') ++pos_;
+  }
+  int line() const { return line_; }
+
+ private:
+  std::string_view s_;
+  size_t pos_ = 0;
+  int line_ = 1;
+};
+
+Soup parse_stl_ascii(std::string_view text, ReadContext& ctx) {
+  const std::string& name = ctx.name;
+  Soup s(ctx);
+  Welder weld(s);
+  Tokens tk(text);
+  std::string_view tok;
+  size_t facets = 0;
+  bool in_facet = false;
+  auto truncated = [&](const std::string& expected) {
+    fail_line(name, tk.line(),
+              "ASCII STL truncated: the file ends " +
+                  (in_facet ? "inside facet " + std::to_string(facets + 1)
+                   : facets == 0 ? std::string("before the first facet")
+                                 : "after facet " + std::to_string(facets)) +
+                  " (expected " + expected + ")");
+  };
+  auto expect = [&](const char* kw) {
+    if (!tk.next(tok)) truncated(std::string("'") + kw + "'");
+    if (!iequal(tok, kw))
+      fail_line(name, tk.line(), "ASCII STL: expected '" + std::string(kw) + "', found " + quoted(tok));
+  };
+  auto number = [&](const char* what) {
+    if (!tk.next(tok)) truncated(std::string("a ") + what + " coordinate");
+    double v = 0;
+    const char* p = tok.data();
+    const char* e = p + tok.size();
+    if (p < e && *p == '+') ++p;
+    auto r = std::from_chars(p, e, v);
+    if (r.ec != std::errc() || r.ptr != e)
+      fail_line(name, tk.line(), "ASCII STL: bad " + std::string(what) + " coordinate " + quoted(tok));
+    return v;
+  };
+  expect("solid");
+  tk.skip_line();
+  for (;;) {
+    if (!tk.next(tok)) truncated("'facet' or 'endsolid'");
+    if (iequal(tok, "endsolid")) {
+      tk.skip_line();
+      if (!tk.next(tok)) break;
+      if (!iequal(tok, "solid"))
+        fail_line(name, tk.line(), "ASCII STL: expected 'solid' or the end of the file after 'endsolid', found " + quoted(tok));
+      tk.skip_line();
+      continue;
+    }
+    if (!iequal(tok, "facet"))
+      fail_line(name, tk.line(), "ASCII STL: expected 'facet' or 'endsolid', found " + quoted(tok));
+    in_facet = true;
+    expect("normal");
+    for (int k = 0; k < 3; ++k) number("normal");
+    expect("outer");
+    expect("loop");
+    int corner[3];
+    for (int c = 0; c < 3; ++c) {
+      expect("vertex");
+      double p[3];
+      for (int k = 0; k < 3; ++k) p[k] = number("vertex");
+      corner[c] = weld.add(p);
+    }
+    expect("endloop");
+    expect("endfacet");
+    s.add_polygon(corner, 3);
+    ++facets;
+    in_facet = false;
+  }
+  return s;
+}
 
 }  // namespace
 
-Soup read_with_openmesh(std::string_view bytes, const std::string& ext, const std::string& name,
-                        bool binary, std::vector<std::string>& warnings) {
-  ::omerr().disable();  // OpenMesh reports on std::cerr; we throw precise errors.
-  Soup s;
-  SoupImporter importer(s);
-  OpenMesh::IO::Options opt;
-  if (binary) opt += OpenMesh::IO::Options::Binary;
-  std::istringstream in{std::string(bytes)};
-  if (!OpenMesh::IO::IOManager().read(in, ext, importer, opt))
-    fail(name + ": cannot parse " + ext + " file");
-  if (importer.bad_index()) fail(name + ": face with a vertex index out of range");
-  if (importer.short_faces() > 0)
-    warnings.push_back(name + ": " + plural(importer.short_faces(), "face", "faces") +
-                       " with fewer than 3 vertices ignored");
-  return s;
+Soup parse_stl(std::string_view bytes, ReadContext& ctx) {
+  // "solid" at the start (after blanks) and text-looking bytes: ASCII; else binary.
+  size_t b = 0;
+  while (b < bytes.size() && b < 256 && std::isspace(static_cast<unsigned char>(bytes[b]))) ++b;
+  const bool solid = bytes.size() - b >= 5 && iequal(bytes.substr(b, 5), "solid");
+  bool text = solid;
+  for (size_t i = 0; text && i < std::min<size_t>(bytes.size(), 1024); ++i) {
+    const auto u = static_cast<unsigned char>(bytes[i]);
+    if (u < 0x09 || (u > 0x0d && u < 0x20)) text = false;
+  }
+  if (bytes.size() >= 84) {
+    const uint32_t n = load_raw<uint32_t>(reinterpret_cast<const unsigned char*>(bytes.data()) + 80,
+                                          std::endian::native != std::endian::little);
+    const unsigned long long expected = 84 + 50ULL * n;
+    if (bytes.size() == expected || (!text && bytes.size() > expected)) return parse_stl_binary(bytes, ctx);
+    if (!text)
+      fail(ctx.name + ": binary STL truncated: header declares " + plural(n, "triangle", "triangles") +
+           " (" + grouped(expected) + " bytes) but the file has " + grouped(bytes.size()) + " bytes");
+  }
+  if (!text)
+    fail(ctx.name + ": not an STL file: " + plural(bytes.size(), "byte", "bytes") +
+         ", too short for a binary STL (84-byte header) and no 'solid' line for an ASCII STL");
+  return parse_stl_ascii(bytes, ctx);
 }
 
 }  // namespace hdeform::detail

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <cstdio>
 #include <cstdint>
 #include <limits>
 
@@ -65,9 +66,19 @@ double load_ply_value(const unsigned char* p, PlyType t, bool swap) {
   }
 }
 
+// A face index as read (any PLY number type) for messages: no undefined double → integer
+// conversion for NaN or huge values.
+std::string index_text(double v) {
+  if (v == std::floor(v) && std::fabs(v) < 9e15) return std::to_string(static_cast<long long>(v));
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+
 }  // namespace
 
-Soup parse_ply(std::string_view bytes, const std::string& name) {
+Soup parse_ply(std::string_view bytes, ReadContext& ctx) {
+  const std::string& name = ctx.name;
   Lines lines(bytes);
   std::string_view line;
   if (!lines.next(line) || line != "ply") fail(name + ":1: not a PLY file (missing 'ply' header)");
@@ -76,6 +87,7 @@ Soup parse_ply(std::string_view bytes, const std::string& name) {
   std::vector<PlyElement> elements;
   bool ended = false;
   while (lines.next(line)) {
+    ctx.tick();
     const int ln = lines.lineno();
     Cursor c(line);
     std::string_view kw = c.token();
@@ -122,10 +134,10 @@ Soup parse_ply(std::string_view bytes, const std::string& name) {
   if (!have_format) fail(name + ": PLY header without 'format'");
 
   // Where x, y, z and the face index list are.
-  Soup s;
   long long nv = -1;
   for (const PlyElement& el : elements) {
     if (el.name == "vertex") {
+      if (nv >= 0) fail_line(name, el.line, "second vertex element (a PLY file has one)");
       int found = 0;
       for (const char* axis : {"x", "y", "z"})
         for (const auto& p : el.props)
@@ -139,20 +151,64 @@ Soup parse_ply(std::string_view bytes, const std::string& name) {
     }
   }
   if (nv < 0) fail(name + ": PLY file without a vertex element");
-  if (nv > std::numeric_limits<int>::max() / 3) fail(name + ": too many vertices");
-  s.xyz.reserve(static_cast<size_t>(nv) * 3);
-
-  auto axis_of = [](const std::string& n) { return n == "x" ? 0 : n == "y" ? 1 : n == "z" ? 2 : -1; };
   auto is_face_list = [](const PlyElement& el, const PlyProperty& p) {
     return el.name == "face" && p.count_type != PlyType::invalid &&
            (p.name == "vertex_indices" || p.name == "vertex_index");
   };
+  unsigned long long nfaces = 0;
+  for (const PlyElement& el : elements)
+    for (const PlyProperty& p : el.props)
+      if (is_face_list(el, p)) {
+        nfaces += static_cast<unsigned long long>(el.count);
+        break;
+      }
+  ctx.declare_vertices(static_cast<unsigned long long>(nv));
+  ctx.declare_triangles(nfaces);  // each face gives at least one triangle
+  // Binary: every element's rows against the bytes after the header: a row takes at least
+  // its scalars' sizes plus its lists' length fields; the whole header must fit before
+  // anything is reserved. ASCII: a row of P properties takes at least 2 P characters (a digit
+  // and a separator each); memory is reserved only for what the bytes left can hold, and a
+  // count larger than the file fails at the line where the data ends. An element without
+  // properties takes no bytes and is skipped in O(1) whatever its count.
+  const size_t data_bytes = bytes.size() - std::min(lines.pos(), bytes.size());
+  unsigned long long need = 0;
+  auto min_row = [&](const PlyElement& el) {
+    unsigned long long row = 0;
+    for (const PlyProperty& p : el.props)
+      row += fmt == Fmt::ascii ? 2 : ply_size(p.count_type != PlyType::invalid ? p.count_type : p.type);
+    return row;
+  };
+  if (fmt != Fmt::ascii) {
+    for (const PlyElement& el : elements) {
+      const unsigned long long row = min_row(el);
+      const auto count = static_cast<unsigned long long>(el.count);
+      // Overflow-free form of need + row × count > data_bytes.
+      if (row > 0 && count > (data_bytes - need) / row)
+        fail_line(name, el.line,
+                  "binary PLY truncated: header declares " + std::to_string(el.count) + " " + el.name +
+                      " elements of at least " + plural(static_cast<size_t>(row), "byte", "bytes") +
+                      (need == 0 ? "" : " after " + grouped(need) + " bytes of earlier elements") +
+                      " but " + grouped(data_bytes) + " bytes follow the header");
+      need += row * count;
+    }
+  }
+  size_t reserve_v = static_cast<size_t>(nv), reserve_f = static_cast<size_t>(nfaces);
+  for (const PlyElement& el : elements)
+    if (const unsigned long long row = min_row(el); row > 0 && fmt == Fmt::ascii) {
+      const size_t fits = data_bytes / row + 1;
+      if (el.name == "vertex") reserve_v = std::min(reserve_v, fits);
+      if (el.name == "face") reserve_f = std::min(reserve_f, fits);
+    }
+  Soup s(ctx);
+  s.reserve(reserve_v, reserve_f);
+
+  auto axis_of = [](const std::string& n) { return n == "x" ? 0 : n == "y" ? 1 : n == "z" ? 2 : -1; };
   std::vector<int> corners;
   auto add_corner = [&](double v, int ln, bool& ok) {
     if (!(v >= 0 && v < static_cast<double>(nv)) || v != std::floor(v)) {
       ok = false;
       if (ln > 0)
-        fail_line(name, ln, "vertex index " + std::to_string(static_cast<long long>(v)) +
+        fail_line(name, ln, "vertex index " + index_text(v) +
                                 " out of range (file has " +
                                 plural(static_cast<size_t>(nv), "vertex", "vertices") + ")");
       return;
@@ -169,7 +225,9 @@ Soup parse_ply(std::string_view bytes, const std::string& name) {
 
   if (fmt == Fmt::ascii) {
     for (const PlyElement& el : elements) {
+      if (el.props.empty()) continue;  // rows without properties: nothing to read
       for (long long i = 0; i < el.count; ++i) {
+        ctx.tick();
         Cursor c{std::string_view{}};
         do {
           if (!lines.next(line))
@@ -224,7 +282,9 @@ Soup parse_ply(std::string_view bytes, const std::string& name) {
              std::to_string(i) + " of " + std::to_string(el.count));
     };
     for (const PlyElement& el : elements) {
+      if (el.props.empty()) continue;  // rows of 0 bytes: nothing to read
       for (long long i = 0; i < el.count; ++i) {
+        ctx.tick();
         double xyz[3] = {0, 0, 0};
         corners.clear();
         bool has_list = false;
@@ -244,7 +304,7 @@ Soup parse_ply(std::string_view bytes, const std::string& name) {
               add_corner(v, 0, ok);
               if (!ok)
                 fail(name + ": face " + std::to_string(i) + ": vertex index " +
-                     std::to_string(static_cast<long long>(v)) + " out of range (file has " +
+                     index_text(v) + " out of range (file has " +
                      plural(static_cast<size_t>(nv), "vertex", "vertices") + ")");
             }
             if (face_list) has_list = true;
