@@ -1,17 +1,35 @@
 // gRPC-Web gateway: Boost.Beast HTTP/1.1 in front of the in-process gRPC channel.
 //
-// Model: one thread per HTTP connection doing synchronous Beast I/O (browsers keep at most
-// six connections per origin; a WatchSession stream holds one for its lifetime). Every
-// gRPC-Web call — unary, server-streaming, or a one-message client stream — is forwarded as
-// raw bytes through grpc::GenericStub as a generic streaming call driven on a private
+// Model. Waiting costs no thread: a few I/O threads (GatewayOptions::threads) run one
+// io_context that accepts connections and reads request headers asynchronously, each
+// connection on its own strand with Beast's tcp_stream deadlines (header_timeout for a whole
+// header, idle_timeout between keep-alive requests). Only when a complete request header has
+// arrived is the connection handed to a worker thread for that one request; afterwards a
+// keep-alive connection goes back to waiting on the io_context. So two separate caps bound the
+// cost: max_idle_connections for waiting connections (the oldest is closed when full, so idle
+// clients cannot lock others out) and max_connections for requests in progress (503 above).
+// Workers write in blocking style, but each socket operation is an asynchronous Beast
+// operation with a stall_timeout deadline that the worker waits for (await_op), so a stalled
+// body or an unread response ends the connection and stop() can abort any of them.
+//
+// Every gRPC-Web call — unary, server-streaming, or a one-message client stream — is forwarded
+// as raw bytes through grpc::GenericStub as a generic streaming call driven on a private
 // CompletionQueue: write the request messages, WritesDone, relay every response message as
-// one HTTP chunk (gRPC-Web data frame), then the trailers frame. No per-method code.
+// one HTTP chunk (gRPC-Web data frame), then the trailers frame. No per-method code. A server
+// stream may stay quiet for any time: no socket operation is pending while it waits.
+//
+// Safe to expose: static files are served only if their canonical path is a regular file
+// inside the canonical web root; a POST whose Origin is not the request's own host is refused
+// (403), and /upload also needs a header a cross-site page cannot send without a CORS
+// preflight (which this server never approves); accept() errors (EMFILE, ECONNABORTED, …)
+// pause accepting briefly, never end it.
 //
 // Endpoints:
 //   POST /hdeform.v1.Deformation/<Method>   application/grpc-web(+proto) — the API
 //   POST /upload?filename=NAME              raw mesh bytes → client-streaming CreateSession;
 //   POST /upload?library=NAME               (empty body) a library mesh; optional
 //                                           &session_id=ID (CreateSessionHeader.session_id).
+//                                           Needs the header X-Session-Id or X-Hdeform-Upload.
 //                                           Reply: the Session as
 //                                           binary protobuf (application/x-protobuf), or a
 //                                           plain-text error with the mapped HTTP status.
@@ -19,25 +37,24 @@
 //   GET  /…                                 static files from web_root (index.html for /)
 #include "http_gateway.h"
 
-#include <poll.h>
 #include <spdlog/spdlog.h>
 #include <sys/socket.h>
-#include <sys/time.h>
 
-#include <array>
+#include <algorithm>
 #include <atomic>
-#include <chrono>
 #include <boost/asio.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
-#include <condition_variable>
-#include <algorithm>
+#include <chrono>
 #include <filesystem>
+#include <future>
 #include <grpcpp/generic/generic_stub.h>
+#include <latch>
 #include <list>
 #include <mutex>
 #include <optional>
 #include <thread>
+#include <vector>
 
 #include "grpc_web.h"
 #include "hdeform/v1/deform.pb.h"
@@ -48,13 +65,19 @@ namespace asio = boost::asio;
 namespace beast = boost::beast;
 namespace http = beast::http;
 using tcp = asio::ip::tcp;
+using std::chrono::milliseconds;
 
 namespace {
 
 constexpr std::string_view kServicePrefix = "/hdeform.v1.Deformation/";
 constexpr std::size_t kUploadChunk = 1u << 20;  // CreateSession chunk size (< 4 MiB limit)
-constexpr std::size_t kMaxConnections = 256;
 constexpr std::size_t kMaxHeaderBytes = 16u << 10;
+constexpr std::size_t kFirstRead = 4u << 10;    // first bytes of a keep-alive request
+constexpr milliseconds kLingerTime{2000};       // lingering close: at most this long …
+constexpr std::size_t kLingerBytes = 256u << 20;  // … and this many bytes drained
+constexpr std::size_t kDrainChunk = 64u << 10;
+constexpr milliseconds kMinAcceptPause{10};     // accept() failures: pause, doubling …
+constexpr milliseconds kMaxAcceptPause{1000};   // … up to this
 
 std::string_view mime_type(std::string_view path) {
   const auto dot = path.rfind('.');
@@ -262,32 +285,135 @@ class GenericCall {
   std::unique_ptr<grpc::GenericClientAsyncReaderWriter> stream_;
 };
 
+
+// ---- cross-site requests ----------------------------------------------------------------
+// A page on another site can make the user's browser POST here: a "simple" request (a form,
+// or fetch with a CORS-safelisted Content-Type) is sent without asking the server first. Two
+// independent rules stop it. (1) Browsers put Origin on every cross-origin POST; it must name
+// this server (the Host the browser connected to, or the X-Forwarded-Host a proxy passed on —
+// a page cannot set that header cross-site without a preflight). (2) /upload, whose body is
+// any bytes, also needs a custom header, which forces a CORS preflight that this server never
+// approves (it answers OPTIONS with 405), even in a browser that omits Origin. gRPC-Web calls
+// need no extra header: their Content-Type (application/grpc-web…) already forces a preflight.
+
+// host[:port], lower-case, with a default port (80, 443) dropped: the gateway cannot know the
+// scheme a proxy terminated, so "https://a.example" and Host "a.example:443" compare equal.
+std::string normalized_authority(std::string_view authority) {
+  std::string out(authority);
+  for (auto& ch : out) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+  if (out.ends_with(":80")) out.resize(out.size() - 3);
+  if (out.ends_with(":443")) out.resize(out.size() - 4);
+  return out;
+}
+
+// The host[:port] of an Origin header ("scheme://host[:port]"); empty for "null" (sandboxed
+// frames, file: pages) and anything malformed, which then matches no host.
+std::string origin_authority(std::string_view origin) {
+  const auto sep = origin.find("://");
+  if (sep == std::string_view::npos || sep == 0) return {};
+  const auto authority = origin.substr(sep + 3);
+  if (authority.empty() || authority.find_first_of("/?#@ \t") != std::string_view::npos) return {};
+  return normalized_authority(authority);
+}
+
+std::string_view header_value(const http::request_header<>& req, std::string_view name) {
+  const auto it = req.find(beast::string_view(name.data(), name.size()));
+  return it == req.end() ? std::string_view() : std::string_view(it->value().data(), it->value().size());
+}
+
+// Empty if the request may proceed, else why it is refused (rule 1 above).
+std::string cross_site_refusal(const http::request_header<>& req) {
+  const auto it = req.find(http::field::origin);
+  if (it == req.end()) return {};  // not from a browser, or a same-origin GET-like request
+  const std::string_view origin(it->value().data(), it->value().size());
+  const auto from = origin_authority(origin);
+  auto forwarded = header_value(req, "x-forwarded-host");
+  forwarded = forwarded.substr(0, forwarded.find(','));  // the first (client-facing) proxy
+  while (!forwarded.empty() && forwarded.back() == ' ') forwarded.remove_suffix(1);
+  if (!from.empty() && (from == normalized_authority(header_value(req, "host")) ||
+                        (!forwarded.empty() && from == normalized_authority(forwarded)))) {
+    return {};
+  }
+  return "cross-site request refused: Origin '" + std::string(origin.substr(0, 200)) +
+         "' is not this server (" + std::string(header_value(req, "host").substr(0, 200)) +
+         "); hdeform only answers pages it served itself\n";
+}
+
+// Rule 2 above: the viewer sends X-Session-Id with every upload; scripts may send either.
+bool has_upload_header(const http::request_header<>& req) {
+  return req.count("x-session-id") > 0 || req.count("x-hdeform-upload") > 0;
+}
+
+http::response<http::string_body> text_response(http::status status, std::string text,
+                                                unsigned version, bool keep_alive) {
+  http::response<http::string_body> res{status, version};
+  res.set(http::field::content_type, "text/plain; charset=utf-8");
+  res.set(http::field::cache_control, "no-store");
+  res.keep_alive(keep_alive);
+  res.body() = std::move(text);
+  res.prepare_payload();
+  return res;
+}
+
+std::string too_large_text(std::size_t limit) {
+  return "request body too large: the limit is " + std::to_string(limit) + " bytes\n";
+}
+
 }  // namespace
 
 struct HttpGateway::Impl {
+  // One TCP connection. tcp_stream is not thread-safe, so every operation on it starts on
+  // its strand (its executor); worker threads get there through await_op.
   struct Connection {
-    tcp::socket socket;
+    explicit Connection(tcp::socket socket) : stream(std::move(socket)) {}
+    beast::tcp_stream stream;
+    beast::flat_buffer buffer;                                     // read ahead of the parser
+    std::optional<http::request_parser<http::empty_body>> header;  // the request being read
+    bool served = false;  // answered a request before: the next one may keep it idle longer
+    // Guarded by Impl::mu: which list holds the connection, and where.
+    enum class Phase { none, waiting, active } phase = Phase::none;
+    std::list<std::shared_ptr<Connection>>::iterator slot;
+    // Guarded by call_mu: the gRPC call in progress, which stop() cancels.
+    std::mutex call_mu;
+    grpc::ClientContext* call = nullptr;
+  };
+  using ConnectionPtr = std::shared_ptr<Connection>;
+  using Phase = Connection::Phase;
+
+  // A worker thread; joined by the next start_worker (or stop) once it marked itself done.
+  struct Worker {
     std::thread thread;
     std::atomic<bool> done{false};
-    std::mutex mu;                           // guards call
-    grpc::ClientContext* call = nullptr;     // the call in progress, for cancellation
-    explicit Connection(tcp::socket s) : socket(std::move(s)) {}
   };
 
+  // What becomes of a connection after its worker answered a request.
+  enum class After { keep_alive, close, linger };
+
   GatewayOptions options;
-  std::filesystem::path web_root;
-  std::shared_ptr<grpc::Channel> backend;
+  std::filesystem::path web_root;  // canonical; empty = API only
   grpc::GenericStub stub;
   asio::io_context ioc;
-  tcp::acceptor acceptor{ioc};
-  std::thread io_thread;
+  // Keeps ioc.run() going while no connection is pending: a worker may start an operation
+  // at any time until stop() has joined it.
+  asio::executor_work_guard<asio::io_context::executor_type> work{ioc.get_executor()};
+  tcp::acceptor acceptor{asio::make_strand(ioc)};
+  asio::steady_timer accept_pause{acceptor.get_executor()};
+  milliseconds accept_delay{0};      // acceptor strand only
+  std::size_t accept_failures = 0;   // acceptor strand only (for log throttling)
+  std::vector<std::thread> io_threads;
   std::atomic<bool> stopping{false};
-  std::mutex mu;
-  std::list<std::shared_ptr<Connection>> connections;
+  std::mutex mu;                     // guards the lists below and Connection::phase
+  std::list<ConnectionPtr> waiting;  // waiting for a request header, oldest first
+  std::list<ConnectionPtr> active;   // a worker is answering their request
+  std::list<std::unique_ptr<Worker>> workers;
+  // Every connection, in any phase (also lingering or answering 503), so that stop() can
+  // close them all; expired entries are pruned as it grows.
+  std::list<std::weak_ptr<Connection>> all;
+  std::size_t prune_at = 64;
   int bound_port = 0;
 
   Impl(const GatewayOptions& opts, std::shared_ptr<grpc::Channel> channel)
-      : options(opts), backend(channel), stub(channel) {
+      : options(opts), stub(std::move(channel)) {
     if (!options.web_root.empty()) {
       std::error_code ec;
       web_root = std::filesystem::canonical(options.web_root, ec);
@@ -304,117 +430,398 @@ struct HttpGateway::Impl {
     acceptor.bind(endpoint);
     acceptor.listen(asio::socket_base::max_listen_connections);
     bound_port = acceptor.local_endpoint().port();
-    do_accept();
-    io_thread = std::thread([this] { ioc.run(); });
+    asio::dispatch(acceptor.get_executor(), [this] { do_accept(); });
+    for (int i = 0; i < std::max(1, options.threads); ++i) {
+      io_threads.emplace_back([this] { run_io(); });
+    }
   }
 
-  void do_accept() {
-    acceptor.async_accept([this](beast::error_code ec, tcp::socket socket) {
-      if (ec || stopping) return;
-      reap();
-      std::lock_guard lock(mu);
-      if (connections.size() >= kMaxConnections) {
-        spdlog::warn("hdeform-gateway: connection limit ({}) reached", kMaxConnections);
-        beast::error_code ignored;
-        socket.close(ignored);
-      } else {
-        beast::error_code ignored;
-        socket.set_option(tcp::no_delay(true), ignored);  // frames are small; send them now
-        auto conn = std::make_shared<Connection>(std::move(socket));
-        connections.push_back(conn);
-        conn->thread = std::thread([this, conn] {
-          try {
-            serve(*conn);
-          } catch (const std::exception& e) {
-            spdlog::debug("hdeform-gateway: connection ended: {}", e.what());
-          }
-          beast::error_code ignored;
-          conn->socket.shutdown(tcp::socket::shutdown_both, ignored);
-          conn->done = true;
-        });
+  // An exception escaping a handler must not end an I/O thread (nor the process).
+  void run_io() {
+    for (;;) {
+      try {
+        ioc.run();
+        return;
+      } catch (const std::exception& e) {
+        spdlog::error("hdeform-gateway: I/O handler failed: {}", e.what());
       }
+    }
+  }
+
+  // ---- accepting (acceptor strand) -----------------------------------------------------------
+
+  void do_accept() {
+    acceptor.async_accept(asio::make_strand(ioc), [this](beast::error_code ec, tcp::socket socket) {
+      if (stopping || ec == asio::error::operation_aborted) return;
+      if (ec) {
+        accept_failed(ec);
+        return;
+      }
+      accept_delay = milliseconds(0);
+      accept_failures = 0;
+      beast::error_code ignored;
+      socket.set_option(tcp::no_delay(true), ignored);  // frames are small; send them now
+      auto c = std::make_shared<Connection>(std::move(socket));
+      remember(c);
+      asio::dispatch(c->stream.get_executor(), [this, c] { await_request(c); });
       do_accept();
     });
   }
 
-  // Joins the threads of finished connections.
-  void reap() {
-    std::list<std::shared_ptr<Connection>> finished;
-    {
-      std::lock_guard lock(mu);
-      for (auto it = connections.begin(); it != connections.end();) {
-        if ((*it)->done) {
-          finished.push_back(*it);
-          it = connections.erase(it);
-        } else {
-          ++it;
-        }
-      }
+  // accept() failed. A peer that gave up during the handshake concerns that peer only: go on.
+  // Otherwise (out of descriptors, memory, …) the listener stays readable and retrying at once
+  // would spin: pause, doubling up to a second. Out of descriptors, also close the oldest
+  // waiting connection, so idle clients cannot hold every descriptor. Never stop accepting.
+  void accept_failed(const beast::error_code& ec) {
+    if (ec == asio::error::connection_aborted || ec == asio::error::connection_reset) {
+      do_accept();
+      return;
     }
-    for (auto& c : finished) {
-      if (c->thread.joinable()) c->thread.join();
+    if (ec == boost::system::errc::too_many_files_open ||
+        ec == boost::system::errc::too_many_files_open_in_system) {
+      evict_oldest_waiting();
     }
-  }
-
-  void stop() {
-    if (stopping.exchange(true)) return;
-    asio::post(ioc, [this] {
-      beast::error_code ignored;
-      acceptor.close(ignored);
+    accept_delay = std::clamp(accept_delay * 2, kMinAcceptPause, kMaxAcceptPause);
+    if (accept_failures++ % 100 == 0) {
+      spdlog::warn("hdeform-gateway: accept failed ({}); retrying in {} ms", ec.message(),
+                   accept_delay.count());
+    }
+    accept_pause.expires_after(accept_delay);
+    accept_pause.async_wait([this](beast::error_code wait_ec) {
+      if (!wait_ec && !stopping) do_accept();
     });
-    // Cancel the calls in progress; their handlers end each response with an UNAVAILABLE
-    // trailers frame, so browsers see a clean "shutting down" rather than a cut stream.
-    auto calls_in_progress = [this](bool cancel) {
-      std::size_t busy = 0;
-      std::lock_guard lock(mu);
-      for (auto& c : connections) {
-        std::lock_guard call_lock(c->mu);
-        if (c->call) {
-          ++busy;
-          if (cancel) c->call->TryCancel();
-        }
-      }
-      return busy;
-    };
-    calls_in_progress(true);
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(1);
-    while (calls_in_progress(false) > 0 && std::chrono::steady_clock::now() < deadline) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    {
-      std::lock_guard lock(mu);
-      for (auto& c : connections) {
-        beast::error_code ignored;
-        c->socket.shutdown(tcp::socket::shutdown_both, ignored);
-      }
-    }
-    if (io_thread.joinable()) io_thread.join();
-    std::list<std::shared_ptr<Connection>> all;
-    {
-      std::lock_guard lock(mu);
-      all.swap(connections);
-    }
-    for (auto& c : all) {
-      if (c->thread.joinable()) c->thread.join();
+  }
+
+  // ---- bookkeeping (any thread) --------------------------------------------------------------
+
+  void remember(const ConnectionPtr& c) {
+    std::lock_guard lock(mu);
+    all.push_back(c);
+    if (all.size() >= prune_at) {
+      all.remove_if([](const auto& weak) { return weak.expired(); });
+      prune_at = std::max<std::size_t>(64, 2 * all.size());
     }
   }
 
-  // ---- one connection -------------------------------------------------------------------
+  // Registers a connection as waiting for a request; false when stopping. Closes the oldest
+  // waiting connection when the cap is reached.
+  bool enter_waiting(const ConnectionPtr& c) {
+    std::lock_guard lock(mu);
+    if (stopping) return false;
+    if (waiting.size() >= std::max<std::size_t>(1, options.max_idle_connections)) evict_locked();
+    c->slot = waiting.insert(waiting.end(), c);
+    c->phase = Phase::waiting;
+    return true;
+  }
 
+  // Registers a request in progress; false when stopping or at the cap.
+  bool enter_active(const ConnectionPtr& c) {
+    std::lock_guard lock(mu);
+    if (stopping || active.size() >= options.max_connections) return false;
+    c->slot = active.insert(active.end(), c);
+    c->phase = Phase::active;
+    return true;
+  }
+
+  // Unregisters; returns the phase it was in (none: evicted meanwhile).
+  Phase leave(Connection& c) {
+    std::lock_guard lock(mu);
+    const Phase was = c.phase;
+    if (was == Phase::waiting) waiting.erase(c.slot);
+    if (was == Phase::active) active.erase(c.slot);
+    c.phase = Phase::none;
+    return was;
+  }
+
+  void evict_oldest_waiting() {
+    std::lock_guard lock(mu);
+    evict_locked();
+  }
+
+  void evict_locked() {
+    if (waiting.empty()) return;
+    ConnectionPtr victim = std::move(waiting.front());
+    waiting.pop_front();
+    victim->phase = Phase::none;
+    asio::post(victim->stream.get_executor(), [victim] { close(*victim); });
+  }
+
+  static void close(Connection& c) { c.stream.close(); }  // also cancels its operations
+
+  // ---- waiting for a request (I/O threads, on the connection's strand) -----------------------
+
+  void await_request(const ConnectionPtr& c) {
+    if (!enter_waiting(c)) {
+      close(*c);
+      return;
+    }
+    if (!c->served || c->buffer.size() > 0) {  // a new connection, or a pipelined request
+      read_header(c);
+      return;
+    }
+    // Keep-alive: the next request may take idle_timeout to begin; from its first byte on,
+    // its header has header_timeout to arrive whole.
+    c->stream.expires_after(options.idle_timeout);
+    c->stream.async_read_some(c->buffer.prepare(kFirstRead),
+                              [this, c](beast::error_code ec, std::size_t n) {
+                                c->buffer.commit(n);
+                                if (ec) {
+                                  leave(*c);
+                                  close(*c);
+                                  return;
+                                }
+                                read_header(c);
+                              });
+  }
+
+  void read_header(const ConnectionPtr& c) {
+    c->header.emplace();
+    c->header->header_limit(kMaxHeaderBytes);
+    c->header->body_limit(options.max_body_bytes);  // a larger Content-Length fails: 413
+    c->stream.expires_after(options.header_timeout);
+    http::async_read_header(c->stream, c->buffer, *c->header,
+                            [this, c](beast::error_code ec, std::size_t) { on_header(c, ec); });
+  }
+
+  void on_header(const ConnectionPtr& c, beast::error_code ec) {
+    if (leave(*c) != Phase::waiting || stopping) {  // evicted, or shutting down
+      close(*c);
+      return;
+    }
+    const unsigned version = c->header->get().version() ? c->header->get().version() : 11;
+    if (ec == http::error::body_limit) {
+      reply_and_close(c, http::status::payload_too_large, too_large_text(options.max_body_bytes),
+                      version);
+      return;
+    }
+    if (ec) {
+      // Timeouts, resets, a peer that closed: just drop. A malformed request gets a 400.
+      const bool malformed = ec.category() == http::make_error_code(http::error::bad_target).category() &&
+                             ec != http::error::end_of_stream && ec != http::error::partial_message;
+      if (malformed) {
+        reply_and_close(c, http::status::bad_request, "bad request: " + ec.message() + "\n", 11);
+      } else {
+        close(*c);
+      }
+      return;
+    }
+    if (!enter_active(c)) {
+      reply_and_close(c, http::status::service_unavailable,
+                      "hdeform-gateway is busy: " + std::to_string(options.max_connections) +
+                          " requests in progress; try again shortly\n",
+                      version);
+      return;
+    }
+    start_worker(c);
+  }
+
+  // An early answer from the strand (the request was not handed to a worker).
+  void reply_and_close(const ConnectionPtr& c, http::status status, std::string text,
+                       unsigned version) {
+    auto res = std::make_shared<http::response<http::string_body>>(
+        text_response(status, std::move(text), version, false));
+    if (status == http::status::service_unavailable) res->set(http::field::retry_after, "1");
+    c->stream.expires_after(options.stall_timeout);
+    http::async_write(c->stream, *res, [this, c, res](beast::error_code ec, std::size_t) {
+      if (ec) {
+        close(*c);
+      } else {
+        linger(c);
+      }
+    });
+  }
+
+  // After an early answer the client may still be sending a body. Closing with unread data
+  // makes the kernel reset the connection, which can destroy the answer before the client
+  // reads it; so half-close and drain for a bounded time and size first (as nginx's
+  // lingering close does).
+  void linger(const ConnectionPtr& c) {
+    beast::error_code ignored;
+    c->stream.socket().shutdown(tcp::socket::shutdown_send, ignored);
+    c->stream.expires_after(kLingerTime);
+    drain(c, 0);
+  }
+
+  void drain(const ConnectionPtr& c, std::size_t drained) {
+    c->buffer.clear();
+    c->stream.async_read_some(c->buffer.prepare(kDrainChunk),
+                              [this, c, drained](beast::error_code ec, std::size_t n) {
+                                if (ec || drained + n >= kLingerBytes) {
+                                  close(*c);
+                                } else {
+                                  drain(c, drained + n);
+                                }
+                              });
+  }
+
+  // ---- workers -------------------------------------------------------------------------------
+
+  void start_worker(const ConnectionPtr& c) {
+    join_finished_workers();
+    try {
+      std::lock_guard lock(mu);
+      auto& worker = workers.emplace_back(std::make_unique<Worker>());
+      worker->thread = std::thread([this, c, w = worker.get()] {
+        serve(c);
+        w->done = true;
+      });
+    } catch (const std::exception& e) {  // no thread to be had
+      {
+        std::lock_guard lock(mu);
+        if (!workers.empty() && !workers.back()->thread.joinable()) workers.pop_back();
+      }
+      leave(*c);
+      spdlog::warn("hdeform-gateway: cannot start a worker: {}", e.what());
+      reply_and_close(c, http::status::service_unavailable,
+                      "hdeform-gateway cannot take more requests now; try again shortly\n", 11);
+    }
+  }
+
+  void join_finished_workers() {
+    std::list<std::unique_ptr<Worker>> finished;
+    {
+      std::lock_guard lock(mu);
+      for (auto it = workers.begin(); it != workers.end();) {
+        const auto next = std::next(it);
+        if ((*it)->done) finished.splice(finished.end(), workers, it);
+        it = next;
+      }
+    }
+    for (auto& w : finished) w->thread.join();
+  }
+
+  // A worker: answers the one request whose header arrived, then hands the connection back.
+  void serve(const ConnectionPtr& c) {
+    After after = After::close;
+    try {
+      after = handle(*c);
+    } catch (const std::exception& e) {
+      spdlog::debug("hdeform-gateway: connection ended: {}", e.what());
+    }
+    leave(*c);
+    if (after == After::keep_alive && !stopping) {
+      c->served = true;
+      asio::post(c->stream.get_executor(), [this, c] { await_request(c); });
+    } else if (after == After::linger && !stopping) {
+      asio::post(c->stream.get_executor(), [this, c] { linger(c); });
+    } else {
+      asio::post(c->stream.get_executor(), [c] { close(*c); });
+    }
+  }
+
+  // Runs one asynchronous operation on the connection's strand with a fresh deadline and
+  // waits for it. Worker threads only: an I/O thread waiting here could deadlock.
+  template <class Start>
+  beast::error_code await_op(Connection& c, milliseconds timeout, Start&& start) {
+    std::promise<beast::error_code> result;
+    auto done = result.get_future();
+    asio::dispatch(c.stream.get_executor(), [&] {
+      c.stream.expires_after(timeout);
+      start([&result](beast::error_code ec, std::size_t) { result.set_value(ec); });
+    });
+    return done.get();
+  }
+
+  // Writes a whole response, each piece within stall_timeout (a large file to a slow but
+  // reading client is fine; a client that stops reading is dropped).
   template <class Body>
-  void send(Connection& conn, http::response<Body>& res) {
-    res.prepare_payload();
-    http::write(conn.socket, res);
+  bool write_message(Connection& c, http::response<Body>& res) {
+    http::response_serializer<Body> serializer{res};
+    while (!serializer.is_done()) {
+      const auto ec = await_op(c, options.stall_timeout, [&](auto done) {
+        http::async_write_some(c.stream, serializer, std::move(done));
+      });
+      if (ec) return false;
+    }
+    return true;
   }
 
-  void send_text(Connection& conn, http::status status, std::string text, unsigned version,
+  bool send_text(Connection& c, http::status status, std::string text, unsigned version,
                  bool keep_alive) {
-    http::response<http::string_body> res{status, version};
-    res.set(http::field::content_type, "text/plain; charset=utf-8");
-    res.set(http::field::cache_control, "no-store");
-    res.keep_alive(keep_alive);
-    res.body() = std::move(text);
-    send(conn, res);
+    auto res = text_response(status, std::move(text), version, keep_alive);
+    return write_message(c, res);
+  }
+
+  // Answers and closes before the request body was read (it may still be arriving).
+  After refuse(Connection& c, http::status status, std::string text, unsigned version) {
+    send_text(c, status, std::move(text), version, false);
+    return After::linger;
+  }
+
+  // Reads the rest of a request body; each read may wait stall_timeout for bytes.
+  template <class Parser>
+  beast::error_code read_body(Connection& c, Parser& parser) {
+    while (!parser.is_done()) {
+      const auto ec = await_op(c, options.stall_timeout, [&](auto done) {
+        http::async_read_some(c.stream, c.buffer, parser, std::move(done));
+      });
+      if (ec) return ec;
+    }
+    return {};
+  }
+
+  template <class Buffers>
+  bool write_chunk(Connection& c, const Buffers& buffers) {
+    return !await_op(c, options.stall_timeout, [&](auto done) {
+      asio::async_write(c.stream, http::make_chunk(buffers), std::move(done));
+    });
+  }
+
+  bool write_last_chunk(Connection& c) {
+    return !await_op(c, options.stall_timeout, [&](auto done) {
+      asio::async_write(c.stream, http::make_chunk_last(), std::move(done));
+    });
+  }
+
+  // ---- one request (worker thread) -----------------------------------------------------------
+
+  After handle(Connection& c) {
+    const auto& req = c.header->get();
+    const auto method = req.method();
+    const unsigned version = req.version();
+    const bool keep_alive = req.keep_alive();
+    const std::string target(req.target());
+    const auto qmark = target.find('?');
+    const std::string path = url_decode(std::string_view(target).substr(0, qmark));
+    const std::string query = qmark == std::string::npos ? "" : target.substr(qmark + 1);
+
+    if (method == http::verb::post) {
+      if (auto why = cross_site_refusal(req); !why.empty()) {
+        spdlog::debug("hdeform-gateway: {}", why);
+        return refuse(c, http::status::forbidden, std::move(why), version);
+      }
+    }
+    if (path.starts_with(kServicePrefix)) {
+      if (method != http::verb::post) {
+        return refuse(c, http::status::method_not_allowed, "gRPC-Web calls must be POST\n", version);
+      }
+      return grpc_web_call(c, path);
+    }
+    if (path == "/upload") {
+      if (method != http::verb::post) {
+        return refuse(c, http::status::method_not_allowed, "POST the mesh file to /upload\n", version);
+      }
+      if (!has_upload_header(req)) {
+        return refuse(c, http::status::forbidden,
+                      "upload refused: send the header X-Hdeform-Upload: 1 (or X-Session-Id) with "
+                      "POST /upload; a page on another site cannot add it\n",
+                      version);
+      }
+      return upload(c, query);
+    }
+    if (method == http::verb::get || method == http::verb::head) {
+      http::request_parser<http::string_body> parser(std::move(*c.header));  // `req` ends here
+      if (read_body(c, parser)) return After::close;  // GETs have no body; consume it anyway
+      if (!static_file(c, path, method == http::verb::head, version, keep_alive)) return After::close;
+      return keep_alive ? After::keep_alive : After::close;
+    }
+    return refuse(c, http::status::method_not_allowed, "method not allowed\n", version);
+  }
+
+  void set_call(Connection& c, grpc::ClientContext* ctx) {
+    std::lock_guard lock(c.call_mu);
+    c.call = ctx;
+    if (ctx && stopping) ctx->TryCancel();
   }
 
   // Clears the connection's registered call (set by set_call) when the call's scope ends.
@@ -424,127 +831,27 @@ struct HttpGateway::Impl {
     ~CallRegistration() { self->set_call(conn, nullptr); }
   };
 
-  // After an early answer (413) the client may still be sending the body. Closing with
-  // unread data makes the kernel reset the connection, which can destroy the answer before
-  // the client reads it; so half-close and drain for a bounded time first (as nginx's
-  // lingering close does).
-  static void linger_close(Connection& conn) {
-    beast::error_code ec;
-    conn.socket.shutdown(tcp::socket::shutdown_send, ec);
-    timeval tv{0, 200 * 1000};
-    ::setsockopt(conn.socket.native_handle(), SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
-    std::array<char, 64 * 1024> sink;
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(2);
-    std::size_t drained = 0;
-    while (drained < (256u << 20) && std::chrono::steady_clock::now() < deadline) {
-      const std::size_t n = conn.socket.read_some(asio::buffer(sink), ec);
-      if (ec) break;
-      drained += n;
+  // Forwards one gRPC-Web call.
+  After grpc_web_call(Connection& c, const std::string& path) {
+    http::request_parser<http::string_body> parser(std::move(*c.header));
+    parser.body_limit(options.max_body_bytes);
+    if (const auto ec = read_body(c, parser)) {
+      if (ec != http::error::body_limit) return After::close;
+      return refuse(c, http::status::payload_too_large, too_large_text(options.max_body_bytes),
+                    parser.get().version());
     }
-  }
-
-  void too_large(Connection& conn, const std::string& text, unsigned version) {
-    send_text(conn, http::status::payload_too_large, text, version, false);
-    linger_close(conn);
-  }
-
-  void serve(Connection& conn) {
-    beast::flat_buffer buffer;
-    for (;;) {
-      http::request_parser<http::empty_body> header_parser;
-      header_parser.header_limit(kMaxHeaderBytes);
-      header_parser.body_limit(options.max_body_bytes);
-      beast::error_code ec;
-      http::read_header(conn.socket, buffer, header_parser, ec);
-      if (ec == http::error::end_of_stream || ec == asio::error::eof || stopping) return;
-      if (ec == http::error::body_limit) {  // Content-Length above the limit
-        too_large(conn,
-                  "request body too large: the limit is " +
-                      std::to_string(options.max_body_bytes) + " bytes\n",
-                  header_parser.get().version());
-        return;
-      }
-      if (ec) {
-        if (ec != asio::error::connection_reset && ec != asio::error::operation_aborted &&
-            ec != asio::error::bad_descriptor) {
-          send_text(conn, http::status::bad_request, "bad request: " + ec.message() + "\n", 11,
-                    false);
-        }
-        return;
-      }
-      const auto& req = header_parser.get();
-      const unsigned version = req.version();
-      const std::string target(req.target());
-      const auto qmark = target.find('?');
-      const std::string path = url_decode(target.substr(0, qmark));
-      const std::string query = qmark == std::string::npos ? "" : target.substr(qmark + 1);
-
-      if (const auto length = header_parser.content_length();
-          length && *length > options.max_body_bytes) {
-        too_large(conn,
-                  "request body too large: " + std::to_string(*length) + " bytes; the limit is " +
-                      std::to_string(options.max_body_bytes) + " bytes\n",
-                  version);
-        return;  // the body is unread: close the connection
-      }
-
-      bool keep_alive = req.keep_alive();
-      if (path.starts_with(kServicePrefix)) {
-        if (req.method() != http::verb::post) {
-          send_text(conn, http::status::method_not_allowed, "gRPC-Web calls must be POST\n",
-                    version, false);
-          return;
-        }
-        http::request_parser<http::string_body> parser(std::move(header_parser));
-        parser.body_limit(options.max_body_bytes);
-        http::read(conn.socket, buffer, parser, ec);
-        if (ec == http::error::body_limit) {
-          too_large(conn,
-                    "request body too large: the limit is " +
-                        std::to_string(options.max_body_bytes) + " bytes\n",
-                    version);
-          return;
-        }
-        if (ec) return;
-        if (!grpc_web_call(conn, parser.get(), path)) return;
-      } else if (path == "/upload") {
-        if (req.method() != http::verb::post) {
-          send_text(conn, http::status::method_not_allowed, "POST the mesh file to /upload\n",
-                    version, false);
-          return;
-        }
-        if (!upload(conn, buffer, std::move(header_parser), query)) return;
-      } else if (req.method() == http::verb::get || req.method() == http::verb::head) {
-        http::request_parser<http::string_body> parser(std::move(header_parser));
-        http::read(conn.socket, buffer, parser, ec);  // GETs have no body; consume it anyway
-        if (ec) return;
-        static_file(conn, path, req.method() == http::verb::head, version, keep_alive);
-      } else {
-        send_text(conn, http::status::method_not_allowed, "method not allowed\n", version, false);
-        return;
-      }
-      if (!keep_alive || stopping) return;
-    }
-  }
-
-  void set_call(Connection& conn, grpc::ClientContext* ctx) {
-    std::lock_guard lock(conn.mu);
-    conn.call = ctx;
-    if (ctx && stopping) ctx->TryCancel();
-  }
-
-  // Forwards one gRPC-Web call; returns false when the connection must close.
-  bool grpc_web_call(Connection& conn, const http::request<http::string_body>& req,
-                     const std::string& path) {
-    const auto content_type = req[http::field::content_type];
+    const auto& req = parser.get();
     const unsigned version = req.version();
+    const After next = req.keep_alive() ? After::keep_alive : After::close;
+    const auto content_type = req[http::field::content_type];
     if (!content_type.starts_with("application/grpc-web") ||
         content_type.starts_with("application/grpc-web-text")) {
-      send_text(conn, http::status::unsupported_media_type,
-                "expected Content-Type application/grpc-web or application/grpc-web+proto "
-                "(binary; grpc-web-text is not supported)\n",
-                version, req.keep_alive());
-      return req.keep_alive();
+      const bool sent = send_text(c, http::status::unsupported_media_type,
+                                  "expected Content-Type application/grpc-web or "
+                                  "application/grpc-web+proto (binary; grpc-web-text is not "
+                                  "supported)\n",
+                                  version, req.keep_alive());
+      return sent ? next : After::close;
     }
 
     http::response<http::empty_body> res{http::status::ok, version};
@@ -553,35 +860,35 @@ struct HttpGateway::Impl {
     res.keep_alive(req.keep_alive());
     res.chunked(true);
     http::response_serializer<http::empty_body> serializer{res};
-    beast::error_code ec;
+    auto write_header = [&] {
+      return !await_op(c, options.stall_timeout, [&](auto done) {
+        http::async_write_header(c.stream, serializer, std::move(done));
+      });
+    };
 
     const auto body = grpc_web::parse_frames(req.body());
     if (!body.error.empty()) {
-      http::write_header(conn.socket, serializer, ec);
-      if (ec) return false;
       const auto trailers = grpc_web::trailers_frame(
           grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "gateway: " + body.error));
-      asio::write(conn.socket, http::make_chunk(asio::buffer(trailers)), ec);
-      asio::write(conn.socket, http::make_chunk_last(), ec);
-      return !ec && req.keep_alive();
+      const bool sent = write_header() && write_chunk(c, asio::buffer(trailers)) && write_last_chunk(c);
+      return sent ? next : After::close;
     }
 
-    GenericCall call(stub, path, conn.socket.native_handle());
+    GenericCall call(stub, path, c.stream.socket().native_handle());
     const auto timeout_header = req["grpc-timeout"];
     if (const auto timeout = grpc_web::parse_timeout(
             std::string_view(timeout_header.data(), timeout_header.size()))) {
       call.context().set_deadline(std::chrono::system_clock::now() + *timeout);
     }
-    set_call(conn, &call.context());
-    const CallRegistration unset{this, conn};
+    set_call(c, &call.context());
+    const CallRegistration unset{this, c};
 
     const auto started = std::chrono::steady_clock::now();
     bool ok = call.start();
     for (std::size_t i = 0; ok && i < body.messages.size(); ++i) ok = call.write(body.messages[i]);
     if (ok) call.writes_done();
 
-    http::write_header(conn.socket, serializer, ec);
-    bool http_ok = !ec;
+    bool http_ok = write_header();
     grpc::ByteBuffer message;
     std::size_t count = 0;
     while (call.read(&message)) {
@@ -594,9 +901,8 @@ struct HttpGateway::Impl {
       buffers.reserve(slices.size() + 1);
       buffers.emplace_back(prefix.data(), prefix.size());
       for (const auto& s : slices) buffers.emplace_back(s.begin(), s.size());
-      asio::write(conn.socket, http::make_chunk(buffers), ec);
       ++count;
-      if (ec) {
+      if (!write_chunk(c, buffers)) {
         http_ok = false;
         call.cancel();
       }
@@ -610,34 +916,31 @@ struct HttpGateway::Impl {
                   std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() -
                                                             started)
                       .count());
-    if (!http_ok) return false;
+    if (!http_ok) return After::close;
     const auto trailers = grpc_web::trailers_frame(status);
-    asio::write(conn.socket, http::make_chunk(asio::buffer(trailers)), ec);
-    if (ec) return false;
-    asio::write(conn.socket, http::make_chunk_last(), ec);
-    return !ec && req.keep_alive();
+    const bool sent = write_chunk(c, asio::buffer(trailers)) && write_last_chunk(c);
+    return sent ? next : After::close;
   }
 
   // POST /upload: the request body, streamed, becomes a client-streaming CreateSession.
-  bool upload(Connection& conn, beast::flat_buffer& buffer,
-              http::request_parser<http::empty_body>&& header_parser, const std::string& query) {
-    const unsigned version = header_parser.get().version();
-    const bool keep_alive = header_parser.get().keep_alive();
+  After upload(Connection& c, const std::string& query) {
+    const auto& head = c.header->get();
+    const unsigned version = head.version();
+    const bool keep_alive = head.keep_alive();
     const std::string filename = query_param(query, "filename");
     const std::string library = query_param(query, "library");
     if (filename.empty() == library.empty()) {
-      send_text(conn, http::status::bad_request,
-                "upload: give exactly one of ?filename=NAME (with the file as the body) or "
-                "?library=NAME\n",
-                version, false);
-      return false;
+      return refuse(c, http::status::bad_request,
+                    "upload: give exactly one of ?filename=NAME (with the file as the body) or "
+                    "?library=NAME\n",
+                    version);
     }
 
     hdeform::v1::CreateSessionRequest first;
     auto* header = first.mutable_header();
     if (!filename.empty()) {
       header->set_filename(filename);
-      if (const auto length = header_parser.content_length()) {
+      if (const auto length = c.header->content_length()) {
         header->set_total_bytes(static_cast<std::int64_t>(*length));
       }
     } else {
@@ -647,46 +950,44 @@ struct HttpGateway::Impl {
     if (auto id = query_param(query, "session_id"); !id.empty()) header->set_session_id(id);
 
     GenericCall call(stub, std::string(kServicePrefix) + "CreateSession",
-                     conn.socket.native_handle());
-    set_call(conn, &call.context());
-    const CallRegistration unset{this, conn};
+                     c.stream.socket().native_handle());
+    set_call(c, &call.context());
+    const CallRegistration unset{this, c};
 
     bool ok = call.start() && call.write(first.SerializeAsString());
 
-    http::request_parser<http::buffer_body> parser(std::move(header_parser));
+    // The body goes on in kUploadChunk pieces as it arrives; each read may wait stall_timeout.
+    http::request_parser<http::buffer_body> parser(std::move(*c.header));
     parser.body_limit(options.max_body_bytes);
     std::string chunk(kUploadChunk, '\0');
+    std::size_t filled = 0;
     hdeform::v1::CreateSessionRequest part;
     std::string serialized;
-    beast::error_code ec;
-    bool body_ok = true;
-    std::string body_error;
     while (!parser.is_done()) {
-      parser.get().body().data = chunk.data();
-      parser.get().body().size = chunk.size();
-      http::read(conn.socket, buffer, parser, ec);
+      parser.get().body().data = chunk.data() + filled;
+      parser.get().body().size = chunk.size() - filled;
+      auto ec = await_op(c, options.stall_timeout, [&](auto done) {
+        http::async_read_some(c.stream, c.buffer, parser, std::move(done));
+      });
       if (ec == http::error::need_buffer) ec = {};
       if (ec) {
-        body_ok = false;
-        body_error = ec == http::error::body_limit
-                         ? "upload too large: the limit is " +
-                               std::to_string(options.max_body_bytes) + " bytes"
-                         : "upload interrupted: " + ec.message();
-        break;
+        call.cancel();
+        call.finish();
+        if (ec != http::error::body_limit) return After::close;  // stalled or gone
+        return refuse(c, http::status::payload_too_large,
+                      "upload too large: the limit is " + std::to_string(options.max_body_bytes) +
+                          " bytes\n",
+                      version);
       }
-      const std::size_t n = chunk.size() - parser.get().body().size;
-      if (n == 0 || !ok) continue;  // after a server-side failure keep reading to report it
-      part.set_chunk(chunk.data(), n);
-      part.SerializeToString(&serialized);
-      ok = call.write(serialized);
-    }
-    if (!body_ok) {
-      call.cancel();
-      call.finish();
-      if (ec == http::error::body_limit) {
-        too_large(conn, body_error + "\n", version);
+      filled = chunk.size() - parser.get().body().size;
+      if (filled < chunk.size() && !parser.is_done()) continue;
+      // After a server-side failure keep reading, to report it once the body is in.
+      if (ok && filled > 0) {
+        part.set_chunk(chunk.data(), filled);
+        part.SerializeToString(&serialized);
+        ok = call.write(serialized);
       }
-      return false;
+      filled = 0;
     }
     if (ok) call.writes_done();
     grpc::ByteBuffer reply;
@@ -698,56 +999,47 @@ struct HttpGateway::Impl {
       }
     }
     const grpc::Status status = call.finish();
-    if (!status.ok()) {
-      http::response<http::string_body> res{
-          static_cast<http::status>(grpc_web::http_status_for(status.error_code())), version};
+    http::response<http::string_body> res{http::status::ok, version};
+    res.set(http::field::cache_control, "no-store");
+    res.keep_alive(keep_alive);
+    if (status.ok()) {
+      res.set(http::field::content_type, "application/x-protobuf");
+      res.set("grpc-status", "0");
+      res.body() = std::move(reply_bytes);
+    } else {
+      res.result(static_cast<http::status>(grpc_web::http_status_for(status.error_code())));
       res.set(http::field::content_type, "text/plain; charset=utf-8");
-      res.set(http::field::cache_control, "no-store");
       res.set("grpc-status", std::to_string(static_cast<int>(status.error_code())));
       res.set("grpc-message", grpc_web::percent_encode(status.error_message()));
-      res.keep_alive(keep_alive);
       res.body() = status.error_message() + "\n";
-      send(conn, res);
-      return keep_alive;
     }
-    http::response<http::string_body> res{http::status::ok, version};
-    res.set(http::field::content_type, "application/x-protobuf");
-    res.set(http::field::cache_control, "no-store");
-    res.set("grpc-status", "0");
-    res.keep_alive(keep_alive);
-    res.body() = std::move(reply_bytes);
-    send(conn, res);
-    return keep_alive;
+    res.prepare_payload();
+    if (!write_message(c, res)) return After::close;
+    return keep_alive ? After::keep_alive : After::close;
   }
 
-  void static_file(Connection& conn, const std::string& path, bool head, unsigned version,
+  // Returns false when the connection must close.
+  bool static_file(Connection& c, const std::string& path, bool head, unsigned version,
                    bool keep_alive) {
-    if (path == "/healthz") {
-      send_text(conn, http::status::ok, "ok\n", version, keep_alive);
-      return;
-    }
+    if (path == "/healthz") return send_text(c, http::status::ok, "ok\n", version, keep_alive);
     if (web_root.empty()) {
-      send_text(conn, http::status::not_found,
-                "not found (this server was started without the web viewer)\n", version,
-                keep_alive);
-      return;
+      return send_text(c, http::status::not_found,
+                       "not found (this server was started without the web viewer)\n", version,
+                       keep_alive);
     }
     const auto found = find_static(web_root, path);
     if (found.status == http::status::bad_request) {
-      send_text(conn, http::status::bad_request, "bad path\n", version, keep_alive);
-      return;
+      return send_text(c, http::status::bad_request, "bad path\n", version, keep_alive);
     }
     http::file_body::value_type body;
     beast::error_code ec;
     if (found.status == http::status::ok) body.open(found.file.c_str(), beast::file_mode::scan, ec);
     if (found.status != http::status::ok || ec) {
-      send_text(conn, http::status::not_found, "not found\n", version, keep_alive);
-      return;
+      return send_text(c, http::status::not_found, "not found\n", version, keep_alive);
     }
-    const auto& file = found.file;
     const auto size = body.size();
     const bool immutable = path.starts_with("/assets/");  // vite's content-hashed files
-    const auto type_sv = mime_type(file.string());
+    const auto type_sv = mime_type(found.file.string());
     const beast::string_view type(type_sv.data(), type_sv.size());
     const auto cache = immutable ? "public, max-age=31536000, immutable" : "no-cache";
     if (head) {
@@ -756,8 +1048,7 @@ struct HttpGateway::Impl {
       res.set(http::field::cache_control, cache);
       res.content_length(size);
       res.keep_alive(keep_alive);
-      http::write(conn.socket, res);
-      return;
+      return write_message(c, res);
     }
     http::response<http::file_body> res{std::piecewise_construct, std::make_tuple(std::move(body)),
                                         std::make_tuple(http::status::ok, version)};
@@ -766,7 +1057,95 @@ struct HttpGateway::Impl {
     res.set("X-Content-Type-Options", "nosniff");
     res.content_length(size);
     res.keep_alive(keep_alive);
-    http::write(conn.socket, res);
+    return write_message(c, res);
+  }
+
+  // ---- stopping ------------------------------------------------------------------------------
+
+  // Runs `fn(connection)` on each listed connection's strand and waits until all have run.
+  template <class Fn>
+  void on_each_strand(const std::list<ConnectionPtr>& list, Fn fn) {
+    std::latch ran(static_cast<std::ptrdiff_t>(list.size()));
+    for (const auto& c : list) {
+      asio::post(c->stream.get_executor(), [c, &fn, &ran] {
+        fn(*c);
+        ran.count_down();
+      });
+    }
+    ran.wait();
+  }
+
+  std::size_t calls_in_progress(bool cancel) {
+    std::size_t busy = 0;
+    std::lock_guard lock(mu);
+    for (auto& c : active) {
+      std::lock_guard call_lock(c->call_mu);
+      if (c->call) {
+        ++busy;
+        if (cancel) c->call->TryCancel();
+      }
+    }
+    return busy;
+  }
+
+  std::list<ConnectionPtr> active_connections() {
+    std::lock_guard lock(mu);
+    return active;
+  }
+
+  void stop() {
+    if (stopping.exchange(true)) return;  // from here no connection enters waiting or active
+    asio::post(acceptor.get_executor(), [this] {
+      beast::error_code ignored;
+      acceptor.close(ignored);
+      accept_pause.cancel();
+    });
+    // Cancel the calls in progress; their handlers end each response with an UNAVAILABLE
+    // trailers frame, so browsers see a clean "shutting down" rather than a cut stream.
+    // Shutting the receiving side makes a worker waiting for a request body give up at once,
+    // while responses can still be written.
+    calls_in_progress(true);
+    on_each_strand(active_connections(), [](Connection& c) {
+      beast::error_code ignored;
+      c.stream.socket().shutdown(tcp::socket::shutdown_receive, ignored);
+    });
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(1);
+    while (calls_in_progress(false) > 0 && std::chrono::steady_clock::now() < deadline) {
+      std::this_thread::sleep_for(milliseconds(10));
+    }
+    // Whatever a worker still waits for on a socket now fails at once.
+    on_each_strand(active_connections(), [](Connection& c) {
+      beast::error_code ignored;
+      c.stream.socket().shutdown(tcp::socket::shutdown_both, ignored);
+    });
+    for (;;) {
+      std::list<std::unique_ptr<Worker>> finished;
+      {
+        std::lock_guard lock(mu);
+        finished.swap(workers);
+      }
+      if (finished.empty()) break;
+      for (auto& w : finished) w->thread.join();
+    }
+    // No worker is left to start an operation: close every connection (waiting, lingering,
+    // answering 503, or handed back by a worker), then stop the I/O threads.
+    std::list<ConnectionPtr> live;
+    {
+      std::lock_guard lock(mu);
+      for (const auto& weak : all) {
+        if (auto c = weak.lock()) live.push_back(std::move(c));
+      }
+      all.clear();
+    }
+    on_each_strand(live, [](Connection& c) { close(c); });
+    live.clear();
+    work.reset();
+    ioc.stop();
+    for (auto& t : io_threads) t.join();
+    io_threads.clear();
+    std::lock_guard lock(mu);
+    waiting.clear();
+    active.clear();
   }
 };
 

@@ -4,6 +4,7 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include <chrono>
 #include <cstddef>
 #include <memory>
 #include <string>
@@ -15,7 +16,21 @@ struct GatewayOptions {
   int port = 8080;                        // 0 = any free port
   std::string web_root;                   // built viewer (web-viewer/dist); empty = API only
   std::size_t max_body_bytes = 256u << 20;
-  int threads = 2;
+  int threads = 2;                        // I/O threads (accepting, reading request headers)
+
+  // Requests in progress, each on its own worker thread (a WatchSession stream holds one for
+  // its whole life). Above it a new request is answered 503.
+  std::size_t max_connections = 256;
+  // Connections waiting for a request header (new or idle keep-alive ones). They cost a
+  // socket and a few KiB but no thread; above the cap the oldest is closed.
+  std::size_t max_idle_connections = 1024;
+  // A new connection must deliver a whole request header within this time (slowloris)...
+  std::chrono::milliseconds header_timeout{10'000};
+  // ... and a keep-alive connection may wait this long between requests before it is closed.
+  std::chrono::milliseconds idle_timeout{60'000};
+  // A request body that sends nothing, or a response the client does not read, for this long
+  // ends the connection. A quiet server stream (no frames to send) is never cut by it.
+  std::chrono::milliseconds stall_timeout{30'000};
 };
 
 class HttpGateway {

@@ -1,7 +1,13 @@
 // The gRPC-Web gateway against a fake Deformation service (no engine): framing of unary,
 // error and streaming calls, /upload → client-streaming CreateSession, the 413 limit, static
-// files, cancellation when the browser goes away, and stop() during a stream.
+// files, cancellation when the browser goes away, and stop() during a stream. Safe to expose
+// (issue 8): no file outside the web root, no cross-site POST, and bounded cost — header,
+// idle and stall timeouts, caps that idle clients cannot exhaust, accept() errors survived.
 #include <gtest/gtest.h>
+#include <fcntl.h>
+#include <poll.h>
+#include <sys/resource.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -12,6 +18,7 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <string>
 #include <vector>
 #include <thread>
@@ -33,6 +40,7 @@ class FakeService final : public Deformation::Service {
  public:
   std::atomic<bool> watch_cancelled{false};
   std::atomic<int> watch_running{0};
+  std::atomic<int> create_calls{0};
 
   grpc::Status ListMeshes(grpc::ServerContext*, const ListMeshesRequest*,
                           ListMeshesResponse* out) override {
@@ -49,6 +57,7 @@ class FakeService final : public Deformation::Service {
   }
   grpc::Status CreateSession(grpc::ServerContext*, grpc::ServerReader<CreateSessionRequest>* in,
                              Session* out) override {
+    ++create_calls;
     CreateSessionRequest msg;
     std::string source, id;
     std::size_t bytes = 0;
@@ -72,12 +81,17 @@ class FakeService final : public Deformation::Service {
   grpc::Status WatchSession(grpc::ServerContext* ctx, const WatchSessionRequest* req,
                             grpc::ServerWriter<SessionEvent>* out) override {
     ++watch_running;
+    // "sessions/slow" is a quiet stream: a frame every 700 ms, longer than the short
+    // timeouts the timeout tests use.
+    const auto gap = req->name() == "sessions/slow" ? 700ms : 20ms;
     for (int i = 0; i < 10000 && !ctx->IsCancelled(); ++i) {
       SessionEvent ev;
       ev.mutable_frame()->set_session(req->name());
       ev.mutable_frame()->set_sequence(i);
       if (!out->Write(ev)) break;
-      std::this_thread::sleep_for(20ms);
+      for (auto slept = 0ms; slept < gap && !ctx->IsCancelled(); slept += 10ms) {
+        std::this_thread::sleep_for(10ms);
+      }
     }
     watch_cancelled = ctx->IsCancelled();
     --watch_running;
@@ -129,10 +143,17 @@ class GatewayTest : public ::testing::Test {
     grpc::ServerBuilder builder;
     builder.RegisterService(&service_);
     server_ = builder.BuildAndStart();
+    restart([](hdeform::gateway::GatewayOptions&) {});
+  }
+
+  // A fresh gateway with the fixture's options changed by `tweak`.
+  void restart(const std::function<void(hdeform::gateway::GatewayOptions&)>& tweak) {
+    gateway_.reset();
     hdeform::gateway::GatewayOptions options;
     options.port = 0;
     options.web_root = root_.string();
     options.max_body_bytes = 1u << 20;
+    tweak(options);
     gateway_ = std::make_unique<hdeform::gateway::HttpGateway>(options, server_->InProcessChannel({}));
   }
   void TearDown() override {
@@ -147,13 +168,17 @@ class GatewayTest : public ::testing::Test {
     return s;
   }
 
+  using Headers = std::vector<std::pair<std::string, std::string>>;
+
   http::response<http::string_body> request(http::verb verb, const std::string& target,
                                             std::string body = {},
-                                            const std::string& content_type = "application/grpc-web+proto") {
+                                            const std::string& content_type = "application/grpc-web+proto",
+                                            const Headers& headers = {}) {
     auto s = connect();
     http::request<http::string_body> req{verb, target, 11};
     req.set(http::field::host, "127.0.0.1");
     if (!content_type.empty()) req.set(http::field::content_type, content_type);
+    for (const auto& [name, value] : headers) req.set(name, value);
     req.body() = std::move(body);
     req.prepare_payload();
     http::write(s, req);
@@ -176,6 +201,36 @@ class GatewayTest : public ::testing::Test {
     return res;
   }
 
+  // Sends `bytes` and returns everything the server sends back within `timeout` or until it
+  // closes the connection (an unanswered request gives "").
+  static std::string exchange_within(tcp::socket& s, const std::string& bytes,
+                                     std::chrono::milliseconds timeout) {
+    beast::error_code ec;
+    asio::write(s, asio::buffer(bytes), ec);
+    std::string out;
+    char buf[4096];
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    for (;;) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+                            deadline - std::chrono::steady_clock::now()).count();
+      if (left <= 0) break;
+      pollfd p{s.native_handle(), POLLIN, 0};
+      if (::poll(&p, 1, static_cast<int>(left)) <= 0) continue;
+      const auto n = ::recv(s.native_handle(), buf, sizeof buf, 0);
+      if (n <= 0) break;
+      out.append(buf, static_cast<std::size_t>(n));
+    }
+    return out;
+  }
+
+  // GET on a fresh connection, answered within `timeout`: the whole raw response, or "".
+  std::string get_within(const std::string& target, std::chrono::milliseconds timeout) {
+    auto s = connect();
+    return exchange_within(
+        s, "GET " + target + " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n",
+        timeout);
+  }
+
   // Starts a streaming WatchSession call and reads the response header; the frames follow
   // through `parser` (read_frames).
   tcp::socket watch(const std::string& session, beast::flat_buffer& buffer,
@@ -185,6 +240,8 @@ class GatewayTest : public ::testing::Test {
     req.set_name(session);
     http::request<http::string_body> r{http::verb::post, "/hdeform.v1.Deformation/WatchSession",
                                        11};
+    r.set(http::field::host, "127.0.0.1:" + std::to_string(gateway_->port()));
+    r.set(http::field::origin, "http://127.0.0.1:" + std::to_string(gateway_->port()));
     r.set(http::field::content_type, "application/grpc-web+proto");
     r.body() = grpc_web_body(req);
     r.prepare_payload();
@@ -254,7 +311,7 @@ TEST_F(GatewayTest, UploadBecomesClientStreamingCreateSession) {
   gateway_ = std::make_unique<hdeform::gateway::HttpGateway>(options, server_->InProcessChannel({}));
 
   auto res = request(http::verb::post, "/upload?filename=my%20mesh.obj&session_id=abc", file,
-                     "application/octet-stream");
+                     "application/octet-stream", {{"X-Session-Id", "abc"}});
   ASSERT_EQ(res.result(), http::status::ok) << res.body();
   EXPECT_EQ(res[http::field::content_type], "application/x-protobuf");
   Session s;
@@ -264,17 +321,19 @@ TEST_F(GatewayTest, UploadBecomesClientStreamingCreateSession) {
   EXPECT_EQ(s.vertex_count(), static_cast<int>(file.size()));  // every byte arrived
   EXPECT_GE(s.triangle_count(), 1 + 4);                         // header + ≥ 4 chunks
 
-  res = request(http::verb::post, "/upload?library=cactus", "", "");
+  res = request(http::verb::post, "/upload?library=cactus", "", "", {{"X-Hdeform-Upload", "1"}});
   ASSERT_EQ(res.result(), http::status::ok);
   ASSERT_TRUE(s.ParseFromString(res.body()));
   EXPECT_EQ(s.mesh_name(), "cactus");
 
-  res = request(http::verb::post, "/upload?filename=broken.bad", "xx", "application/octet-stream");
+  res = request(http::verb::post, "/upload?filename=broken.bad", "xx", "application/octet-stream",
+                {{"X-Hdeform-Upload", "1"}});
   EXPECT_EQ(res.result(), http::status::bad_request);
   EXPECT_EQ(res.body(), "cannot parse broken.bad\n");
   EXPECT_EQ(res["grpc-status"], "3");
 
-  res = request(http::verb::post, "/upload", "xx", "application/octet-stream");
+  res = request(http::verb::post, "/upload", "xx", "application/octet-stream",
+                {{"X-Hdeform-Upload", "1"}});
   EXPECT_EQ(res.result(), http::status::bad_request);
 }
 
@@ -404,6 +463,240 @@ TEST_F(GatewayTest, StopEndsStreamsWithUnavailable) {
   EXPECT_LT(std::chrono::steady_clock::now() - t0, 3s);
   EXPECT_NE(rest.find("grpc-status:14\r\n"), std::string::npos);
   EXPECT_TRUE(parser.is_done());
+}
+
+// Whether the server closes (or resets) `s` within `timeout`; data it sends is discarded.
+bool closed_within(tcp::socket& s, std::chrono::milliseconds timeout) {
+  char buf[4096];
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  for (;;) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+                          deadline - std::chrono::steady_clock::now()).count();
+    if (left <= 0) return false;
+    pollfd p{s.native_handle(), POLLIN, 0};
+    if (::poll(&p, 1, static_cast<int>(left)) <= 0) continue;
+    if (::recv(s.native_handle(), buf, sizeof buf, 0) <= 0) return true;
+  }
+}
+
+// ---- cross-site requests ------------------------------------------------------------------
+
+TEST_F(GatewayTest, CrossSiteUploadIsRefused) {
+  const std::string self = "127.0.0.1:" + std::to_string(gateway_->port());
+  // What a page on another site can make a browser send without a preflight: text/plain.
+  auto res = request(http::verb::post, "/upload?filename=x.obj", "v 0 0 0", "text/plain",
+                     {{"Host", self}, {"Origin", "https://evil.example"}});
+  EXPECT_EQ(res.result(), http::status::forbidden);
+  EXPECT_NE(res.body().find("cross-site request refused"), std::string::npos) << res.body();
+  // A foreign Origin is refused even with the custom header; so are "null" and look-alikes.
+  for (const std::string& origin : std::vector<std::string>{
+           "https://evil.example", "null", "http://" + self + ".evil.example",
+           "http://evil.example/" + self, "http://127.0.0.1:1"}) {
+    res = request(http::verb::post, "/upload?library=cactus", "", "text/plain",
+                  {{"Host", self}, {"Origin", origin}, {"X-Session-Id", "s"}});
+    EXPECT_EQ(res.result(), http::status::forbidden) << origin;
+  }
+  // A browser that sends no Origin cannot add the custom header cross-site: without it, 403.
+  res = request(http::verb::post, "/upload?library=cactus", "", "text/plain");
+  EXPECT_EQ(res.result(), http::status::forbidden);
+  EXPECT_NE(res.body().find("X-Hdeform-Upload"), std::string::npos) << res.body();
+  EXPECT_EQ(service_.create_calls, 0);
+
+  // The viewer: same origin, X-Session-Id on every upload; behind a proxy too.
+  res = request(http::verb::post, "/upload?library=cactus&session_id=v", "", "",
+                {{"Host", self}, {"Origin", "http://" + self}, {"X-Session-Id", "v"}});
+  EXPECT_EQ(res.result(), http::status::ok) << res.body();
+  res = request(http::verb::post, "/upload?library=cactus", "", "",
+                {{"Host", "Hdeform.Example"}, {"Origin", "https://hdeform.example:443"},
+                 {"X-Session-Id", "v"}});
+  EXPECT_EQ(res.result(), http::status::ok) << res.body();
+  res = request(http::verb::post, "/upload?library=cactus", "", "",
+                {{"Host", "backend:8080"}, {"X-Forwarded-Host", "hdeform.example, inner"},
+                 {"Origin", "https://hdeform.example"}, {"X-Hdeform-Upload", "1"}});
+  EXPECT_EQ(res.result(), http::status::ok) << res.body();
+  EXPECT_EQ(service_.create_calls, 3);
+}
+
+TEST_F(GatewayTest, CrossSiteGrpcWebCallIsRefused) {
+  const std::string self = "127.0.0.1:" + std::to_string(gateway_->port());
+  const auto body = grpc_web_body(ListMeshesRequest());
+  auto res = request(http::verb::post, "/hdeform.v1.Deformation/ListMeshes", body,
+                     "application/grpc-web+proto", {{"Host", self}, {"Origin", "https://evil.example"}});
+  EXPECT_EQ(res.result(), http::status::forbidden);
+  res = request(http::verb::post, "/hdeform.v1.Deformation/ListMeshes", body,
+                "application/grpc-web+proto", {{"Host", self}, {"Origin", "http://" + self}});
+  EXPECT_EQ(res.result(), http::status::ok);
+  EXPECT_EQ(frames_of(res.body()).size(), 2u);
+}
+
+// ---- bounded cost: timeouts and caps --------------------------------------------------------
+
+TEST_F(GatewayTest, IdleSocketsDoNotLockOutClients) {
+  std::vector<tcp::socket> idle;
+  for (int i = 0; i < 300; ++i) idle.push_back(connect());
+  auto res = get_within("/healthz", 2s);
+  EXPECT_NE(res.find("200 OK"), std::string::npos) << res;
+  EXPECT_TRUE(res.ends_with("\r\n\r\nok\n")) << res;
+
+  // Above max_idle_connections the oldest waiting connections are closed instead.
+  idle.clear();
+  restart([](auto& o) { o.max_idle_connections = 50; });
+  for (int i = 0; i < 300; ++i) idle.push_back(connect());
+  res = get_within("/healthz", 2s);
+  EXPECT_TRUE(res.ends_with("\r\n\r\nok\n")) << res;
+  EXPECT_TRUE(closed_within(idle.front(), 2s));
+  EXPECT_FALSE(closed_within(idle.back(), 100ms));
+}
+
+TEST_F(GatewayTest, SilentAndSlowClientsAreDroppedAfterTheHeaderTimeout) {
+  restart([](auto& o) { o.header_timeout = 500ms; });
+  auto silent = connect();
+  auto slow = connect();
+  const auto t0 = std::chrono::steady_clock::now();
+  // A slowloris client: one header byte every 100 ms, never done within 500 ms.
+  const std::string header =
+      "GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Padding: aaaaaaaaaaaaaaaaaaaaaaaa\r\n\r\n";
+  bool slow_closed = false;
+  for (std::size_t i = 0; i < header.size() && !slow_closed; ++i) {
+    beast::error_code ec;
+    asio::write(slow, asio::buffer(&header[i], 1), ec);
+    slow_closed = ec || closed_within(slow, 100ms);
+  }
+  const auto slow_lasted = std::chrono::steady_clock::now() - t0;
+  EXPECT_TRUE(slow_closed);
+  EXPECT_GE(slow_lasted, 400ms);
+  EXPECT_LT(slow_lasted, 2s);
+  EXPECT_TRUE(closed_within(silent, 1s));
+}
+
+TEST_F(GatewayTest, IdleKeepAliveConnectionIsClosedAfterTheIdleTimeout) {
+  restart([](auto& o) { o.idle_timeout = 500ms; });
+  auto s = connect();
+  beast::flat_buffer buffer;
+  for (int i = 0; i < 3; ++i) {  // keep-alive still works below the timeout
+    http::request<http::empty_body> req{http::verb::get, "/healthz", 11};
+    req.set(http::field::host, "127.0.0.1");
+    http::write(s, req);
+    http::response<http::string_body> res;
+    http::read(s, buffer, res);
+    EXPECT_EQ(res.body(), "ok\n");
+    std::this_thread::sleep_for(300ms);
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_TRUE(closed_within(s, 2s));
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, 500ms);  // 300 ms of 500 were already idle
+}
+
+TEST_F(GatewayTest, StalledBodyIsDroppedAfterTheStallTimeout) {
+  restart([](auto& o) { o.stall_timeout = 500ms; });
+  for (const std::string target : {"/upload?filename=a.obj", "/hdeform.v1.Deformation/ListMeshes"}) {
+    auto s = connect();
+    const std::string head = "POST " + target +
+                             " HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Hdeform-Upload: 1\r\nContent-Type: "
+                             "application/grpc-web+proto\r\nContent-Length: 1000\r\n\r\n0123456789";
+    asio::write(s, asio::buffer(head));
+    const auto t0 = std::chrono::steady_clock::now();
+    EXPECT_TRUE(closed_within(s, 3s)) << target;
+    EXPECT_GE(std::chrono::steady_clock::now() - t0, 400ms) << target;
+  }
+  // The gateway still serves.
+  EXPECT_TRUE(get_within("/healthz", 2s).ends_with("ok\n"));
+}
+
+TEST_F(GatewayTest, QuietStreamOutlivesTheTimeouts) {
+  restart([](auto& o) {
+    o.header_timeout = 300ms;
+    o.idle_timeout = 300ms;
+    o.stall_timeout = 300ms;
+  });
+  beast::flat_buffer buffer;
+  http::response_parser<http::buffer_body> parser;
+  auto s = watch("sessions/slow", buffer, parser);  // a frame every 700 ms
+  const auto frames = frames_of(read_frames(s, buffer, parser, 3));
+  ASSERT_EQ(frames.size(), 3u);
+  EXPECT_EQ(frames[2].flag, 0x00);
+}
+
+TEST_F(GatewayTest, RequestsAboveTheCapGet503) {
+  restart([](auto& o) { o.max_connections = 1; });
+  {
+    beast::flat_buffer buffer;
+    http::response_parser<http::buffer_body> parser;
+    auto s = watch("sessions/w", buffer, parser);  // holds the only request slot
+    read_frames(s, buffer, parser, 1);
+    const auto res = request(http::verb::get, "/healthz", "", "");
+    EXPECT_EQ(res.result(), http::status::service_unavailable);
+    EXPECT_NE(res.body().find("busy"), std::string::npos) << res.body();
+    EXPECT_EQ(res[http::field::retry_after], "1");
+  }  // the stream's client goes away: its slot frees once the call is cancelled
+  std::string res;
+  for (int i = 0; i < 40 && !res.ends_with("ok\n"); ++i) {
+    std::this_thread::sleep_for(100ms);
+    res = get_within("/healthz", 1s);
+  }
+  EXPECT_TRUE(res.ends_with("ok\n")) << res;
+}
+
+TEST_F(GatewayTest, StopIsPromptWithIdleHalfOpenStalledAndStreamingConnections) {
+  beast::flat_buffer buffer;
+  http::response_parser<http::buffer_body> parser;
+  auto stream = watch("sessions/w", buffer, parser);
+  read_frames(stream, buffer, parser, 1);
+  std::vector<tcp::socket> idle;
+  for (int i = 0; i < 20; ++i) idle.push_back(connect());
+  auto partial = connect();
+  asio::write(partial, asio::buffer(std::string("GET / HTTP/1.1\r\nHo")));
+  auto half_closed = connect();
+  asio::write(half_closed, asio::buffer(std::string("GET / HT")));
+  half_closed.shutdown(tcp::socket::shutdown_send);
+  auto stalled = connect();  // a worker waits for this body
+  asio::write(stalled, asio::buffer(std::string(
+                           "POST /upload?filename=a.obj HTTP/1.1\r\nHost: 127.0.0.1\r\n"
+                           "X-Hdeform-Upload: 1\r\nContent-Length: 100\r\n\r\nv 0")));
+  std::this_thread::sleep_for(200ms);
+
+  const auto t0 = std::chrono::steady_clock::now();
+  gateway_->stop();
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, 3s);
+  EXPECT_TRUE(closed_within(idle.front(), 1s));
+  EXPECT_TRUE(closed_within(partial, 1s));
+  EXPECT_TRUE(closed_within(stalled, 1s));
+  const std::string rest = read_frames(stream, buffer, parser, 1u << 30);
+  EXPECT_NE(rest.find("grpc-status:14\r\n"), std::string::npos);
+}
+
+// accept() failing (here EMFILE: no descriptor left for the new connection) must pause
+// accepting, not end it: once descriptors are free again the waiting client is served.
+TEST_F(GatewayTest, AcceptingSurvivesRunningOutOfDescriptors) {
+  rlimit old{};
+  ASSERT_EQ(::getrlimit(RLIMIT_NOFILE, &old), 0);
+  int highest = 0;
+  for (const auto& e : std::filesystem::directory_iterator("/proc/self/fd")) {
+    highest = std::max(highest, std::stoi(e.path().filename().string()));
+  }
+  struct Restore {  // whatever happens, give the descriptors and the limit back
+    rlimit limit;
+    std::vector<int> fds;
+    ~Restore() {
+      for (const int fd : fds) ::close(fd);
+      ::setrlimit(RLIMIT_NOFILE, &limit);
+    }
+  } restore{old, {}};
+  tcp::socket s(ioc_);  // the client's socket (and its io_context's epoll) exist already
+  s.open(tcp::v4());
+  rlimit low = old;
+  low.rlim_cur = static_cast<rlim_t>(highest + 16);
+  ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &low), 0);
+  for (int fd; (fd = ::open("/dev/null", O_RDONLY)) >= 0;) restore.fds.push_back(fd);
+  ASSERT_FALSE(restore.fds.empty());
+  s.connect({asio::ip::make_address("127.0.0.1"), static_cast<unsigned short>(gateway_->port())});
+  std::this_thread::sleep_for(300ms);  // accept() fails with EMFILE meanwhile, and retries
+  for (const int fd : restore.fds) ::close(fd);
+  restore.fds.clear();
+  ::setrlimit(RLIMIT_NOFILE, &old);
+  const auto res = exchange_within(
+      s, "GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n", 3s);
+  EXPECT_TRUE(res.ends_with("\r\n\r\nok\n")) << res;
 }
 
 }  // namespace
