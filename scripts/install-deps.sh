@@ -12,7 +12,7 @@ packages=(
   libopenmesh-dev libeigen3-dev libsuitesparse-dev libopenblas0-pthread
   libtinygltf-dev libstb-dev
   # service and clients
-  libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
+  libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler libssl-dev
   libspdlog-dev libcli11-dev libboost-dev nlohmann-json3-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev

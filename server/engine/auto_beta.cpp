@@ -9,13 +9,16 @@ namespace {
 double safe_log(double x) { return std::log(std::max(x, 1e-300)); }
 }  // namespace
 
-AutoBetaResult select_beta(ConstraintSet& cs, std::span<const HandleTransform> transforms,
+AutoBetaResult select_beta(const ConstraintSet& cs, std::span<const HandleTransform> transforms,
                            const AutoBetaParams& params) {
   if (params.grid.empty()) throw InvalidInput("automatic beta: empty sample grid");
   AutoBetaResult result;
   const UpdateOptions cheap{.energies = false, .normals = false};
   for (double beta : params.grid) {
-    const Frame f = cs.update(transforms, {beta, params.units}, cheap);
+    if (params.cancelled && params.cancelled())
+      throw Cancelled("automatic beta: cancelled");
+    // Transient: the samples never enter (or leave) the set's shared factorization cache.
+    const Frame f = cs.update_transient(transforms, {beta, params.units}, cheap);
     result.samples.push_back({beta, f.measures, 0.0});
   }
   const Measures& m0 = result.samples.front().measures;
@@ -36,8 +39,6 @@ AutoBetaResult select_beta(ConstraintSet& cs, std::span<const HandleTransform> t
       result.beta.value = s.beta;
       break;
     }
-  for (const AutoBetaSample& s : result.samples)
-    if (s.beta != result.beta.value) cs.drop_factorization({s.beta, params.units});
   return result;
 }
 

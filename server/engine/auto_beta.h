@@ -4,6 +4,7 @@
 
 #include "deformer.h"
 
+#include <functional>
 #include <span>
 #include <vector>
 
@@ -15,6 +16,8 @@ struct AutoBetaParams {
   BetaUnits units = BetaUnits::area;
   double global_weight = 2.0;  // λ
   double tolerance = 0.1;      // τ, in the cost's log units (≈ 10 % of the best artifact level)
+  // Polled before each sample; true → throws Cancelled (a client left, the server stops).
+  std::function<bool()> cancelled;
 };
 
 struct AutoBetaSample {
@@ -34,8 +37,8 @@ struct AutoBetaResult {
 // and the pick is the smallest sampled β with cost(β) ≤ min cost + τ: where β removes
 // spikes the artifact terms fall by orders of magnitude; where it has nothing to remove
 // they stay flat or rise while the global term rises, and β = 0 wins.
-// Factorizations of rejected samples are dropped from the constraint set's cache.
-AutoBetaResult select_beta(ConstraintSet& cs, std::span<const HandleTransform> transforms,
+// Samples are solved with update_transient: the set's shared cache is left as it was.
+AutoBetaResult select_beta(const ConstraintSet& cs, std::span<const HandleTransform> transforms,
                            const AutoBetaParams& params = {});
 
 }  // namespace hdeform

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <numeric>
 #include <string>
@@ -106,6 +107,16 @@ Sparse combine(double a, const Sparse& x, double b, const Sparse& y) {
   return out;
 }
 
+std::string fmt_result_error(int handle, const HandleTransform& t) {
+  char buf[320];
+  std::snprintf(buf, sizeof buf,
+                "handle %d's transform (translation %g %g %g, largest scale entry %g) moves the "
+                "surface out of range: the result is not finite or exceeds %g model units",
+                handle, t.translation.x(), t.translation.y(), t.translation.z(),
+                t.stretch.cwiseAbs().maxCoeff(), kMaxCoordinate);
+  return buf;
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------
@@ -188,8 +199,9 @@ ConstraintSet::ConstraintSet(std::shared_ptr<const PreparedMesh> mesh, Constrain
                            " out of range [0, " + std::to_string(n) + ")");
       if (region_of_[v] == region) continue;  // duplicate within one region: harmless
       if (region_of_[v] != -1) {
-        const std::string other =
-            region_of_[v] == 0 ? "the fixed region" : "handle " + std::to_string(region_of_[v]);
+        const std::string other = region_of_[v] == 0
+                                      ? "the fixed region"
+                                      : "handle " + std::to_string(region_of_[v] - 1);
         throw InvalidInput("constraints: " + what + " overlaps " + other + " at vertex " +
                            std::to_string(v));
       }
@@ -198,7 +210,7 @@ ConstraintSet::ConstraintSet(std::shared_ptr<const PreparedMesh> mesh, Constrain
   };
   if (!constraints_.fixed.empty()) claim(constraints_.fixed, 0, "the fixed region");
   for (int j = 0; j < k; ++j)
-    claim(constraints_.handles[j], j + 1, "handle " + std::to_string(j + 1));
+    claim(constraints_.handles[j], j + 1, "handle " + std::to_string(j));  // 0-based, as the API
   for (int v : mesh_->unreferenced())
     if (region_of_[v] == -1) region_of_[v] = 0;  // pinned at rest, ids stay stable
 
@@ -251,6 +263,13 @@ std::shared_ptr<const BetaSystem> ConstraintSet::system(double raw_beta) const {
     std::lock_guard lock(mutex_);  // another thread may have built it meanwhile
     if (auto it = by_beta_.find(raw_beta); it != by_beta_.end()) return it->second;
   }
+  auto sys = build_system_locked(raw_beta);
+  std::lock_guard lock(mutex_);
+  by_beta_[raw_beta] = sys;
+  return sys;
+}
+
+std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_beta) const {
   const auto nF = static_cast<Eigen::Index>(free_.size());
   const auto nC = static_cast<Eigen::Index>(constrained_.size());
   auto sys = std::make_shared<BetaSystem>();
@@ -270,21 +289,22 @@ std::shared_ptr<const BetaSystem> ConstraintSet::system(double raw_beta) const {
       auto w = std::make_shared<WideBlocks>();
       w->area = split(Lw, Aw, region_of_, block_index_, nF, nC);
       w->reg = split(Rw, Dw, region_of_, block_index_, nF, nC);
+      std::lock_guard lock(mutex_);  // memory_bytes() reads wide_ under mutex_ alone
       wide_ = std::move(w);
     }
     sys->factor = factor_wide(combine(1.0 - raw_beta, wide_->area.FF, raw_beta, wide_->reg.FF));
     sys->K_FC = combine(1.0 - raw_beta, wide_->area.FC, raw_beta, wide_->reg.FC);
     sys->GtW_F = combine(1.0 - raw_beta, wide_->area.GtW_F, raw_beta, wide_->reg.GtW_F);
   }
-  std::lock_guard lock(mutex_);
-  by_beta_[raw_beta] = sys;
   return sys;
 }
 
 std::shared_ptr<const Factorization> ConstraintSet::factor_wide(const SparseMatrix& K_FF) const {
   if (!wide_symbolic_) {
-    wide_symbolic_ = std::make_shared<Factorization>(K_FF);
-    return wide_symbolic_;
+    auto first = std::make_shared<const Factorization>(K_FF);
+    std::lock_guard lock(mutex_);
+    wide_symbolic_ = first;
+    return first;
   }
   return std::make_shared<Factorization>(*wide_symbolic_, K_FF);
 }
@@ -298,16 +318,27 @@ std::shared_ptr<const BetaSystem> ConstraintSet::local_system(const LocalBeta& f
     if (!std::isfinite(field.beta[l]) || field.beta[l] < 0 || field.beta[l] >= 1)
       throw InvalidInput("local beta of triangle " + std::to_string(l) +
                          " must be in [0, 1), got " + std::to_string(field.beta[l]));
-  // FNV-1a over the field's bytes and units: the cache key.
+  // FNV-1a over the field's bytes and units: a bucket key only; hits are verified.
   std::uint64_t key = 1469598103934665603ull ^ static_cast<std::uint64_t>(field.units);
   const auto* bytes = reinterpret_cast<const unsigned char*>(field.beta.data());
   for (std::size_t i = 0; i < static_cast<std::size_t>(field.beta.size()) * sizeof(double); ++i)
     key = (key ^ bytes[i]) * 1099511628211ull;
+  auto find = [&]() -> std::shared_ptr<const BetaSystem> {
+    const auto [lo, hi] = by_field_.equal_range(key);
+    for (auto it = lo; it != hi; ++it)
+      if (it->second.units == field.units && it->second.beta == field.beta)
+        return it->second.system;
+    return nullptr;
+  };
   {
     std::lock_guard lock(mutex_);
-    if (auto it = by_field_.find(key); it != by_field_.end()) return it->second;
+    if (auto hit = find()) return hit;
   }
   std::lock_guard build(build_mutex_);
+  {
+    std::lock_guard lock(mutex_);  // another thread may have built it meanwhile
+    if (auto hit = find()) return hit;
+  }
 
   // Area units: the unit-area problem is the raw one with edge weights β_e / s.
   const double edge_scale = field.units == BetaUnits::area ? std::sqrt(pm.total_area()) : 1.0;
@@ -334,11 +365,19 @@ std::shared_ptr<const BetaSystem> ConstraintSet::local_system(const LocalBeta& f
   sys->K_FC = std::move(b.FC);
   sys->GtW_F = std::move(b.GtW_F);
   std::lock_guard lock(mutex_);
-  by_field_[key] = sys;
+  // Bounded: a client sending ever new fields (a sweep, a slider on a local entry) would
+  // otherwise grow this shared set by one factorization per field.
+  while (by_field_.size() >= kMaxCachedFields) {
+    auto oldest = by_field_.begin();
+    for (auto it = by_field_.begin(); it != by_field_.end(); ++it)
+      if (it->second.serial < oldest->second.serial) oldest = it;
+    by_field_.erase(oldest);
+  }
+  by_field_.emplace(key, FieldSystem{field.beta, field.units, sys, field_serial_++});
   return sys;
 }
 
-void ConstraintSet::prepare(Beta beta) { system(mesh_->raw_beta(beta)); }
+void ConstraintSet::prepare(Beta beta) const { system(mesh_->raw_beta(beta)); }
 
 void ConstraintSet::guidance(std::span<const HandleTransform> transforms, Eigen::MatrixX3d& g,
                              std::vector<Eigen::Quaterniond>& R_l) const {
@@ -356,6 +395,25 @@ Frame ConstraintSet::update(std::span<const HandleTransform> transforms, Beta be
                             const UpdateOptions& options) const {
   check(transforms);
   return solve(*system(mesh_->raw_beta(beta)), transforms, options);
+}
+
+Frame ConstraintSet::update_transient(std::span<const HandleTransform> transforms, Beta beta,
+                                      const UpdateOptions& options) const {
+  check(transforms);
+  const double raw = mesh_->raw_beta(beta);
+  {
+    std::lock_guard lock(mutex_);
+    if (auto it = by_beta_.find(raw); it != by_beta_.end()) {
+      const auto sys = it->second;
+      return solve(*sys, transforms, options);
+    }
+  }
+  std::shared_ptr<const BetaSystem> sys;
+  {
+    std::lock_guard build(build_mutex_);
+    sys = build_system_locked(raw);
+  }
+  return solve(*sys, transforms, options);  // sys is freed on return
 }
 
 Frame ConstraintSet::update_local(std::span<const HandleTransform> transforms,
@@ -393,10 +451,26 @@ Frame ConstraintSet::solve(const BetaSystem& sys, std::span<const HandleTransfor
   for (std::size_t i = 0; i < constrained_.size(); ++i)
     frame.positions.row(constrained_[i]) = x_C.row(i);
 
+  check_result(frame.positions, transforms);
   frame.measures = measure(*mesh_, frame.positions, g, R_l,
                            options.energies ? &frame.energies : nullptr);
   if (options.normals) frame.normals = vertex_normals(frame.positions, mesh_->mesh().F);
   return frame;
+}
+
+void ConstraintSet::check_result(const Vertices& X, std::span<const HandleTransform> transforms) const {
+  const double bound = X.size() > 0 ? X.cwiseAbs().maxCoeff() : 0.0;
+  if (X.allFinite() && bound <= kMaxCoordinate) return;
+  // Name the handle whose transform moves its region farthest: the likely culprit.
+  int worst = 0;
+  double reach = -1;
+  for (int j = 0; j < num_handles(); ++j) {
+    const HandleTransform& t = transforms[static_cast<std::size_t>(j)];
+    const double r = t.translation.cwiseAbs().maxCoeff() + t.stretch.cwiseAbs().maxCoeff();
+    if (!(r <= reach)) worst = j, reach = r;  // NaN counts as the worst
+  }
+  const HandleTransform& t = transforms[static_cast<std::size_t>(worst)];
+  throw InvalidInput(fmt_result_error(worst, t));
 }
 
 std::size_t ConstraintSet::memory_bytes() const {
@@ -404,7 +478,8 @@ std::size_t ConstraintSet::memory_bytes() const {
   std::size_t bytes = sizeof(*this) + static_cast<std::size_t>(basis_.size()) * sizeof(double) +
                       (free_.size() + constrained_.size() + 2 * region_of_.size()) * sizeof(int);
   for (const auto& [b, sys] : by_beta_) bytes += sys->memory_bytes();
-  for (const auto& [key, sys] : by_field_) bytes += sys->memory_bytes();
+  for (const auto& [key, fs] : by_field_)
+    bytes += fs.system->memory_bytes() + static_cast<std::size_t>(fs.beta.size()) * sizeof(double);
   if (wide_)
     bytes += 2 * (sparse_bytes(wide_->area.FF) + sparse_bytes(wide_->area.FC) +
                   sparse_bytes(wide_->area.GtW_F));

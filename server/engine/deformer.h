@@ -100,6 +100,10 @@ struct Frame {
 class Factorization;  // solver.h
 struct BetaSystem;    // deformer.cpp: K_FF factorization, K_FC, (Gᵀ W_β)_F for one β
 
+// Results are checked against this bound (model units): beyond it float32 outputs (frames,
+// GLB) overflow and the measures' squares are no longer finite.
+inline constexpr double kMaxCoordinate = 1e30;
+
 // One constraint set on one mesh: validates it, solves the harmonic basis fields once,
 // and caches the factorization of K_FF per β. Thread-safe: update() may be called
 // concurrently (factorizations are built once under a lock).
@@ -119,16 +123,27 @@ class ConstraintSet {
   const Eigen::MatrixXd& harmonic_basis() const { return basis_; }
 
   // Builds (or finds) the factorization for β so a later update() is only a solve.
-  void prepare(Beta beta);
+  // Logically const: it only fills the factorization cache (thread-safe).
+  void prepare(Beta beta) const;
   // Deformed mesh for one transform per handle. Cost: guidance O(m), one sparse
   // product, one triangular-solve pair (plus a numeric factorization on a new β).
-  // Throws InvalidInput for a wrong transform count or an invalid transform.
+  // Throws InvalidInput for a wrong transform count, an invalid transform, or transforms
+  // whose result leaves the representable range (non-finite or beyond ±kMaxCoordinate:
+  // the message names the handle).
   Frame update(std::span<const HandleTransform> transforms, Beta beta,
                const UpdateOptions& options = {}) const;
 
-  // The same with a per-triangle β field (one factorization per distinct field, cached).
+  // update() for a one-off β (sweeps, automatic β): a factorization that is not cached
+  // already is built for this call only and freed when it returns, so callers never grow
+  // (or drop from) the cache that other sessions share. Peak memory: one factorization.
+  Frame update_transient(std::span<const HandleTransform> transforms, Beta beta,
+                         const UpdateOptions& options = {}) const;
+
+  // The same with a per-triangle β field (one factorization per distinct field, cached;
+  // at most kMaxCachedFields fields are kept, the oldest dropped first).
   Frame update_local(std::span<const HandleTransform> transforms, const LocalBeta& beta,
                      const UpdateOptions& options = {}) const;
+  static constexpr std::size_t kMaxCachedFields = 4;
 
   // Guidance per triangle (SPEC §Harmonic guidance field): g (3m×3) and R_l.
   void guidance(std::span<const HandleTransform> transforms, Eigen::MatrixX3d& g,
@@ -136,14 +151,21 @@ class ConstraintSet {
 
   std::size_t memory_bytes() const;
   std::size_t num_cached_factorizations() const;
+  // Drops a cached β factorization (β = 0 stays: the harmonic basis came from it). Only
+  // for benchmarks and tests: a shared set's other users would have to rebuild it.
   void drop_factorization(Beta beta);
 
  private:
   std::shared_ptr<const BetaSystem> system(double raw_beta) const;
+  // Builds the system for raw β; build_mutex_ must be held (it guards wide_ and
+  // wide_symbolic_, which this may create).
+  std::shared_ptr<const BetaSystem> build_system_locked(double raw_beta) const;
   std::shared_ptr<const BetaSystem> local_system(const LocalBeta& beta) const;
   // Numeric factorization of a K_FF on the β > 0 pattern, sharing its symbolic analysis.
   std::shared_ptr<const Factorization> factor_wide(const SparseMatrix& K_FF) const;
   void check(std::span<const HandleTransform> transforms) const;  // count, validity
+  // Throws InvalidInput naming a handle when X is non-finite or beyond kMaxCoordinate.
+  void check_result(const Vertices& X, std::span<const HandleTransform> transforms) const;
   Frame solve(const BetaSystem& sys, std::span<const HandleTransform> transforms,
               const UpdateOptions& options) const;
   struct WideBlocks;  // the β > 0 pattern, split into its (1 − β) and β parts
@@ -155,10 +177,21 @@ class ConstraintSet {
   std::vector<int> region_of_;           // −1 free, 0 fixed (F₀ or unreferenced), j+1 handle j
   Eigen::MatrixXd basis_;
   std::vector<Eigen::Vector3d> centroids_;
+  // Lock order: build_mutex_, then mutex_. wide_ and wide_symbolic_ are written with both
+  // held, so holding either one is enough to read them.
   mutable std::mutex mutex_;
   mutable std::mutex build_mutex_;  // one factorization at a time; lookups stay cheap
   mutable std::map<double, std::shared_ptr<const BetaSystem>> by_beta_;
-  mutable std::map<std::uint64_t, std::shared_ptr<const BetaSystem>> by_field_;  // local β
+  // Local β fields by hash, each kept with its field: a hit is verified value by value,
+  // so a colliding field (the set is shared between sessions) never gets another's system.
+  struct FieldSystem {
+    Eigen::VectorXd beta;
+    BetaUnits units;
+    std::shared_ptr<const BetaSystem> system;
+    std::uint64_t serial;
+  };
+  mutable std::multimap<std::uint64_t, FieldSystem> by_field_;
+  mutable std::uint64_t field_serial_ = 0;  // insertion order, to drop the oldest field
   mutable std::shared_ptr<const WideBlocks> wide_;                 // built on first β > 0
   mutable std::shared_ptr<const Factorization> wide_symbolic_;  // analysis shared by β > 0
 };

@@ -26,4 +26,11 @@ class InvalidInput : public std::invalid_argument {
   using std::invalid_argument::invalid_argument;
 };
 
+// Long work stopped by its cancellation hook (the client left, its deadline passed, or the
+// server is shutting down). Not an input error: the service maps it to CANCELLED.
+class Cancelled : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 }  // namespace hdeform

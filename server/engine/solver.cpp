@@ -27,6 +27,7 @@ void CholmodLLT::adopt_analysis(const CholmodLLT& other) {
 }
 
 Eigen::MatrixXd CholmodLLT::solve_concurrently(const Eigen::MatrixXd& B) const {
+  if (!m_cholmodFactor) throw std::logic_error("CholmodLLT: solve before factorization");
   cholmod_common common;
   cholmod_start(&common);
   common.final_asis = m_cholmod.final_asis;
@@ -57,7 +58,10 @@ std::size_t CholmodLLT::factor_nnz() const {
   return static_cast<std::size_t>(m_cholmodFactor->nzmax);
 }
 
+// An empty K_FF (every vertex constrained) is legal: the answer is the targets. CHOLMOD
+// is never called with it (it returns a null factor that a later solve dereferences).
 Factorization::Factorization(const SparseMatrix& K_FF) : size_(static_cast<int>(K_FF.rows())) {
+  if (size_ == 0) return;
   llt_.analyzePattern(K_FF);
   check("analysis");
   analysis_.adopt_analysis(llt_);  // before the numeric factorization fills in values
@@ -67,6 +71,7 @@ Factorization::Factorization(const SparseMatrix& K_FF) : size_(static_cast<int>(
 
 Factorization::Factorization(const Factorization& analysis, const SparseMatrix& K_FF)
     : size_(static_cast<int>(K_FF.rows())) {
+  if (size_ == 0) return;
   llt_.adopt_analysis(analysis.analysis_);  // analysis_ is immutable: no lock needed
   llt_.factorize(K_FF);
   check("factorization");
@@ -79,6 +84,7 @@ void Factorization::check(const char* what) const {
 }
 
 Eigen::MatrixXd Factorization::solve(const Eigen::MatrixXd& B) const {
+  if (size_ == 0 || B.rows() == 0) return Eigen::MatrixXd(B.rows(), B.cols());
   return llt_.solve_concurrently(B);
 }
 

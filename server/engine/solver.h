@@ -37,7 +37,8 @@ class CholmodLLT : public Eigen::CholmodBase<SparseMatrix, Eigen::Lower, Cholmod
 class Factorization {
  public:
   // Analyse (METIS) and factorize. Throws InvalidInput if K_FF is not positive definite
-  // (the constraint set leaves a part of the mesh unconstrained).
+  // (the constraint set leaves a part of the mesh unconstrained). A 0×0 K_FF (no free
+  // vertex) is valid: nothing is factored and solve() returns an empty matrix.
   explicit Factorization(const SparseMatrix& K_FF);
   // Numeric factorization of K_FF reusing `analysis`'s symbolic factor (same pattern).
   Factorization(const Factorization& analysis, const SparseMatrix& K_FF);

@@ -4,6 +4,7 @@
 #include <Eigen/SVD>
 
 #include <cmath>
+#include <cstdio>
 #include <string>
 
 namespace hdeform {
@@ -14,12 +15,24 @@ HandleTransform HandleTransform::from_matrix(const Eigen::Matrix4d& T,
   if (!T.row(3).isApprox(Eigen::RowVector4d(0, 0, 0, 1), 1e-12))
     throw InvalidInput("transform matrix: last row must be 0 0 0 1 (affine transforms only)");
   const Eigen::Matrix3d M = T.topLeftCorner<3, 3>();
-  const double det = M.determinant();
-  if (!(det > 1e-12 * std::pow(M.norm(), 3)))
-    throw InvalidInput("transform linear part is singular or reflecting (det = " +
-                       std::to_string(det) + ")");
   // Polar decomposition M = R S from the SVD M = U Σ Vᵀ: R = U Vᵀ, S = V Σ Vᵀ.
   Eigen::JacobiSVD<Eigen::Matrix3d> svd(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  // Judge by the singular values, not by det against ‖M‖³: a strong shear has det = 1
+  // and is invertible, and "det = 1.000000" would explain nothing.
+  const Eigen::Vector3d sv = svd.singularValues();  // descending
+  char buf[200];
+  if (M.determinant() < 0) {
+    std::snprintf(buf, sizeof buf, "transform linear part is a reflection (det = %g < 0)",
+                  M.determinant());
+    throw InvalidInput(buf);
+  }
+  if (!(sv[2] > 1e-12 * sv[0])) {
+    std::snprintf(buf, sizeof buf,
+                  "transform linear part is singular: singular values %g, %g, %g (the smallest "
+                  "must exceed 1e-12 x the largest)",
+                  sv[0], sv[1], sv[2]);
+    throw InvalidInput(buf);
+  }
   const Eigen::Matrix3d R = svd.matrixU() * svd.matrixV().transpose();
   HandleTransform h;
   h.pivot = pivot;

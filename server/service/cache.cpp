@@ -1,45 +1,68 @@
 #include "cache.h"
 
+#include <openssl/evp.h>
+#include <openssl/rand.h>
 #include <spdlog/spdlog.h>
 
 #include <cstdio>
+#include <stdexcept>
 #include <vector>
 
 namespace hdeform::service {
 
-std::uint64_t fnv1a(const void* data, std::size_t size, std::uint64_t seed) {
-  const auto* p = static_cast<const unsigned char*>(data);
-  std::uint64_t h = seed;
-  for (std::size_t i = 0; i < size; ++i) {
-    h ^= p[i];
-    h *= 0x100000001b3ull;
-  }
-  return h;
+Sha256::Sha256() : ctx_(EVP_MD_CTX_new()) {
+  if (!ctx_ || EVP_DigestInit_ex(static_cast<EVP_MD_CTX*>(ctx_), EVP_sha256(), nullptr) != 1)
+    throw std::runtime_error("OpenSSL: SHA-256 unavailable");
 }
 
-std::string hex64(std::uint64_t value) {
-  char buf[17];
-  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(value));
-  return buf;
+Sha256::~Sha256() { EVP_MD_CTX_free(static_cast<EVP_MD_CTX*>(ctx_)); }
+
+Sha256& Sha256::add(const void* data, std::size_t size) {
+  if (size > 0) EVP_DigestUpdate(static_cast<EVP_MD_CTX*>(ctx_), data, size);
+  return *this;
+}
+
+std::string Sha256::hex() {
+  unsigned char digest[EVP_MAX_MD_SIZE];
+  unsigned int length = 0;
+  EVP_DigestFinal_ex(static_cast<EVP_MD_CTX*>(ctx_), digest, &length);
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string out;
+  out.reserve(2 * length);
+  for (unsigned int i = 0; i < length; ++i) {
+    out += kHex[digest[i] >> 4];
+    out += kHex[digest[i] & 15];
+  }
+  return out;
 }
 
 std::string mesh_hash(const TriMesh& mesh) {
   const std::int64_t counts[2] = {mesh.V.rows(), mesh.F.rows()};
-  std::uint64_t h = fnv1a(counts, sizeof counts);
-  h = fnv1a(mesh.V.data(), sizeof(double) * static_cast<std::size_t>(mesh.V.size()), h);
-  h = fnv1a(mesh.F.data(), sizeof(int) * static_cast<std::size_t>(mesh.F.size()), h);
-  return hex64(h);
+  return Sha256()
+      .add(counts, sizeof counts)
+      .add(mesh.V.data(), sizeof(double) * static_cast<std::size_t>(mesh.V.size()))
+      .add(mesh.F.data(), sizeof(int) * static_cast<std::size_t>(mesh.F.size()))
+      .hex();
 }
 
 std::string constraints_digest(const Constraints& c) {
-  auto add = [](std::uint64_t h, const std::vector<int>& ids) {
+  Sha256 h;
+  auto add = [&h](const std::vector<int>& ids) {
     const std::int64_t n = static_cast<std::int64_t>(ids.size());
-    h = fnv1a(&n, sizeof n, h);
-    return fnv1a(ids.data(), sizeof(int) * ids.size(), h);
+    h.add(&n, sizeof n).add(ids.data(), sizeof(int) * ids.size());
   };
-  std::uint64_t h = add(kFnvOffset, c.fixed);
-  for (const auto& handle : c.handles) h = add(h, handle);
-  return hex64(h);
+  add(c.fixed);
+  for (const auto& handle : c.handles) add(handle);
+  return h.hex();
+}
+
+std::string random_hex64() {
+  std::uint64_t value = 0;
+  if (RAND_bytes(reinterpret_cast<unsigned char*>(&value), sizeof value) != 1)
+    throw std::runtime_error("OpenSSL: RAND_bytes failed");
+  char buf[17];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(value));
+  return buf;
 }
 
 std::shared_ptr<const void> Cache::lookup_locked(const std::string& key, Slot& slot) {

@@ -18,15 +18,28 @@
 
 namespace hdeform::service {
 
-// 64-bit FNV-1a over raw bytes; chain calls by passing the previous value as `seed`.
-constexpr std::uint64_t kFnvOffset = 0xcbf29ce484222325ull;
-std::uint64_t fnv1a(const void* data, std::size_t size, std::uint64_t seed = kFnvOffset);
-std::string hex64(std::uint64_t value);  // 16 lower-case hex digits
+// SHA-256 (OpenSSL) over a sequence of byte ranges: cache identities come from uploads,
+// so they must not be forgeable (a 64-bit FNV-1a collision would poison a shared entry).
+class Sha256 {
+ public:
+  Sha256();
+  ~Sha256();
+  Sha256(const Sha256&) = delete;
+  Sha256& operator=(const Sha256&) = delete;
+  Sha256& add(const void* data, std::size_t size);
+  Sha256& add(std::string_view bytes) { return add(bytes.data(), bytes.size()); }
+  std::string hex();  // 64 lower-case hex digits; ends the hash
 
-// Content hash of the engine mesh: counts, then the V (double) and F (int) bytes.
+ private:
+  void* ctx_;  // EVP_MD_CTX
+};
+
+// Content hash of the engine mesh (SHA-256 of the counts, then the V double and F int bytes).
 std::string mesh_hash(const TriMesh& mesh);
-// Digest of constraint ids (fixed set and each handle region, in order).
+// Digest of constraint ids (fixed set and each handle region, in order), SHA-256.
 std::string constraints_digest(const Constraints& constraints);
+// 16 random hex digits from the OS CSPRNG (session ids).
+std::string random_hex64();
 
 class Cache {
  public:

@@ -1,5 +1,7 @@
 #include "convert.h"
 
+#include "errors.h"
+
 #include "selection.h"
 
 #include <algorithm>
@@ -129,14 +131,32 @@ void to_proto(const Measures& m, pb::Measures* out) {
   out->set_flips(m.flips);
 }
 
+void check_limit(std::size_t count, std::size_t limit, const std::string& what,
+                 const char* flag) {
+  if (count > limit)
+    throw ServiceError(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                       what + ": " + std::to_string(count) + " exceeds the limit of " +
+                           std::to_string(limit) + " (" + flag + ")");
+}
+
 std::vector<int> resolve_region(const pb::Region& region, const Vertices& V,
-                                const std::string& what, std::span<const int> base_to_engine) {
+                                const std::string& what, std::span<const int> base_to_engine,
+                                const RequestLimits& limits) {
   const int n = static_cast<int>(V.rows());
   const int base_n = base_to_engine.empty() ? n : static_cast<int>(base_to_engine.size());
+  check_limit(static_cast<std::size_t>(region.selectors_size()), limits.max_selectors,
+              what + " selectors", "--max-selectors");
   std::vector<int> ids;
+  std::string empty_selectors;  // for the message when the whole region is empty
   for (int s = 0; s < region.selectors_size(); ++s) {
     const auto& sel = region.selectors(s);
     const std::string where = what + " selector " + std::to_string(s);
+    if (sel.kind_case() == pb::Selector::kIds)
+      check_limit(static_cast<std::size_t>(sel.ids().ids_size()), limits.max_selector_ids,
+                  where + " ids", "--max-selector-ids");
+    if (sel.kind_case() == pb::Selector::kBaseIds)
+      check_limit(static_cast<std::size_t>(sel.base_ids().ids_size()), limits.max_selector_ids,
+                  where + " base_ids", "--max-selector-ids");
     std::vector<int> part;
     switch (sel.kind_case()) {
       case pb::Selector::kIds:
@@ -183,19 +203,26 @@ std::vector<int> resolve_region(const pb::Region& region, const Vertices& V,
       case pb::Selector::KIND_NOT_SET:
         throw InvalidInput(where + ": selector has no kind (ids, box, sphere, half_space, sel)");
     }
+    if (part.empty()) empty_selectors += (empty_selectors.empty() ? "" : ", ") + std::to_string(s);
     ids = unite(std::move(ids), part);
   }
+  if (ids.empty() && region.selectors_size() > 0)
+    throw InvalidInput(what + " selects no vertices (empty selector" +
+                       (region.selectors_size() > 1 ? "s " : " ") + empty_selectors + ")");
   return ids;
 }
 
 Constraints resolve_constraints(const pb::Constraints& c, const Vertices& V,
-                                std::span<const int> base_to_engine) {
+                                std::span<const int> base_to_engine,
+                                const RequestLimits& limits) {
+  check_limit(static_cast<std::size_t>(c.handles_size()), limits.max_handles, "handles",
+              "--max-handles");
   Constraints out;
-  out.fixed = resolve_region(c.fixed(), V, "fixed", base_to_engine);
+  out.fixed = resolve_region(c.fixed(), V, "the fixed region", base_to_engine, limits);
   out.handles.reserve(c.handles_size());
   for (int j = 0; j < c.handles_size(); ++j)
     out.handles.push_back(
-        resolve_region(c.handles(j), V, "handle " + std::to_string(j), base_to_engine));
+        resolve_region(c.handles(j), V, "handle " + std::to_string(j), base_to_engine, limits));
   return out;
 }
 

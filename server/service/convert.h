@@ -3,6 +3,7 @@
 #pragma once
 
 #include "deformer.h"
+#include "request_limits.h"
 #include "hdeform/v1/deform.pb.h"
 
 #include <google/protobuf/repeated_field.h>
@@ -41,11 +42,15 @@ void to_proto(const Measures& m, pb::Measures* out);
 // Selectors → sorted unique vertex ids on the rest mesh (engine order). `base_ids`
 // selectors map through `base_to_engine` (base-GLB vertex → engine vertex; empty: the
 // identity on V's rows, as for OBJ/OFF/PLY/STL).
+// A region that selects no vertex is an error naming the region and its empty selectors.
+// Counts beyond `limits` throw RESOURCE_EXHAUSTED.
 std::vector<int> resolve_region(const pb::Region& region, const Vertices& V,
                                 const std::string& what,
-                                std::span<const int> base_to_engine = {});
+                                std::span<const int> base_to_engine = {},
+                                const RequestLimits& limits = {});
 Constraints resolve_constraints(const pb::Constraints& c, const Vertices& V,
-                                std::span<const int> base_to_engine = {});
+                                std::span<const int> base_to_engine = {},
+                                const RequestLimits& limits = {});
 void to_proto(const Constraints& c, pb::ResolvedConstraints* out);
 
 }  // namespace hdeform::service

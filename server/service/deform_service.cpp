@@ -3,6 +3,7 @@
 #include "convert.h"
 #include "errors.h"
 
+#include <malloc.h>
 #include <spdlog/spdlog.h>
 
 #include <deque>
@@ -19,23 +20,41 @@ Limits limits_from(const ServerOptions& o) {
   l.max_vertices = o.max_vertices;
   l.max_upload_bytes = o.max_upload_bytes;
   l.session_ttl = std::chrono::duration_cast<std::chrono::milliseconds>(o.session_ttl);
+  l.request = o.request;
   return l;
 }
 
 constexpr std::size_t kMeshChunkBytes = 1u << 20;
 
+// Transient factorizations are large and glibc keeps freed heap memory: hand it back so a
+// finished sweep does not leave its peak as the server's resident size.
+void malloc_trim_after_sweep() { ::malloc_trim(0); }
+
 // ---------------------------------------------------------------------------------------
-// CreateSession: header, then upload chunks; the byte limit is enforced as chunks arrive.
+// CreateSession: header, then upload chunks. Bounded: the byte limit per upload (as chunks
+// arrive, and the declared total_bytes as an upper bound), the server-wide budget of bytes
+// in flight, and a stall timeout (UploadBudget). A cancelled upload is never loaded.
 class CreateSessionReactor final : public grpc::ServerReadReactor<v1::CreateSessionRequest> {
  public:
-  CreateSessionReactor(DeformService* svc, v1::Session* response)
-      : svc_(svc), response_(response) {
+  CreateSessionReactor(DeformService* svc, grpc::CallbackServerContext* ctx,
+                       v1::Session* response)
+      : svc_(svc), ctx_(ctx), response_(response), ticket_(svc->uploads().open(ctx)) {
     StartRead(&request_);
   }
 
   void OnReadDone(bool ok) override {
+    ticket_->touch();
     if (!ok) {
-      finish_upload();
+      if (ticket_->stalled()) {
+        Finish({grpc::StatusCode::DEADLINE_EXCEEDED,
+                "upload stalled: no data for " +
+                    std::to_string(svc_->uploads().stall_timeout().count()) +
+                    " ms (--upload-stall-timeout)"});
+      } else if (ctx_->IsCancelled()) {
+        Finish({grpc::StatusCode::CANCELLED, "upload cancelled by the client"});
+      } else {
+        finish_upload();
+      }
       return;
     }
     if (!have_header_) {
@@ -62,13 +81,27 @@ class CreateSessionReactor final : public grpc::ServerReadReactor<v1::CreateSess
                 "a library mesh takes no upload chunks"});
         return;
       }
-      received_ += request_.chunk().size();
-      if (received_ > svc_->sessions().limits().max_upload_bytes) {
+      const std::size_t n = request_.chunk().size();
+      received_ += n;
+      const auto limit = svc_->sessions().limits().max_upload_bytes;
+      if (received_ > limit) {
         spdlog::warn("CreateSession: upload '{}' exceeds {} bytes; rejected", header_.filename(),
-                     svc_->sessions().limits().max_upload_bytes);
+                     limit);
         Finish({grpc::StatusCode::RESOURCE_EXHAUSTED,
-                "upload exceeds the limit of " +
-                    std::to_string(svc_->sessions().limits().max_upload_bytes) + " bytes"});
+                "upload exceeds the limit of " + std::to_string(limit) +
+                    " bytes (--max-upload-mb)"});
+        return;
+      }
+      const auto declared = static_cast<std::size_t>(header_.total_bytes());
+      if (declared > 0 && received_ > declared) {
+        Finish({grpc::StatusCode::INVALID_ARGUMENT,
+                "upload sent more than its declared total_bytes (" + std::to_string(declared) +
+                    ")"});
+        return;
+      }
+      // Declared uploads were charged in full at the header; others pay as they go.
+      if (declared == 0 && !ticket_->charge(n)) {
+        Finish(over_budget());
         return;
       }
       data_->append(request_.chunk());
@@ -77,9 +110,19 @@ class CreateSessionReactor final : public grpc::ServerReadReactor<v1::CreateSess
     StartRead(&request_);
   }
 
-  void OnDone() override { delete this; }
+  void OnDone() override {
+    ticket_->detach();
+    delete this;
+  }
 
  private:
+  grpc::Status over_budget() const {
+    return {grpc::StatusCode::RESOURCE_EXHAUSTED,
+            "the server is receiving too many uploads at once (" +
+                std::to_string(svc_->uploads().max_bytes()) +
+                " bytes in flight, --max-upload-inflight-mb); retry later"};
+  }
+
   void check_header() {
     const auto& limits = svc_->sessions().limits();
     switch (header_.source_case()) {
@@ -100,10 +143,15 @@ class CreateSessionReactor final : public grpc::ServerReadReactor<v1::CreateSess
     if (static_cast<std::uint64_t>(header_.total_bytes()) > limits.max_upload_bytes)
       fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
            "upload of " + std::to_string(header_.total_bytes()) + " bytes exceeds the limit of " +
-               std::to_string(limits.max_upload_bytes) + " bytes");
+               std::to_string(limits.max_upload_bytes) + " bytes (--max-upload-mb)");
     svc_->sessions().check_id(header_.session_id());  // fail fast, before an upload
     svc_->sessions().check_capacity();
-    if (header_.total_bytes() > 0) data_->reserve(static_cast<std::size_t>(header_.total_bytes()));
+    if (header_.total_bytes() > 0) {
+      const auto declared = static_cast<std::size_t>(header_.total_bytes());
+      if (!ticket_->charge(declared)) throw ServiceError(over_budget().error_code(),
+                                                         over_budget().error_message());
+      data_->reserve(declared);  // accounted above: an upper bound, enforced per chunk
+    }
   }
 
   void finish_upload() {
@@ -119,6 +167,9 @@ class CreateSessionReactor final : public grpc::ServerReadReactor<v1::CreateSess
             std::shared_ptr<const MeshRef> mesh =
                 header_.has_library_mesh() ? svc_->load_library_mesh(header_.library_mesh())
                                            : svc_->load_upload(bytes, header_.filename());
+            // The client left while its mesh was parsed: create nothing nobody will own.
+            if (ctx_->IsCancelled())
+              fail(grpc::StatusCode::CANCELLED, "upload cancelled by the client");
             auto session = svc_->sessions().create(std::move(mesh), header_.session_id());
             *response_ = session->describe();
           },
@@ -128,7 +179,9 @@ class CreateSessionReactor final : public grpc::ServerReadReactor<v1::CreateSess
   }
 
   DeformService* svc_;
+  grpc::CallbackServerContext* ctx_;
   v1::Session* response_;
+  std::shared_ptr<UploadBudget::Ticket> ticket_;
   v1::CreateSessionRequest request_;
   v1::CreateSessionHeader header_;
   bool have_header_ = false;
@@ -453,7 +506,8 @@ DeformService::DeformService(const ServerOptions& options)
       pool_(std::make_unique<WorkerPool>(options.workers)),
       cache_(options.cache_bytes),
       library_(options.mesh_dir.empty() ? default_mesh_dir() : options.mesh_dir),
-      store_(limits_from(options), *pool_, cache_) {
+      store_(limits_from(options), *pool_, cache_),
+      uploads_(options.max_upload_inflight_bytes, options.upload_stall_timeout) {
   store_.start_sweeper();
   spdlog::info("mesh library: {} ({} meshes)", library_.dir().empty() ? "(none)" : library_.dir(),
                library_.list().size());
@@ -464,7 +518,10 @@ DeformService::~DeformService() {
   stop_workers();
 }
 
-void DeformService::close_sessions() { store_.shutdown(); }
+void DeformService::close_sessions() {
+  stopping_ = true;  // long loops (parsing, sweeps, automatic β) stop at their next check
+  store_.shutdown();
+}
 void DeformService::stop_workers() { pool_->stop(); }
 
 std::shared_ptr<const MeshRef> DeformService::load_library_mesh(const std::string& name) {
@@ -507,14 +564,20 @@ grpc::ServerUnaryReactor* DeformService::finish_on_session(grpc::CallbackServerC
     return reactor;
   }
   session->post([reactor, op, session, fn = std::move(fn)] {
-    reactor->Finish(guarded([&] { fn(*session); }, op));
+    reactor->Finish(guarded(
+        [&] {
+          // Deleted while this call waited on the strand: it must not act on a ghost.
+          if (session->closed()) fail(grpc::StatusCode::NOT_FOUND, session->name() + " was deleted");
+          fn(*session);
+        },
+        op));
   });
   return reactor;
 }
 
 grpc::ServerReadReactor<v1::CreateSessionRequest>* DeformService::CreateSession(
-    grpc::CallbackServerContext*, v1::Session* response) {
-  return new CreateSessionReactor(this, response);
+    grpc::CallbackServerContext* ctx, v1::Session* response) {
+  return new CreateSessionReactor(this, ctx, response);
 }
 
 grpc::ServerUnaryReactor* DeformService::GetSession(grpc::CallbackServerContext* ctx,
@@ -548,7 +611,7 @@ grpc::ServerUnaryReactor* DeformService::ListMeshes(grpc::CallbackServerContext*
     for (const auto& e : library_.list()) {
       auto* m = response->add_meshes();
       m->set_name(e.name);
-      m->set_path(e.path);
+      m->set_path(e.relative_path);  // never the server's absolute paths
       m->set_has_benchmark(e.has_benchmark);
     }
   });
@@ -598,11 +661,76 @@ grpc::ServerWriteReactor<v1::MeshChunk>* DeformService::GetMesh(
   return new MeshWriter(std::move(session), *request);
 }
 
+// Sweep: one pool task per β, each queued behind whatever else waits, so a long sweep
+// never holds the session's strand (edits go on) nor a worker for its whole length.
+// Stops at the next β when the client leaves or its deadline passes, the session is
+// deleted or the server stops. At most --max-sweeps run at once.
+namespace {
+struct SweepJob {
+  DeformService* svc;
+  grpc::CallbackServerContext* ctx;
+  grpc::ServerUnaryReactor* reactor;
+  v1::SweepResponse* response;
+  std::shared_ptr<Session> session;
+  Session::SweepPlan plan;
+  std::size_t next = 0;
+};
+
+void sweep_step(const std::shared_ptr<SweepJob>& job) {
+  auto finish = [&](const grpc::Status& status) {
+    --job->svc->running_sweeps();
+    malloc_trim_after_sweep();
+    job->reactor->Finish(status);
+  };
+  const auto status = guarded(
+      [&] {
+        if (job->ctx->IsCancelled()) throw Cancelled("Sweep cancelled by the client");
+        if (std::chrono::system_clock::now() > job->ctx->deadline())
+          fail(grpc::StatusCode::DEADLINE_EXCEEDED,
+               "Sweep deadline exceeded after " + std::to_string(job->next) + " of " +
+                   std::to_string(job->plan.betas.size()) + " betas");
+        if (job->svc->stopping()) fail(grpc::StatusCode::UNAVAILABLE, "the server is stopping");
+        if (job->session->closed())
+          fail(grpc::StatusCode::NOT_FOUND, job->session->name() + " was deleted");
+        job->session->sweep_row(job->plan, job->plan.betas[job->next],
+                                job->response->add_rows());
+        ++job->next;
+      },
+      "Sweep");
+  if (!status.ok()) return finish(status);
+  if (job->next == job->plan.betas.size()) return finish(grpc::Status::OK);
+  job->svc->pool().submit([job] { sweep_step(job); });
+}
+}  // namespace
+
 grpc::ServerUnaryReactor* DeformService::Sweep(grpc::CallbackServerContext* ctx,
                                                const v1::SweepRequest* request,
                                                v1::SweepResponse* response) {
-  return finish_on_session(ctx, "Sweep", request->name(),
-                           [request, response](Session& s) { *response = s.sweep(*request); });
+  auto* reactor = ctx->DefaultReactor();
+  auto job = std::make_shared<SweepJob>();
+  job->svc = this;
+  job->ctx = ctx;
+  job->reactor = reactor;
+  job->response = response;
+  const auto status = guarded(
+      [&] {
+        job->session = store_.get(request->name());
+        job->plan = job->session->sweep_plan(*request);
+        if (++running_sweeps_ > options_.request.max_concurrent_sweeps) {
+          --running_sweeps_;
+          fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
+               "too many sweeps running (" +
+                   std::to_string(options_.request.max_concurrent_sweeps) +
+                   ", --max-sweeps); retry later");
+        }
+      },
+      "Sweep");
+  if (!status.ok()) {
+    reactor->Finish(status);
+    return reactor;
+  }
+  pool_->submit([job] { sweep_step(job); });
+  return reactor;
 }
 
 grpc::ServerBidiReactor<v1::DeformRequest, v1::Frame>* DeformService::Deform(
@@ -666,12 +794,8 @@ grpc::ServerUnaryReactor* DeformService::ImportSession(grpc::CallbackServerConte
       fail(grpc::StatusCode::INVALID_ARGUMENT, "snapshot mesh hash " + snap.mesh_hash() +
                                                    " does not match the mesh's hash " +
                                                    mesh->hash);
-    auto session = store_.create(mesh, request->session_id());
-    const auto status = guarded([&] { session->restore(snap); }, "ImportSession");
-    if (!status.ok()) {
-      store_.remove(session->name());
-      throw ServiceError(status.error_code(), status.error_message());
-    }
+    auto session =
+        store_.create(mesh, request->session_id(), [&snap](Session& s) { s.restore(snap); });
     *response = session->describe();
   });
 }

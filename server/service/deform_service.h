@@ -8,6 +8,7 @@
 #include "mesh_library.h"
 #include "server.h"
 #include "session_store.h"
+#include "upload_budget.h"
 #include "worker_pool.h"
 
 #include <atomic>
@@ -27,6 +28,10 @@ class DeformService final : public v1::Deformation::CallbackService {
   void stop_workers();
 
   SessionStore& sessions() { return store_; }
+  UploadBudget& uploads() { return uploads_; }
+  std::atomic<std::size_t>& running_sweeps() { return running_sweeps_; }
+  // True once shutdown began: long work polls it (cooperative cancellation).
+  bool stopping() const { return stopping_.load(); }
   Cache& cache() { return cache_; }
   WorkerPool& pool() { return *pool_; }
   const MeshLibrary& library() const { return library_; }
@@ -93,6 +98,9 @@ class DeformService final : public v1::Deformation::CallbackService {
   Cache cache_;
   MeshLibrary library_;
   SessionStore store_;
+  UploadBudget uploads_;
+  std::atomic<std::size_t> running_sweeps_{0};
+  std::atomic<bool> stopping_{false};
 };
 
 }  // namespace hdeform::service

@@ -16,6 +16,9 @@ grpc::Status guarded(const std::function<void()>& fn, const char* what) {
   } catch (const ServiceError& e) {
     spdlog::debug("{}: {} ({})", op, e.what(), static_cast<int>(e.code()));
     return e.status();
+  } catch (const Cancelled& e) {
+    spdlog::debug("{}: {}", op, e.what());
+    return {grpc::StatusCode::CANCELLED, e.what()};
   } catch (const InvalidInput& e) {
     spdlog::debug("{}: invalid input: {}", op, e.what());
     return {grpc::StatusCode::INVALID_ARGUMENT, e.what()};

@@ -57,6 +57,7 @@ std::vector<LibraryEntry> MeshLibrary::list() const {
     e.name = p.stem().string();
     if (!seen.insert(e.name).second) continue;
     e.path = p.string();
+    e.relative_path = p.lexically_relative(dir_).generic_string();
     fs::path sel = p, def = p;
     sel.replace_extension(".sel");
     def.replace_extension(".def");
@@ -98,44 +99,50 @@ std::shared_ptr<const MeshRef> load_mesh(std::shared_ptr<const std::string> byte
   if (!is_mesh_extension(ext))
     throw InvalidInput("unsupported mesh format '" + filename +
                        "' (use .obj .off .ply .stl .gltf .glb)");
-  // Identical files (same format, same bytes) share one MeshRef.
-  std::uint64_t h = fnv1a(ext.data(), ext.size());
-  h = fnv1a(bytes->data(), bytes->size(), h);
-  const std::string file_key = "file/" + hex64(h) + "/" + library_name;
-
-  auto ref = cache.get_or_create<MeshRef>(
-      file_key,
-      [&]() -> std::shared_ptr<const MeshRef> {
-        LoadedMesh loaded = read_mesh_bytes(*bytes, filename);
-        const std::size_t nv = std::max<std::size_t>(
-            static_cast<std::size_t>(loaded.mesh.num_vertices()), loaded.input_to_engine.size());
-        if (nv > max_vertices)
-          fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
-               "mesh has " + std::to_string(nv) + " vertices; this server allows at most " +
-                   std::to_string(max_vertices));
-        auto r = std::make_shared<MeshRef>();
-        r->hash = mesh_hash(loaded.mesh);
-        r->library_name = library_name;
-        r->filename = fs::path(filename).filename().string();
-        r->file_bytes = bytes;
-        r->warnings = loaded.warnings;
-        if (loaded.mesh.num_vertices() > 0) {
-          r->bbox_min = loaded.mesh.V.colwise().minCoeff().transpose();
-          r->bbox_max = loaded.mesh.V.colwise().maxCoeff().transpose();
-        }
-        r->prepared = cache.get_or_create<PreparedMesh>(
-            "mesh/" + r->hash,
-            [&]() -> std::shared_ptr<const PreparedMesh> {
-              spdlog::info("preparing mesh {} ({} vertices, {} triangles)", r->hash,
-                           loaded.mesh.num_vertices(), loaded.mesh.num_triangles());
-              return PreparedMesh::create(std::move(loaded.mesh));
-            },
-            [](const PreparedMesh& pm) { return pm.memory_bytes(); });
-        loaded.mesh = TriMesh{};  // the prepared mesh keeps the geometry
-        r->layout = std::make_shared<const FrameLayout>(std::move(loaded), r->prepared);
-        return r;
-      },
-      [](const MeshRef& r) { return r.memory_bytes(); });
+  // Identical files (same format, same bytes) share one MeshRef. SHA-256 keys, and every
+  // hit is verified byte for byte: a shared entry can be neither forged nor mistaken.
+  const std::string file_key =
+      "file/" + Sha256().add(ext).add(std::string_view("\0", 1)).add(*bytes).hex() + "/" +
+      library_name;
+  auto build = [&]() -> std::shared_ptr<const MeshRef> {
+    LoadedMesh loaded = read_mesh_bytes(*bytes, filename);
+    const std::size_t nv = std::max<std::size_t>(
+        static_cast<std::size_t>(loaded.mesh.num_vertices()), loaded.input_to_engine.size());
+    if (nv > max_vertices)
+      fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
+           "mesh has " + std::to_string(nv) + " vertices; this server allows at most " +
+               std::to_string(max_vertices) + " (--max-vertices)");
+    auto r = std::make_shared<MeshRef>();
+    r->hash = mesh_hash(loaded.mesh);
+    r->library_name = library_name;
+    r->filename = fs::path(filename).filename().string();
+    r->file_bytes = bytes;
+    r->warnings = loaded.warnings;
+    if (loaded.mesh.num_vertices() > 0) {
+      r->bbox_min = loaded.mesh.V.colwise().minCoeff().transpose();
+      r->bbox_max = loaded.mesh.V.colwise().maxCoeff().transpose();
+    }
+    auto make_prepared = [&]() -> std::shared_ptr<const PreparedMesh> {
+      spdlog::info("preparing mesh {} ({} vertices, {} triangles)", r->hash,
+                   loaded.mesh.num_vertices(), loaded.mesh.num_triangles());
+      return PreparedMesh::create(loaded.mesh);
+    };
+    r->prepared = cache.get_or_create<PreparedMesh>(
+        "mesh/" + r->hash, make_prepared, [](const PreparedMesh& pm) { return pm.memory_bytes(); });
+    if (r->prepared->mesh().V != loaded.mesh.V || r->prepared->mesh().F != loaded.mesh.F) {
+      spdlog::warn("cache: mesh/{} holds different geometry; preparing a private copy", r->hash);
+      r->prepared = make_prepared();
+    }
+    loaded.mesh = TriMesh{};  // the prepared mesh keeps the geometry
+    r->layout = std::make_shared<const FrameLayout>(std::move(loaded), r->prepared);
+    return r;
+  };
+  auto ref = cache.get_or_create<MeshRef>(file_key, build,
+                                          [](const MeshRef& r) { return r.memory_bytes(); });
+  if (!ref->file_bytes || *ref->file_bytes != *bytes) {
+    spdlog::warn("cache: {} holds a different file; loading a private copy", file_key);
+    ref = build();
+  }
   return ref;
 }
 

@@ -33,7 +33,8 @@ struct MeshRef {
 
 struct LibraryEntry {
   std::string name;  // file stem
-  std::string path;
+  std::string path;           // on the server's disk: never sent to clients
+  std::string relative_path;  // inside the library folder (what ListMeshes shows)
   bool has_benchmark = false;  // NAME.sel and NAME.def beside it
 };
 

@@ -1,6 +1,8 @@
 // hdeform-server's core, usable in-process (the CLI without --server) or listening on TCP.
 #pragma once
 
+#include "request_limits.h"
+
 #include <grpcpp/grpcpp.h>
 
 #include <chrono>
@@ -20,6 +22,13 @@ struct ServerOptions {
   std::size_t max_upload_bytes = 256u << 20;
   std::size_t cache_bytes = 4ull << 30;  // prepared meshes + factorizations (LRU)
   std::chrono::seconds session_ttl{3600};
+  RequestLimits request;  // per-request caps (request_limits.h)
+  // Upload bytes held by unfinished CreateSession calls, all clients together
+  // (--max-upload-inflight-mb); a new upload beyond it gets RESOURCE_EXHAUSTED.
+  std::size_t max_upload_inflight_bytes = 1ull << 30;
+  // An upload that sends nothing for this long is ended with DEADLINE_EXCEEDED
+  // (--upload-stall-timeout); its bytes are released.
+  std::chrono::milliseconds upload_stall_timeout{30'000};
 };
 
 class DeformService;  // deform_service.h

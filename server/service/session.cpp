@@ -69,10 +69,11 @@ bool SessionBeta::same_as(const SessionBeta& o) const {
 }
 
 Session::Session(std::string id, std::shared_ptr<const MeshRef> mesh, WorkerPool& pool,
-                 Cache& cache)
+                 Cache& cache, const RequestLimits& limits)
     : id_(std::move(id)),
       name_("sessions/" + id_),
       mesh_(std::move(mesh)),
+      limits_(limits),
       cache_(cache),
       strand_(std::make_shared<Strand>(pool)) {
   create_ms_ = update_ms_ = unix_ms_now();
@@ -92,11 +93,9 @@ void Session::check_version_locked(std::int64_t expected) const {
                                         std::to_string(version_));
 }
 
-std::shared_ptr<const ConstraintSet> Session::constraint_set_for(const Constraints& c) {
-  const std::string key = "cs/" + mesh_->hash + "/" + constraints_digest(c);
-  return cache_.get_or_create<ConstraintSet>(
-      key,
-      [&]() -> std::shared_ptr<const ConstraintSet> {
+std::shared_ptr<const ConstraintSet> Session::constraint_set_for(const Constraints& c,
+                                                                 const std::string& key) {
+  auto make = [&]() -> std::shared_ptr<const ConstraintSet> {
         const auto t0 = std::chrono::steady_clock::now();
         auto cs = std::make_shared<ConstraintSet>(mesh_->prepared, c);  // non-const: prepare()
         spdlog::info("{}: constraint set {} built in {:.1f} ms ({} fixed, {} handle(s))", name_,
@@ -106,8 +105,16 @@ std::shared_ptr<const ConstraintSet> Session::constraint_set_for(const Constrain
                          .count(),
                      c.fixed.size(), c.handles.size());
         return cs;
-      },
-      [](const ConstraintSet& cs) { return cs.memory_bytes(); });
+  };
+  auto cs = cache_.get_or_create<ConstraintSet>(
+      key, make, [](const ConstraintSet& cs) { return cs.memory_bytes(); });
+  // A hit is verified: the set is shared with other sessions and must be exactly ours.
+  if (&cs->mesh() != mesh_->prepared.get() || cs->constraints().fixed != c.fixed ||
+      cs->constraints().handles != c.handles) {
+    spdlog::warn("{}: cache entry {} holds other constraints; building a private set", name_, key);
+    cs = make();
+  }
+  return cs;
 }
 
 SessionBeta Session::parse_beta(const pb::Beta& b, bool keep_automatic_value) const {
@@ -118,6 +125,8 @@ SessionBeta Session::parse_beta(const pb::Beta& b, bool keep_automatic_value) co
   else
     out.uniform = from_proto(b);
   if (b.local_size() == 0) return out;
+  check_limit(static_cast<std::size_t>(b.local_size()), limits_.max_local_beta,
+              "beta.local entries", "--max-local-beta");
   out.local = b.local();
   const PreparedMesh& pm = *mesh_->prepared;
   auto local_max = std::make_shared<Eigen::VectorXd>(Eigen::VectorXd::Zero(pm.m()));
@@ -133,8 +142,7 @@ SessionBeta Session::parse_beta(const pb::Beta& b, bool keep_automatic_value) co
     if (e.region().selectors_size() == 0)
       throw InvalidInput(where + ": region has no selectors");
     const std::vector<int> ids = resolve_region(e.region(), pm.mesh().V, where + " region",
-                                                mesh_->layout->base_to_engine());
-    if (ids.empty()) throw InvalidInput(where + ": region selects no vertices");
+                                                mesh_->layout->base_to_engine(), limits_);
     const Eigen::VectorXd f = e.falloff_radius() > 0
                                   ? falloff_beta(pm, ids, e.beta(), e.falloff_radius())
                                   : region_beta(pm, ids, e.beta());
@@ -150,9 +158,9 @@ void Session::pick_beta(SessionBeta& beta, const ConstraintSet& cs,
   const auto t0 = std::chrono::steady_clock::now();
   AutoBetaParams params;
   params.units = beta.uniform.units;
-  // ConstraintSet is shared and thread-safe; select_beta only adds/drops cached systems.
-  const AutoBetaResult r =
-      select_beta(const_cast<ConstraintSet&>(cs), std::span(transforms), params);
+  // select_beta solves each sample transiently: the shared set's cache is left alone.
+  params.cancelled = [this] { return closed(); };
+  const AutoBetaResult r = select_beta(cs, std::span(transforms), params);
   beta.uniform.value = r.beta.value;
   if (beta.has_local()) beta.field = make_field(*beta.local_max, beta.uniform);
   spdlog::info("{}: automatic beta picked {} ({}) from {} samples in {:.1f} ms", name_,
@@ -166,7 +174,7 @@ void Session::prepare_beta(const ConstraintSet& cs, const SessionBeta& beta) {
     const std::vector<HandleTransform> rest(static_cast<std::size_t>(cs.num_handles()));
     cs.update_local(rest, *beta.field, UpdateOptions{.energies = false, .normals = false});
   } else {
-    const_cast<ConstraintSet&>(cs).prepare(beta.uniform);
+    cs.prepare(beta.uniform);
   }
 }
 
@@ -187,9 +195,9 @@ pb::Session Session::set_constraints(const pb::Constraints& constraints,
     beta = beta_;
   }
   const Constraints resolved = resolve_constraints(constraints, mesh_->prepared->mesh().V,
-                                                   mesh_->layout->base_to_engine());
-  auto cs = constraint_set_for(resolved);
+                                                   mesh_->layout->base_to_engine(), limits_);
   const std::string key = "cs/" + mesh_->hash + "/" + constraints_digest(resolved);
+  auto cs = constraint_set_for(resolved, key);
   // ConstraintSet is shared: prepare() is thread-safe (it builds each β once). An automatic
   // β keeps its pick (the new handles are at rest: nothing to pick from yet).
   prepare_beta(*cs, beta);
@@ -307,57 +315,48 @@ std::shared_ptr<pb::Frame> Session::update(const Update& u) {
   return out;
 }
 
-pb::SweepResponse Session::sweep(const pb::SweepRequest& request) {
-  touch();
-  std::shared_ptr<const ConstraintSet> cs;
-  std::vector<HandleTransform> transforms;
+Session::SweepPlan Session::sweep_plan(const pb::SweepRequest& request) const {
+  if (closed_) fail(grpc::StatusCode::NOT_FOUND, name_ + " was deleted");
+  if (request.betas_size() == 0) throw InvalidInput("Sweep: betas is empty");
+  check_limit(static_cast<std::size_t>(request.betas_size()), limits_.max_sweep_betas,
+              "Sweep betas", "--max-sweep-betas");
+  SweepPlan plan;
   SessionBeta session_beta;
-  std::string key;
   {
     std::lock_guard lock(mutex_);
     if (!cs_) fail(grpc::StatusCode::FAILED_PRECONDITION, kNoConstraints);
-    cs = cs_;
-    transforms = transforms_;
+    plan.cs = cs_;
+    plan.transforms = transforms_;
     session_beta = beta_;
-    key = cs_key_;
   }
-  if (request.transforms_size() > 0) transforms = from_proto(request.transforms(), *cs);
-  std::vector<Beta> betas;
-  for (double b : request.betas()) betas.push_back(beta_from(b, request.units()));
+  if (request.transforms_size() > 0) plan.transforms = from_proto(request.transforms(), *plan.cs);
+  for (int i = 0; i < request.betas_size(); ++i) {
+    try {
+      plan.betas.push_back(beta_from(request.betas(i), request.units()));
+    } catch (const InvalidInput& e) {
+      throw InvalidInput("Sweep betas[" + std::to_string(i) + "]: " + e.what());
+    }
+  }
   // The session's local entries apply at every β (value = that β), in the sweep's units.
-  Eigen::VectorXd local_max;
   if (session_beta.has_local()) {
     const BetaUnits from = session_beta.uniform.units, to = units_from(request.units());
     const PreparedMesh& pm = *mesh_->prepared;
-    local_max = session_beta.local_max->unaryExpr(
+    plan.local_max = session_beta.local_max->unaryExpr(
         [&](double v) { return convert_beta(pm, v, from, to); });
   }
-  // Factorizations built only for the sweep are dropped again afterwards.
-  pb::SweepResponse out;
-  std::vector<Beta> extra;
-  for (const Beta& b : betas) {
-    UpdateOptions options;
-    options.energies = false;
-    options.normals = false;
-    if (session_beta.has_local()) {
-      const hdeform::Frame f = cs->update_local(transforms, *make_field(local_max, b), options);
-      auto* row = out.add_rows();
-      row->set_beta(b.value);
-      to_proto(f.measures, row->mutable_measures());
-      continue;
-    }
-    const std::size_t before = cs->num_cached_factorizations();
-    const hdeform::Frame f = cs->update(transforms, b, options);
-    if (cs->num_cached_factorizations() > before &&
-        !(b.value == session_beta.uniform.value && b.units == session_beta.uniform.units))
-      extra.push_back(b);
-    auto* row = out.add_rows();
-    row->set_beta(b.value);
-    to_proto(f.measures, row->mutable_measures());
-  }
-  for (const Beta& b : extra) const_cast<ConstraintSet&>(*cs).drop_factorization(b);
-  cache_.update_size(key, cs->memory_bytes());
-  return out;
+  return plan;
+}
+
+void Session::sweep_row(const SweepPlan& plan, const Beta& b, pb::SweepRow* row) const {
+  const UpdateOptions options{.energies = false, .normals = false};
+  // Transient: a sweep's factorizations are freed after each β and never enter the cache
+  // other sessions share (at most one extra factorization per running sweep).
+  const hdeform::Frame f =
+      plan.local_max.size() > 0
+          ? plan.cs->update_local(plan.transforms, *make_field(plan.local_max, b), options)
+          : plan.cs->update_transient(plan.transforms, b, options);
+  row->set_beta(b.value);
+  to_proto(f.measures, row->mutable_measures());
 }
 
 Vertices Session::deformed_positions() {

@@ -8,6 +8,7 @@
 #include "deformer.h"
 #include "hdeform/v1/deform.pb.h"
 #include "mesh_library.h"
+#include "request_limits.h"
 #include "worker_pool.h"
 
 #include <google/protobuf/repeated_field.h>
@@ -50,7 +51,8 @@ struct SessionBeta {
 
 class Session : public std::enable_shared_from_this<Session> {
  public:
-  Session(std::string id, std::shared_ptr<const MeshRef> mesh, WorkerPool& pool, Cache& cache);
+  Session(std::string id, std::shared_ptr<const MeshRef> mesh, WorkerPool& pool, Cache& cache,
+          const RequestLimits& limits = {});
 
   const std::string& id() const { return id_; }
   const std::string& name() const { return name_; }  // "sessions/{id}"
@@ -74,7 +76,17 @@ class Session : public std::enable_shared_from_this<Session> {
   // Solves, commits the transforms (bumping the version) and sends the frame to every
   // observer. Returns the frame.
   std::shared_ptr<pb::Frame> update(const Update& update);
-  pb::SweepResponse sweep(const pb::SweepRequest& request);
+  // A Sweep in steps, so it never holds the strand (edits go on between its βs): plan()
+  // checks the request and captures the session's state; row() solves one β transiently
+  // (no factorization enters the shared cache). Both may run on any thread.
+  struct SweepPlan {
+    std::shared_ptr<const ConstraintSet> cs;
+    std::vector<HandleTransform> transforms;
+    std::vector<Beta> betas;
+    Eigen::VectorXd local_max;  // the session's local entries in the sweep's units; empty: none
+  };
+  SweepPlan sweep_plan(const pb::SweepRequest& request) const;
+  void sweep_row(const SweepPlan& plan, const Beta& beta, pb::SweepRow* row) const;
   std::string mesh_file(bool rest, pb::MeshFormat format);
   pb::Snapshot export_snapshot(bool include_mesh) const;
   // Re-applies a snapshot's constraints, β and transforms (a fresh session only).
@@ -101,7 +113,8 @@ class Session : public std::enable_shared_from_this<Session> {
   void changed_locked(pb::Session* out);
   void broadcast(std::shared_ptr<const pb::SessionEvent> event);
   void broadcast_state();
-  std::shared_ptr<const ConstraintSet> constraint_set_for(const Constraints& c);
+  std::shared_ptr<const ConstraintSet> constraint_set_for(const Constraints& c,
+                                                          const std::string& key);
   // Validates a proto β and resolves its local entries (automatic: value not yet picked).
   // keep_automatic_value: a snapshot's automatic β keeps its pick instead of a new one.
   SessionBeta parse_beta(const pb::Beta& beta, bool keep_automatic_value = false) const;
@@ -116,6 +129,7 @@ class Session : public std::enable_shared_from_this<Session> {
 
   const std::string id_, name_;
   const std::shared_ptr<const MeshRef> mesh_;
+  const RequestLimits limits_;
   Cache& cache_;
   std::shared_ptr<Strand> strand_;
 

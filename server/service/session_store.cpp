@@ -9,7 +9,7 @@
 namespace hdeform::service {
 
 SessionStore::SessionStore(const Limits& limits, WorkerPool& pool, Cache& cache)
-    : limits_(limits), pool_(pool), cache_(cache), rng_(std::random_device{}()) {}
+    : limits_(limits), pool_(pool), cache_(cache) {}
 
 SessionStore::~SessionStore() { shutdown(); }
 
@@ -50,18 +50,32 @@ void SessionStore::check_id(const std::string& id) const {
 }
 
 std::shared_ptr<Session> SessionStore::create(std::shared_ptr<const MeshRef> mesh,
-                                              const std::string& requested) {
+                                              const std::string& requested,
+                                              const std::function<void(Session&)>& init) {
   if (!requested.empty()) check_id_format(requested);
-  std::lock_guard lock(mutex_);
-  if (!requested.empty() && sessions_.count(requested))
-    fail(grpc::StatusCode::ALREADY_EXISTS, "session sessions/" + requested + " already exists");
-  if (sessions_.size() >= limits_.max_sessions)
-    fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
-         "session limit reached (" + std::to_string(limits_.max_sessions) + " sessions)");
+  auto check_locked = [&] {
+    if (!requested.empty() && sessions_.count(requested))
+      fail(grpc::StatusCode::ALREADY_EXISTS, "session sessions/" + requested + " already exists");
+    if (sessions_.size() >= limits_.max_sessions)
+      fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
+           "session limit reached (" + std::to_string(limits_.max_sessions) + " sessions)");
+  };
   std::string id = requested;
-  while (id.empty() || sessions_.count(id)) id = hex64(rng_());
-  auto s = std::make_shared<Session>(id, std::move(mesh), pool_, cache_);
-  sessions_.emplace(id, s);
+  {
+    std::lock_guard lock(mutex_);
+    check_locked();
+    while (id.empty() || sessions_.count(id)) id = random_hex64();
+  }
+  auto s = std::make_shared<Session>(id, std::move(mesh), pool_, cache_, limits_.request);
+  // Initialised before anyone can reach it (ImportSession's restore): no strand needed,
+  // and a failed restore leaves nothing behind.
+  if (init) init(*s);
+  {
+    std::lock_guard lock(mutex_);
+    check_locked();  // the id or the last slot may have been taken meanwhile
+    if (sessions_.count(id)) fail(grpc::StatusCode::ABORTED, "session id collision; retry");
+    sessions_.emplace(id, s);
+  }
   spdlog::info("{}: created on mesh {} ({}, {} vertices)", s->name(), s->mesh().display_name(),
                s->mesh().hash, s->mesh().layout->vertex_count());
   return s;

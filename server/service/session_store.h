@@ -1,6 +1,7 @@
 // The registry of live sessions: limits, lookup by name, idle-TTL expiry.
 #pragma once
 
+#include "request_limits.h"
 #include "session.h"
 
 #include <chrono>
@@ -9,7 +10,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
-#include <random>
+#include <functional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -21,6 +22,7 @@ struct Limits {
   std::size_t max_vertices = 2'000'000;
   std::size_t max_upload_bytes = 256u << 20;
   std::chrono::milliseconds session_ttl{std::chrono::hours(1)};
+  RequestLimits request;
 };
 
 class SessionStore {
@@ -33,7 +35,10 @@ class SessionStore {
   void check_capacity() const;
   // `id` (the {id} of sessions/{id}): empty → the server picks one; else it must be
   // [A-Za-z0-9_-]{1,64} (INVALID_ARGUMENT) and free (ALREADY_EXISTS).
-  std::shared_ptr<Session> create(std::shared_ptr<const MeshRef> mesh, const std::string& id = "");
+  // `init` (optional) runs on the new session before it is published: on a throw the
+  // session is never reachable.
+  std::shared_ptr<Session> create(std::shared_ptr<const MeshRef> mesh, const std::string& id = "",
+                                  const std::function<void(Session&)>& init = {});
   // Early checks of a client-chosen id (format, and not taken right now); "" passes.
   void check_id(const std::string& id) const;
   // "sessions/{id}" or "{id}"; nullptr when unknown.
@@ -60,7 +65,6 @@ class SessionStore {
   Cache& cache_;
   mutable std::mutex mutex_;
   std::map<std::string, std::shared_ptr<Session>> sessions_;  // by id
-  std::mt19937_64 rng_;
 
   std::mutex sweeper_mutex_;
   std::condition_variable sweeper_cv_;

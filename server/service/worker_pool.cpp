@@ -2,11 +2,17 @@
 
 #include <spdlog/spdlog.h>
 
+#include <dlfcn.h>
+#include <omp.h>
+
+#include <algorithm>
 #include <exception>
+#include <mutex>
 
 namespace hdeform::service {
 
 namespace {
+
 void run_guarded(const WorkerPool::Task& task) {
   try {
     task();
@@ -18,10 +24,30 @@ void run_guarded(const WorkerPool::Task& task) {
 }
 }  // namespace
 
+// The engine's OpenMP loops run inside each worker: together they get the machine's cores,
+// not cores × workers (oversubscribed threads only fight each other). OpenBLAS (CHOLMOD's
+// BLAS) gets one thread: its pthread pool spins beside OpenMP's and costs more than it
+// gives on the small supernodes of these systems (issue 10's profile).
+static int limit_library_threads(int workers) {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    using SetThreads = void (*)(int);
+    if (auto f = reinterpret_cast<SetThreads>(::dlsym(RTLD_DEFAULT, "openblas_set_num_threads")))
+      f(1);
+  });
+  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  return std::max(1, cores / std::max(1, workers));
+}
+
 WorkerPool::WorkerPool(int threads) {
   if (threads < 1) threads = 1;
+  const int omp_threads = limit_library_threads(threads);
   threads_.reserve(threads);
-  for (int i = 0; i < threads; ++i) threads_.emplace_back([this] { run(); });
+  for (int i = 0; i < threads; ++i)
+    threads_.emplace_back([this, omp_threads] {
+      omp_set_num_threads(omp_threads);  // per thread: OpenMP's nthreads-var is per task
+      run();
+    });
 }
 
 WorkerPool::~WorkerPool() { stop(); }

@@ -238,7 +238,8 @@ TEST(Deformer, RejectsBadConstraintsWithPreciseMessages) {
   EXPECT_NE(message(c).find("at least one handle"), std::string::npos);
   c = b.constraints;
   c.handles.push_back({});
-  EXPECT_NE(message(c).find("handle 2 is empty"), std::string::npos) << message(c);
+  // Handles are numbered from 0 everywhere (as Constraints::handles and the API's handles[j]).
+  EXPECT_NE(message(c).find("handle 1 is empty"), std::string::npos) << message(c);
 
   // Two disjoint copies of the cactus, constraints on the first only.
   TriMesh two = b.mesh->mesh();
@@ -273,6 +274,96 @@ TEST(Deformer, RejectsBadTransformsAndBeta) {
   EXPECT_THROW(cs.update(std::span(&h, 1), {0.0, BetaUnits::area}), InvalidInput);
   h = HandleTransform();
   EXPECT_THROW(cs.update(std::span(&h, 1), {1.0, BetaUnits::area}), InvalidInput);
+}
+
+// Issue 8 (2): every vertex constrained used to hand CHOLMOD an empty system and crash on
+// a null factor. Decision (docs/api.md): the answer is simply the targets.
+TEST(Deformer, NoFreeVertexGivesTheTargets) {
+  const Benchmark& b = cactus();
+  Constraints c;
+  const int n = b.mesh->n();
+  c.handles.resize(1);
+  for (int v = 0; v < n; ++v) (v < n / 2 ? c.fixed : c.handles[0]).push_back(v);
+  for (double beta : {0.0, 0.3}) {
+    const ConstraintSet cs(b.mesh, c);
+    HandleTransform h;
+    h.translation = Eigen::Vector3d(0.5, -1, 2);
+    const Frame f = cs.update(std::span(&h, 1), {beta, BetaUnits::area});
+    for (int v = 0; v < n; ++v) {
+      const Eigen::RowVector3d rest = b.mesh->mesh().V.row(v);
+      const Eigen::RowVector3d want = v < n / 2 ? rest : rest + h.translation.transpose();
+      ASSERT_LT((f.positions.row(v) - want).norm(), 1e-12) << "vertex " << v << " beta " << beta;
+    }
+    const Frame t = cs.update_transient(std::span(&h, 1), {0.6, BetaUnits::area});
+    EXPECT_EQ(t.positions, f.positions);
+  }
+}
+
+// Issue 8 (4): transforms near 1e300 gave NaN/Inf positions that were streamed and written.
+TEST(Deformer, OutOfRangeResultIsRejectedNamingTheHandle) {
+  const Benchmark& b = cactus();
+  Constraints c = b.constraints;
+  c.handles.push_back(c.handles[0]);
+  c.handles[0].resize(c.handles[0].size() / 2);
+  c.handles[1].erase(c.handles[1].begin(), c.handles[1].begin() + c.handles[0].size());
+  const ConstraintSet cs(b.mesh, c);
+  for (double big : {1e300, 1e200, 1e40}) {
+    std::vector<HandleTransform> hs(2);
+    hs[1].translation = Eigen::Vector3d(big, 0, 0);
+    try {
+      cs.update(hs, {0.0, BetaUnits::area});
+      ADD_FAILURE() << "expected an error for translation " << big;
+    } catch (const InvalidInput& e) {
+      EXPECT_NE(std::string(e.what()).find("handle 1's transform"), std::string::npos) << e.what();
+    }
+    hs[1] = HandleTransform();
+    hs[0].stretch *= big;
+    EXPECT_THROW(cs.update(hs, {0.25, BetaUnits::area}), InvalidInput);
+  }
+  // Large but representable moves still solve.
+  std::vector<HandleTransform> hs(2);
+  hs[0].translation = Eigen::Vector3d(1e6, 0, 0);
+  EXPECT_TRUE(cs.update(hs, {0.0, BetaUnits::area}).positions.allFinite());
+}
+
+// Issue 8 (5): a strong shear (det = 1) was called "singular or reflecting (det = 1.000000)".
+TEST(Deformer, ShearIsAcceptedAndSingularMatricesSayWhy) {
+  Eigen::Matrix4d shear = Eigen::Matrix4d::Identity();
+  shear(0, 1) = 1e5;
+  const HandleTransform h = HandleTransform::from_matrix(shear, Eigen::Vector3d::Zero());
+  const Eigen::Vector3d x(0.3, 0.7, -0.2);
+  EXPECT_LT((h.apply(x, Eigen::Vector3d::Zero()) - (shear * x.homogeneous()).head<3>()).norm(),
+            1e-6);
+  auto message = [](const Eigen::Matrix4d& T) {
+    try {
+      HandleTransform::from_matrix(T, Eigen::Vector3d::Zero());
+    } catch (const InvalidInput& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  Eigen::Matrix4d flat = Eigen::Matrix4d::Identity();
+  flat(2, 2) = 0;
+  EXPECT_NE(message(flat).find("singular values 1, 1, 0"), std::string::npos) << message(flat);
+  Eigen::Matrix4d mirror = Eigen::Matrix4d::Identity();
+  mirror(1, 1) = -2;
+  EXPECT_NE(message(mirror).find("reflection (det = -2"), std::string::npos) << message(mirror);
+}
+
+// Sweeps and automatic β solve with update_transient: the shared cache is left as it was.
+TEST(Deformer, TransientUpdateLeavesTheCacheAlone) {
+  const Benchmark& b = cactus();
+  const ConstraintSet cs(b.mesh, b.constraints);
+  cs.prepare({0.1, BetaUnits::area});  // the β > 0 pattern, built once and shared by all β
+  const std::size_t before = cs.num_cached_factorizations();
+  const std::size_t bytes = cs.memory_bytes();
+  const HandleTransform h = HandleTransform::from_matrix(b.T, cs.centroid(0));
+  const Frame t = cs.update_transient(std::span(&h, 1), {0.4, BetaUnits::area});
+  EXPECT_EQ(cs.num_cached_factorizations(), before);
+  EXPECT_EQ(cs.memory_bytes(), bytes);
+  const Frame f = cs.update(std::span(&h, 1), {0.4, BetaUnits::area});
+  EXPECT_EQ(cs.num_cached_factorizations(), before + 1);
+  EXPECT_LT((t.positions - f.positions).cwiseAbs().maxCoeff(), 1e-9);
 }
 
 TEST(Deformer, PolarDecompositionRoundTripsTheMatrix) {

@@ -32,7 +32,7 @@ TEST(ServiceSessions, CreateGetListDelete) {
   EXPECT_FALSE(a.constrained());
   EXPECT_NE(a.name(), b.name());
   EXPECT_EQ(a.mesh_hash(), b.mesh_hash());  // content hash: one shared PreparedMesh
-  EXPECT_EQ(a.mesh_hash().size(), 16u);
+  EXPECT_EQ(a.mesh_hash().size(), 64u);  // SHA-256
 
   pb::ListSessionsResponse list;
   ASSERT_TRUE(t.list_sessions(&list).ok());

@@ -1,0 +1,23 @@
+// Per-request caps (hdeform-server flags): every request's work and memory is bounded by
+// these, and a request beyond one gets RESOURCE_EXHAUSTED naming the cap and its flag.
+#pragma once
+
+#include <cstddef>
+#include <string>
+
+namespace hdeform::service {
+
+struct RequestLimits {
+  std::size_t max_handles = 64;              // --max-handles: handle regions per session
+  std::size_t max_selectors = 256;           // --max-selectors: selectors per region
+  std::size_t max_selector_ids = 4'000'000;  // --max-selector-ids: ids in one ids/base_ids selector
+  std::size_t max_local_beta = 16;           // --max-local-beta: local β entries
+  std::size_t max_sweep_betas = 64;          // --max-sweep-betas: β values in one Sweep
+  std::size_t max_concurrent_sweeps = 1;     // --max-sweeps: Sweeps running at once (server)
+};
+
+// Throws ServiceError RESOURCE_EXHAUSTED "WHAT: COUNT exceeds the limit of LIMIT (FLAG)".
+void check_limit(std::size_t count, std::size_t limit, const std::string& what,
+                 const char* flag);
+
+}  // namespace hdeform::service
