@@ -100,6 +100,7 @@ class Tokens {
       ++pos_;
     }
     if (pos_ == s_.size()) return false;
+    tok_line_ = line_;
     const size_t b = pos_;
     while (pos_ < s_.size() && !std::isspace(static_cast<unsigned char>(s_[pos_]))) ++pos_;
     tok = s_.substr(b, pos_ - b);
@@ -108,12 +109,14 @@ class Tokens {
   void skip_line() {  // the rest of the current line (a solid's name)
     while (pos_ < s_.size() && s_[pos_] != '\n') ++pos_;
   }
-  int line() const { return line_; }
+  // The line of the last token read (at the end of the text: of the last token).
+  int line() const { return tok_line_; }
 
  private:
   std::string_view s_;
   size_t pos_ = 0;
   int line_ = 1;
+  int tok_line_ = 1;
 };
 
 Soup parse_stl_ascii(std::string_view text, ReadContext& ctx) {
@@ -199,6 +202,7 @@ Soup parse_stl(std::string_view bytes, ReadContext& ctx) {
     const uint32_t n = load_raw<uint32_t>(reinterpret_cast<const unsigned char*>(bytes.data()) + 80,
                                           std::endian::native != std::endian::little);
     const unsigned long long expected = 84 + 50ULL * n;
+    if (!text) ctx.declare_triangles(n);  // the limit first, as for every declared count
     if (bytes.size() == expected || (!text && bytes.size() > expected)) return parse_stl_binary(bytes, ctx);
     if (!text)
       fail(ctx.name + ": binary STL truncated: header declares " + plural(n, "triangle", "triangles") +

@@ -16,6 +16,11 @@
 #include <sstream>
 #include <string>
 
+#include <algorithm>
+#include <atomic>
+#include <bit>
+#include <chrono>
+
 #include <unistd.h>
 
 namespace hdeform {
@@ -387,7 +392,7 @@ TEST(MeshIo, NonManifoldFacesAreKeptForValidation) {
   EXPECT_THROW(validate_mesh(r.mesh), InvalidInput);
 }
 
-TEST(MeshIo, StlThroughOpenMeshMergesCorners) {
+TEST(MeshIo, StlMergesCorners) {
   // Binary STL: two triangles of a square sharing the diagonal.
   std::string stl(80, ' ');
   auto put = [&](const void* p, size_t n) { stl.append(static_cast<const char*>(p), n); };
@@ -489,6 +494,364 @@ TEST(MeshIo, VertexNormalsAreAreaWeightedUnitVectors) {
   Triangles F2(1, 3);
   F2 << 0, 1, 2;
   EXPECT_EQ(vertex_normals(V2, F2).row(3), Eigen::RowVector3d::Zero());
+}
+
+
+// ---------------------------------------------------------------------------------------
+// Issue 8: bounded work and memory, limits while parsing, messages that name the format.
+
+std::string msg_of(std::string_view bytes, const std::string& name, const ReadLimits& limits = {}) {
+  return error_of([&] { read_mesh_bytes(bytes, name, limits); });
+}
+
+template <class T>
+void put_be(std::string& out, T v) {
+  unsigned char b[sizeof(T)];
+  std::memcpy(b, &v, sizeof(T));
+  if (std::endian::native == std::endian::little) std::reverse(b, b + sizeof(T));
+  out.append(reinterpret_cast<const char*>(b), sizeof(T));
+}
+template <class T>
+void put_le(std::string& out, T v) {
+  unsigned char b[sizeof(T)];
+  std::memcpy(b, &v, sizeof(T));
+  if (std::endian::native == std::endian::big) std::reverse(b, b + sizeof(T));
+  out.append(reinterpret_cast<const char*>(b), sizeof(T));
+}
+
+// Seconds a call takes (the reader must return or throw quickly).
+double seconds_of(const std::function<void()>& f) {
+  const auto t0 = std::chrono::steady_clock::now();
+  try {
+    f();
+  } catch (const std::exception&) {
+  }
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+const char* kTetraPlyHead =
+    "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+    "property float z\n";
+
+std::string triangle_ply_data() {
+  std::string d;
+  for (float x : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) put_le(d, x);
+  d.push_back('\x03');
+  for (int32_t i : {0, 1, 2}) put_le(d, i);
+  return d;
+}
+
+TEST(MeshIoBounds, PlyElementWithoutPropertiesAndHugeCountIsSkipped) {
+  // Issue 8: 0 bytes per row and 4·10⁹ rows looped for ~forever on a worker.
+  for (const char* where : {"before", "after"}) {
+    SCOPED_TRACE(where);
+    std::string ply = kTetraPlyHead;
+    const std::string junk = "element junk 4000000000\n";
+    if (std::string(where) == "before") ply += junk;
+    ply += "element face 1\nproperty list uchar int vertex_indices\n";
+    if (std::string(where) == "after") ply += junk;
+    ply += "end_header\n" + triangle_ply_data();
+    LoadedMesh r;
+    EXPECT_LT(seconds_of([&] { r = read_mesh_bytes(ply, "junk.ply"); }), 1.0);
+    EXPECT_EQ(r.mesh.num_vertices(), 3);
+    EXPECT_EQ(r.mesh.num_triangles(), 1);
+  }
+  // ASCII too: no line is consumed for a row without properties.
+  const std::string ascii =
+      "ply\nformat ascii 1.0\nelement junk 4000000000\nelement vertex 3\nproperty double x\n"
+      "property double y\nproperty double z\nelement face 1\nproperty list uchar int vertex_indices\n"
+      "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+  LoadedMesh a;
+  EXPECT_LT(seconds_of([&] { a = read_mesh_bytes(ascii, "junk.ply"); }), 1.0);
+  EXPECT_EQ(a.mesh.num_triangles(), 1);
+}
+
+TEST(MeshIoBounds, PlyCountsAreCheckedAgainstTheBytesBeforeAnyAllocation) {
+  // 700 million vertices of 12 bytes declared, 40 bytes present: no 16 GB reserve.
+  std::string ply = "ply\nformat binary_little_endian 1.0\nelement vertex 700000000\nproperty float x\n"
+                    "property float y\nproperty float z\nend_header\n";
+  ply += std::string(40, '\0');
+  EXPECT_EQ(msg_of(ply, "big.ply"),
+            "big.ply:3: binary PLY truncated: header declares 700000000 vertex elements of at least "
+            "12 bytes but 40 bytes follow the header");
+  // The face element's rows come after the vertices'.
+  std::string two = std::string(kTetraPlyHead) + "element face 100\nproperty list uchar int vertex_indices\nend_header\n" +
+                    triangle_ply_data();
+  EXPECT_EQ(msg_of(two, "f.ply"),
+            "f.ply:7: binary PLY truncated: header declares 100 face elements of at least 1 byte "
+            "after 36 bytes of earlier elements but 49 bytes follow the header");
+  // A list length beyond the bytes left.
+  std::string list = std::string(kTetraPlyHead) + "element face 1\nproperty list uint int vertex_indices\nend_header\n";
+  for (float x : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) put_le(list, x);
+  put_le<uint32_t>(list, 0xFFFFFFFFu);
+  EXPECT_EQ(msg_of(list, "l.ply"), "l.ply: unexpected end of binary data in face element 0 of 1");
+  // A second vertex element.
+  EXPECT_EQ(msg_of(std::string(kTetraPlyHead) + "element vertex 1\nproperty float x\nproperty float y\nproperty float z\nend_header\n", "v.ply"),
+            "v.ply:7: second vertex element (a PLY file has one)");
+  // ASCII: a huge count reserves only what the bytes can hold and fails where the data ends.
+  const std::string ascii = "ply\nformat ascii 1.0\nelement vertex 700000000\nproperty float x\n"
+                            "property float y\nproperty float z\nend_header\n0 0 0\n";
+  std::string m;
+  EXPECT_LT(seconds_of([&] { m = msg_of(ascii, "a.ply"); }), 1.0);
+  EXPECT_EQ(m, "a.ply:8: unexpected end of file: expected 700000000 vertex elements, found 1");
+}
+
+TEST(MeshIoBounds, PlyIndexThatIsNotAnIntegerIsNamedWithoutOverflow) {
+  std::string ply = std::string(kTetraPlyHead) + "element face 1\nproperty list uchar double vertex_indices\nend_header\n";
+  for (float x : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) put_le(ply, x);
+  ply.push_back('\x03');
+  for (double v : {0.0, 1.0, 1e300}) put_le(ply, v);
+  EXPECT_EQ(msg_of(ply, "d.ply"), "d.ply: face 0: vertex index 1e+300 out of range (file has 3 vertices)");
+}
+
+TEST(MeshIoBounds, OffHugeCountsReserveNothingAndFailAtTheEnd) {
+  std::string m;
+  EXPECT_LT(seconds_of([&] { m = msg_of("OFF\n700000000 700000000 0\n0 0 0\n", "big.off"); }), 1.0);
+  EXPECT_EQ(m, "big.off:3: unexpected end of file: expected 700000000 vertices, found 1");
+  EXPECT_EQ(msg_of("OFF\n2000000000 1 0\n0 0 0\n", "int.off"),
+            "int.off: 2000000000 vertices: at most 715827882 are supported");
+}
+
+// Geomview binary OFF: big-endian int32 counts, float32 coordinates, faces k i… c colour….
+std::string binary_off(const std::string& head, int extra_floats_per_vertex, int colour) {
+  std::string off = head + "\n";
+  put_be<int32_t>(off, 4);
+  put_be<int32_t>(off, 4);
+  put_be<int32_t>(off, 6);
+  const float v[4][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1.5f}};
+  for (const auto& p : v) {
+    for (float x : p) put_be(off, x);
+    for (int k = 0; k < extra_floats_per_vertex; ++k) put_be(off, 0.5f);
+  }
+  const int32_t f[4][3] = {{0, 2, 1}, {0, 1, 3}, {1, 2, 3}, {0, 3, 2}};
+  for (const auto& t : f) {
+    put_be<int32_t>(off, 3);
+    for (int32_t i : t) put_be(off, i);
+    put_be<int32_t>(off, colour);
+    for (int k = 0; k < colour; ++k) put_be(off, 1.0f);
+  }
+  return off;
+}
+
+TEST(MeshIoBounds, BinaryOffIsRead) {
+  struct Case {
+    const char* head;
+    int extra, colour;
+  };
+  for (const Case& c : {Case{"OFF BINARY", 0, 0}, Case{"OFF BINARY # comment", 0, 3},
+                        Case{"NOFF BINARY", 3, 4}, Case{"CNOFF BINARY", 7, 1}, Case{"STCOFF BINARY", 6, 0}}) {
+    SCOPED_TRACE(c.head);
+    const LoadedMesh r = read_mesh_bytes(binary_off(c.head, c.extra, c.colour), "b.off");
+    ASSERT_EQ(r.mesh.num_vertices(), 4);
+    ASSERT_EQ(r.mesh.num_triangles(), 4);
+    EXPECT_EQ(r.mesh.V(3, 2), 1.5);
+    EXPECT_EQ(r.mesh.V(1, 0), 1.0);
+    EXPECT_EQ(r.mesh.F.row(2), Eigen::RowVector3i(1, 2, 3));
+    EXPECT_NO_THROW(validate_mesh(r.mesh));
+  }
+}
+
+TEST(MeshIoBounds, BinaryOffErrorsNameTheFaceAndByte) {
+  const std::string good = binary_off("OFF BINARY", 0, 0);
+  EXPECT_EQ(msg_of(good.substr(0, 40), "t.off"),
+            "t.off: binary OFF truncated: header declares 4 vertices (48 bytes) and 4 faces (at least "
+            "80 bytes) but 17 bytes follow the counts");
+  EXPECT_EQ(msg_of(std::string("OFF BINARY\n\0\0", 13), "t.off"),
+            "t.off: binary OFF truncated: 2 bytes after the header line, need 12 for the vertex, face and edge counts");
+  std::string bad = good;
+  bad[11 + 12 + 48 + 8 + 3] = 9;  // face 0, second index
+  EXPECT_EQ(msg_of(bad, "i.off"), "i.off: binary OFF face 0 (byte 71): vertex index 9 out of range (file has 4 vertices)");
+  std::string colour = good;
+  colour[11 + 12 + 48 + 16 + 3] = 7;  // face 0 colour count
+  EXPECT_EQ(msg_of(colour, "c.off"), "c.off: binary OFF face 0 (byte 71): colour with 7 components (expected 0 to 4)");
+  std::string neg = "OFF BINARY\n";
+  put_be<int32_t>(neg, -1);
+  put_be<int32_t>(neg, 0);
+  put_be<int32_t>(neg, 0);
+  EXPECT_EQ(msg_of(neg, "n.off"), "n.off: binary OFF: negative counts (-1 vertices, 0 faces) at byte 11");
+}
+
+std::string binary_stl(uint32_t declared, int actual) {
+  std::string stl(80, ' ');
+  put_le(stl, declared);
+  for (int t = 0; t < actual; ++t) {
+    for (float x : {0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, static_cast<float>(t)}) put_le(stl, x);
+    stl.append(2, '\0');
+  }
+  return stl;
+}
+
+TEST(MeshIoBounds, TruncatedBinaryStlSaysSo) {
+  const std::string stl = binary_stl(1000, 4);
+  ASSERT_EQ(stl.size(), 284u);
+  EXPECT_EQ(msg_of(stl.substr(0, 300), "x.stl"),
+            "x.stl: binary STL truncated: header declares 1000 triangles (50,084 bytes) but the file has 284 bytes");
+  // A binary file whose header starts with "solid" (common) is still binary when its size fits.
+  std::string solid = binary_stl(2, 2);
+  solid.replace(0, 9, "solid bin");
+  EXPECT_EQ(read_mesh_bytes(solid, "s.stl").mesh.num_triangles(), 2);
+  // ... and truncated when it does not.
+  EXPECT_EQ(msg_of(solid.substr(0, 150), "s.stl"),
+            "s.stl: binary STL truncated: header declares 2 triangles (184 bytes) but the file has 150 bytes");
+  EXPECT_EQ(msg_of("\x01\x02garbage", "g.stl"),
+            "g.stl: not an STL file: 9 bytes, too short for a binary STL (84-byte header) and no 'solid' "
+            "line for an ASCII STL");
+  // Extra bytes after the declared triangles: read, with a warning.
+  const LoadedMesh extra = read_mesh_bytes(binary_stl(1, 2), "e.stl");
+  EXPECT_EQ(extra.mesh.num_triangles(), 1);
+  ASSERT_EQ(extra.warnings.size(), 1u);
+  EXPECT_EQ(extra.warnings[0], "e.stl: 50 bytes after the 1 triangle of the binary STL ignored");
+  EXPECT_EQ(msg_of(binary_stl(0, 0), "z.stl"), "z.stl: no vertices found in the STL file");
+}
+
+TEST(MeshIoBounds, TruncatedAsciiStlIsAnError) {
+  const std::string facet =
+      "facet normal 0 0 1\n outer loop\n  vertex 0 0 0\n  vertex 1 0 0\n  vertex 1 1 0\n endloop\nendfacet\n";
+  const std::string whole = "solid sq\n" + facet + "endsolid sq\n";
+  EXPECT_EQ(read_mesh_bytes(whole, "ok.stl").mesh.num_triangles(), 1);
+  EXPECT_EQ(read_mesh_bytes("SOLID\n" + facet + "ENDSOLID\nsolid b\n" + facet + "endsolid\n", "two.stl").mesh.num_triangles(), 2);
+  EXPECT_EQ(msg_of("solid sq\n" + facet, "noend.stl"),
+            "noend.stl:8: ASCII STL truncated: the file ends after facet 1 (expected 'facet' or 'endsolid')");
+  EXPECT_EQ(msg_of("solid sq\n" + facet.substr(0, facet.find("endfacet")), "nofacet.stl"),
+            "nofacet.stl:7: ASCII STL truncated: the file ends inside facet 1 (expected 'endfacet')");
+  EXPECT_EQ(msg_of("solid sq\n" + facet.substr(0, facet.find("  vertex 1 1")), "half.stl"),
+            "half.stl:5: ASCII STL truncated: the file ends inside facet 1 (expected 'vertex')");
+  EXPECT_EQ(msg_of("solid sq\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nendloop\n", "two.stl"),
+            "two.stl:6: ASCII STL: expected 'vertex', found 'endloop'");
+  EXPECT_EQ(msg_of("solid sq\nfacet normal 0 0 1\nouter loop\nvertex 0 x 0\n", "x.stl"),
+            "x.stl:4: ASCII STL: bad vertex coordinate 'x'");
+  EXPECT_EQ(msg_of("solid sq\n", "empty.stl"),
+            "empty.stl:1: ASCII STL truncated: the file ends before the first facet (expected 'facet' or 'endsolid')");
+  EXPECT_EQ(msg_of(whole + "junk\n", "junk.stl"),
+            "junk.stl:10: ASCII STL: expected 'solid' or the end of the file after 'endsolid', found 'junk'");
+  // ASCII coordinates keep double precision.
+  const LoadedMesh d = read_mesh_bytes("solid\nfacet normal 0 0 1 outer loop vertex 0.1 0 0 vertex 1 0 0 "
+                                       "vertex 0 1 0 endloop endfacet endsolid", "d.stl");
+  EXPECT_EQ(d.mesh.V(0, 0), 0.1);
+}
+
+TEST(MeshIoBounds, GarbageFilesNameTheFormat) {
+  EXPECT_EQ(msg_of(std::string("\x7f""ELF\x02\x01\x01\0\0\0 binary", 17), "x.obj"), "x.obj:1: not an OBJ file: unknown statement '\\x7fELF\\x02\\x01\\x01\\x00\\x00\\x00'");
+  EXPECT_EQ(msg_of("# just a comment\nvn 0 0 1\n", "c.obj"), "c.obj: no vertices found in the OBJ file");
+  EXPECT_EQ(msg_of("OFF\n0 0 0\n", "e.off"), "e.off: no vertices found in the OFF file");
+  EXPECT_EQ(msg_of("\x89PNG\r\n", "p.ply"), "p.ply:1: not a PLY file (missing 'ply' header)");
+  EXPECT_EQ(msg_of("\x89PNG\r\n", "p.off"), "p.off:1: not an OFF file (header '\\x89PNG')");
+  EXPECT_EQ(msg_of("{\"asset\":{\"version\":\"2.0\"}}", "n.gltf"),
+            "n.gltf: no vertices found in the glTF file (no triangle primitive with a POSITION accessor of at least one element)");
+}
+
+TEST(MeshIoBounds, GltfAccessorCountCannotOverflowTheBoundsCheck) {
+  // stride 12 × (count − 1) wraps to 0 in 64 bits when count = 2^62 + 1.
+  const std::string gltf = R"({"asset":{"version":"2.0"},
+    "buffers":[{"uri":"data:application/octet-stream;base64,AAAAAAAAAAAAAAAA","byteLength":12}],
+    "bufferViews":[{"buffer":0,"byteLength":12}],
+    "accessors":[{"bufferView":0,"componentType":5126,"count":4611686018427387905,"type":"VEC3"}],
+    "meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}]})";
+  const std::string m = msg_of(gltf, "o.gltf");
+  EXPECT_NE(m.find("o.gltf: mesh 0 primitive 0 POSITION: accessor reads past the end of its bufferView"), std::string::npos) << m;
+}
+
+TEST(MeshIoBounds, GltfReusedAccessorsCannotMultiplyTheWork) {
+  // An index accessor of 30 000 indices (60 KB) used by 200 primitives (a few KB of JSON)
+  // would give 2 million triangles from a 70 KB file. The data read is charged per use and
+  // capped at twice the file and its buffers.
+  tinygltf::Model model = seam_model();
+  const size_t idx_at = 6 * 12 + 6 * 8;
+  model.buffers[0].data.resize(idx_at + 2 * 30000);
+  for (size_t k = 0; k < 30000; ++k) {
+    const uint16_t v = static_cast<uint16_t>(k % 6);
+    std::memcpy(model.buffers[0].data.data() + idx_at + 2 * k, &v, 2);
+  }
+  model.bufferViews[2].byteLength = 2 * 30000;
+  model.accessors[2].count = 30000;
+  EXPECT_EQ(read_mesh_bytes(serialise(model, true), "once.glb").mesh.num_triangles(), 10000);
+  const tinygltf::Primitive p = model.meshes[0].primitives[0];
+  for (int i = 0; i < 200; ++i) model.meshes[0].primitives.push_back(p);
+  const std::string m = msg_of(serialise(model, true), "many.glb");
+  EXPECT_NE(m.find("many.glb: mesh 0 primitive 4 indices: accessors read"), std::string::npos) << m;
+  EXPECT_NE(m.find("accessors overlap or are reused"), std::string::npos) << m;
+}
+
+TEST(MeshIoLimits, DeclaredCountsFailImmediately) {
+  ReadLimits lim;
+  lim.max_vertices = 2000000;
+  std::string ply = "ply\nformat binary_little_endian 1.0\nelement vertex 5000000\nproperty float x\n"
+                    "property float y\nproperty float z\nend_header\n";
+  EXPECT_THROW(read_mesh_bytes(ply, "big.ply", lim), LimitExceeded);
+  EXPECT_EQ(msg_of(ply, "big.ply", lim), "big.ply: 5000000 vertices exceed the server's limit of 2000000 (--max-vertices)");
+  EXPECT_EQ(msg_of("OFF\n5000000 1 0\n", "big.off", lim),
+            "big.off: 5000000 vertices exceed the server's limit of 2000000 (--max-vertices)");
+  std::string boff = "OFF BINARY\n";
+  put_be<int32_t>(boff, 5000000);
+  put_be<int32_t>(boff, 0);
+  put_be<int32_t>(boff, 0);
+  EXPECT_EQ(msg_of(boff, "big.off", lim), "big.off: 5000000 vertices exceed the server's limit of 2000000 (--max-vertices)");
+  ReadLimits tri;
+  tri.max_triangles = 10;
+  tri.triangles_option = "";
+  EXPECT_EQ(msg_of(binary_stl(1000, 0), "big.stl", tri), "big.stl: 1000 triangles exceed the server's limit of 10");
+  EXPECT_EQ(msg_of("OFF\n3 11 0\n", "f.off", tri), "f.off: 11 triangles exceed the server's limit of 10");
+  // glTF: the POSITION accessor's count.
+  ReadLimits five;
+  five.max_vertices = 5;
+  EXPECT_EQ(msg_of(serialise(seam_model(), true), "seam.glb", five),
+            "seam.glb: 6 vertices exceed the server's limit of 5 (--max-vertices)");
+}
+
+TEST(MeshIoLimits, RunningCountsFailAsSoonAsTheyPassTheLimit) {
+  ReadLimits lim;
+  lim.max_vertices = 3;
+  std::string obj;
+  for (int i = 0; i < 1000; ++i) obj += "v 0 0 " + std::to_string(i) + "\n";
+  EXPECT_EQ(msg_of(obj, "many.obj", lim), "many.obj: more than 3 vertices: the server's limit (--max-vertices)");
+  ReadLimits tri;
+  tri.max_triangles = 2;
+  EXPECT_EQ(msg_of("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nv 2 2 0\nf 1 2 3 4 5\n", "fan.obj", tri),
+            "fan.obj: more than 2 triangles: the server's limit (--max-triangles)");
+  // ASCII STL vertices are counted after merging.
+  const std::string facet =
+      "facet normal 0 0 1 outer loop vertex 0 0 0 vertex 1 0 0 vertex 1 1 0 endloop endfacet\n";
+  EXPECT_EQ(read_mesh_bytes("solid\n" + facet + facet + "endsolid\n", "m.stl", lim).mesh.num_vertices(), 3);
+  // Within the limits: read as usual.
+  ReadLimits roomy;
+  roomy.max_vertices = 4;
+  roomy.max_triangles = 4;
+  const auto path = std::filesystem::temp_directory_path() / ("hdeform_limits_" + std::to_string(::getpid()) + ".off");
+  {
+    std::ofstream(path) << "OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 1 2 3\n3 0 3 2\n";
+  }
+  EXPECT_EQ(read_mesh(path.string(), roomy).mesh.num_triangles(), 4);
+  roomy.max_triangles = 3;
+  EXPECT_THROW(read_mesh(path.string(), roomy), LimitExceeded);
+  std::filesystem::remove(path);
+}
+
+TEST(MeshIoLimits, CancellationStopsAReadInProgress) {
+  std::string obj;
+  for (int i = 0; i < 50000; ++i) obj += "v 0 0 " + std::to_string(i) + "\n";
+  std::atomic<bool> stop{true};
+  ReadLimits lim;
+  lim.cancel = &stop;
+  EXPECT_THROW(read_mesh_bytes(obj, "c.obj", lim), ReadCancelled);
+  try {
+    read_mesh_bytes(obj, "c.obj", lim);
+  } catch (const ReadCancelled& e) {
+    EXPECT_STREQ(e.what(), "c.obj: reading cancelled");
+  }
+  // A callback polled every few thousand rows: cancelled on its third poll, long before the end.
+  int polls = 0;
+  ReadLimits cb;
+  cb.should_cancel = [&polls] { return ++polls >= 3; };
+  EXPECT_THROW(read_mesh_bytes(obj, "c.obj", cb), ReadCancelled);
+  EXPECT_EQ(polls, 3);
+  stop = false;
+  EXPECT_EQ(read_mesh_bytes(obj + "f 1 2 3\n", "c.obj", lim).mesh.num_vertices(), 50000);
+}
+
+TEST(MeshIoBounds, QuotedFileContentIsEscaped) {
+  // Bytes of a binary or non-UTF-8 file quoted in a message are escaped, so the message is
+  // valid UTF-8 (it ends up in gRPC status messages and proto strings).
+  EXPECT_EQ(msg_of("OFF\n3 1 0\n0 0 0\n1 \xff\xfe 0\n0 1 0\n3 0 1 2\n", "u.off"), "u.off:4: bad coordinate '\\xff\\xfe'");
 }
 
 }  // namespace

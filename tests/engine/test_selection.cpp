@@ -88,6 +88,14 @@ TEST(Selection, BadSelFilesNameTheLine) {
   EXPECT_EQ(error_of([] { parse_sel("0\n-1\n", 2); }), "<sel>:2: bad label '-1' (expected 0 = fixed, 1 = free or 2 = handle)");
 }
 
+TEST(Selection, BadBytesAreEscapedInMessages) {
+  // Invalid UTF-8 / control bytes quoted from the file come back escaped (valid UTF-8).
+  EXPECT_EQ(error_of([] { parse_sel(std::string("0\n\xff\xc3\x01\n", 6), 2, "u.sel"); }),
+            "u.sel:2: bad label '\\xff\\xc3\\x01' (expected 0 = fixed, 1 = free or 2 = handle)");
+  EXPECT_EQ(error_of([] { parse_def("1 0 0 \xe2\x82\n", "u.def"); }),
+            "u.def:1: bad number '\\xe2\\x82' in matrix row 1");
+}
+
 TEST(Selection, BadDefFilesNameTheLine) {
   EXPECT_EQ(error_of([] { parse_def("# m\n1 0 0 0\n0 1 0\n0 0 1 0\n0 0 0 1\n", "r.def"); }),
             "r.def:3: matrix row 2 has 3 numbers, expected 4");

@@ -1,0 +1,161 @@
+#!/usr/bin/env python3
+"""Writes the committed seed corpora of tests/fuzz/corpus/ (small valid and invalid files per
+target). Re-run after changing it: python3 tests/fuzz/make_seeds.py. Regression inputs found
+by fuzzing are added by hand as corpus/<target>/regress-*."""
+import base64
+import json
+import os
+import struct
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+TETRA_V = [(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1)]
+TETRA_F = [(0, 2, 1), (0, 1, 3), (1, 2, 3), (0, 3, 2)]
+
+
+def put(target, name, data):
+    d = os.path.join(HERE, "corpus", target)
+    os.makedirs(d, exist_ok=True)
+    with open(os.path.join(d, name), "wb") as f:
+        f.write(data.encode() if isinstance(data, str) else data)
+
+
+def obj():
+    v = "".join(f"v {x} {y} {z}\n" for x, y, z in TETRA_V)
+    put("fuzz_obj", "tetra.obj", "# tetra\n" + v + "".join(f"f {a+1} {b+1} {c+1}\n" for a, b, c in TETRA_F))
+    put("fuzz_obj", "quad-corners.obj",
+        "o q\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\ns off\nf 1/1/1 2/1/1 3/1/1 4/1/1\nl 1 2\n")
+    put("fuzz_obj", "relative.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\n")
+    put("fuzz_obj", "forward.obj", "f 1 2 3\nv 0 0 0\nv 1 0 0\nv 0 1 0\n")
+    put("fuzz_obj", "bad-corner.obj", "v 0 0 0\nf 1 x 2\n")
+    put("fuzz_obj", "garbage.obj", "\x00\x01binary\xffgarbage\n")
+
+
+def off():
+    v = "".join(f"{x} {y} {z}\n" for x, y, z in TETRA_V)
+    f = "".join(f"3 {a} {b} {c}\n" for a, b, c in TETRA_F)
+    put("fuzz_off", "tetra.off", "OFF\n4 4 6\n" + v + f)
+    put("fuzz_off", "coff-comments.off", "COFF # colours\n\n4 1 0\n" + v.replace("\n", " 1 0 0 1\n") + "4 0 1 2 3 255 0 0\n")
+    put("fuzz_off", "short.off", "OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    put("fuzz_off", "huge-count.off", "OFF\n2000000000 1 0\n0 0 0\n")
+    be = lambda fmt, *a: struct.pack(">" + fmt, *a)
+    body = be("iii", 4, 4, 6) + b"".join(be("fff", *p) for p in TETRA_V)
+    body += b"".join(be("iiiii", 3, a, b, c, 0) for a, b, c in TETRA_F)
+    put("fuzz_off", "tetra-binary.off", b"OFF BINARY\n" + body)
+    put("fuzz_off", "binary-colour.off", b"OFF BINARY\n" + be("iii", 3, 1, 0) +
+        b"".join(be("fff", *p) for p in TETRA_V[:3]) + be("iiiii", 3, 0, 1, 2, 3) + be("fff", 1, 0, 0))
+    put("fuzz_off", "binary-truncated.off", b"OFF BINARY\n" + body[:40])
+
+
+def ply():
+    head = ("ply\nformat {fmt} 1.0\ncomment seed\nelement vertex 4\nproperty float x\nproperty float y\n"
+            "property float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n")
+    v = "".join(f"{x} {y} {z}\n" for x, y, z in TETRA_V)
+    f = "".join(f"3 {a} {b} {c}\n" for a, b, c in TETRA_F)
+    put("fuzz_ply", "tetra-ascii.ply", head.format(fmt="ascii") + v + f)
+    for fmt, e in (("binary_little_endian", "<"), ("binary_big_endian", ">")):
+        data = b"".join(struct.pack(e + "fff", *p) for p in TETRA_V)
+        data += b"".join(struct.pack(e + "Biii", 3, a, b, c) for a, b, c in TETRA_F)
+        put("fuzz_ply", f"tetra-{fmt}.ply", head.format(fmt=fmt).encode() + data)
+    # Issue 8's hang: an element without properties and a huge count (0 bytes per row).
+    put("fuzz_ply", "zero-byte-rows.ply",
+        "ply\nformat binary_little_endian 1.0\nelement vertex 0\nproperty float x\nproperty float y\n"
+        "property float z\nelement junk 4000000000\nend_header\n")
+    put("fuzz_ply", "double-ushort.ply",
+        "ply\nformat binary_big_endian 1.0\nelement vertex 3\nproperty double x\nproperty double y\n"
+        "property double z\nproperty uchar red\nelement face 1\nproperty list ushort uint vertex_index\n"
+        "end_header\n".encode() + b"".join(struct.pack(">dddB", x, y, z, 7) for x, y, z in TETRA_V[:3])
+        + struct.pack(">HIII", 3, 0, 1, 2))
+
+
+def stl():
+    facets = []
+    for a, b, c in TETRA_F:
+        facets.append((TETRA_V[a], TETRA_V[b], TETRA_V[c]))
+    binary = b"seed binary stl".ljust(80, b" ") + struct.pack("<I", len(facets))
+    for t in facets:
+        binary += struct.pack("<3f", 0, 0, 1) + b"".join(struct.pack("<3f", *p) for p in t) + b"\0\0"
+    put("fuzz_stl", "tetra-binary.stl", binary)
+    put("fuzz_stl", "truncated-binary.stl", binary[:120])
+    ascii_ = "solid t\n"
+    for t in facets:
+        ascii_ += "facet normal 0 0 1\n outer loop\n" + "".join(f"  vertex {x} {y} {z}\n" for x, y, z in t)
+        ascii_ += " endloop\nendfacet\n"
+    put("fuzz_stl", "tetra-ascii.stl", ascii_ + "endsolid t\n")
+    put("fuzz_stl", "truncated-ascii.stl", ascii_[: len(ascii_) // 2])
+    put("fuzz_stl", "solid-binary-header.stl", b"solid but binary".ljust(80, b" ") + binary[80:])
+
+
+def gltf_model(buf_uri, nbytes):
+    return {
+        "asset": {"version": "2.0"},
+        "buffers": [{"byteLength": nbytes, **({"uri": buf_uri} if buf_uri else {})}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48},
+                        {"buffer": 0, "byteOffset": 48, "byteLength": 24}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+                       "min": [0, 0, 0], "max": [1, 1, 1]},
+                      {"bufferView": 1, "componentType": 5123, "count": 12, "type": "SCALAR"}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+        "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}], "scene": 0,
+    }
+
+
+def gltf():
+    data = b"".join(struct.pack("<3f", *p) for p in TETRA_V)
+    data += b"".join(struct.pack("<3H", *t) for t in TETRA_F)
+    uri = "data:application/octet-stream;base64," + base64.b64encode(data).decode()
+    m = gltf_model(uri, len(data))
+    put("fuzz_gltf", "tetra.gltf", json.dumps(m))
+    strip = json.loads(json.dumps(m))
+    strip["meshes"][0]["primitives"][0]["mode"] = 5
+    put("fuzz_gltf", "strip.gltf", json.dumps(strip))
+    noidx = json.loads(json.dumps(m))
+    del noidx["meshes"][0]["primitives"][0]["indices"]
+    noidx["meshes"].append({"primitives": [{"attributes": {"POSITION": 0}, "mode": 1}]})
+    put("fuzz_gltf", "no-indices-and-lines.gltf", json.dumps(noidx))
+    bad = json.loads(json.dumps(m))
+    bad["accessors"][1]["count"] = 4611686018427387905  # stride × (count − 1) wraps to 0
+    put("fuzz_gltf", "count-overflow.gltf", json.dumps(bad))
+    put("fuzz_gltf", "not-json.gltf", "{\"asset\": [")
+    # GLB: 12-byte header, JSON chunk (padded with spaces), BIN chunk (padded with zeros).
+    js = json.dumps(gltf_model(None, len(data))).encode()
+    js += b" " * (-len(js) % 4)
+    bin_ = data + b"\0" * (-len(data) % 4)
+    glb = struct.pack("<4sII", b"glTF", 2, 12 + 8 + len(js) + 8 + len(bin_))
+    glb += struct.pack("<I4s", len(js), b"JSON") + js + struct.pack("<I4s", len(bin_), b"BIN\0") + bin_
+    put("fuzz_glb", "tetra.glb", glb)
+    put("fuzz_glb", "truncated.glb", glb[: len(glb) - 30])
+    put("fuzz_glb", "bad-chunk-length.glb", glb[:12] + struct.pack("<I", 0xFFFFFFF0) + glb[16:])
+    put("fuzz_glb", "header-only.glb", glb[:12])
+
+
+def sel():
+    def s(nv, text):
+        return struct.pack("<H", nv) + text.encode()
+    put("fuzz_sel", "four.sel", s(4, "# a\n# b\n0\n1\n2\n1\n"))
+    put("fuzz_sel", "too-many.sel", s(2, "0\n0\n0\n"))
+    put("fuzz_sel", "bad-label.sel", s(3, "0\n7\n1\n"))
+    put("fuzz_sel", "crlf.sel", s(3, "#\r\n0\r\n2\r\n1\r\n"))
+
+
+def def_():
+    put("fuzz_def", "identity.def", "# handle\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n")
+    put("fuzz_def", "rotation.def", "#\n0 -1 0 0.5\n1 0 0 +2\n0 0 1 -1e-3\n0 0 0 1\n")
+    put("fuzz_def", "short.def", "1 0 0 0\n0 1 0\n")
+    put("fuzz_def", "nan.def", "1 0 0 nan\n0 1 0 0\n0 0 1 0\n0 0 0 1\n")
+    put("fuzz_def", "not-affine.def", "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 1 1\n")
+
+
+def grpc_web():
+    frame = lambda flag, payload: struct.pack(">BI", flag, len(payload)) + payload
+    put("fuzz_grpc_web_frames", "one-message", frame(0, b"\x0a\x03abc"))
+    put("fuzz_grpc_web_frames", "message-and-trailers", frame(0, b"\x08\x01") + frame(0x80, b"grpc-status: 0\r\n"))
+    put("fuzz_grpc_web_frames", "empty-frames", frame(0, b"") * 4)
+    put("fuzz_grpc_web_frames", "truncated", frame(0, b"abcdef")[:8])
+    put("fuzz_grpc_web_frames", "compressed", frame(1, b"xx"))
+    put("fuzz_grpc_web_frames", "huge-length", struct.pack(">BI", 0, 0xFFFFFFFF) + b"abc")
+    put("fuzz_grpc_web_frames", "timeout-5S", "5S")
+    put("fuzz_grpc_web_frames", "timeout-max", "99999999H")
+
+
+if __name__ == "__main__":
+    obj(); off(); ply(); stl(); gltf(); sel(); def_(); grpc_web()
