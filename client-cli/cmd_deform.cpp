@@ -57,6 +57,7 @@ Command add_deform_command(CLI::App& app, const GlobalOptions& global) {
           s.set_beta(beta);
         frame = s.update(transforms, 1);
       }
+      check_frame_finite(frame, "transform");  // NaN/Inf: no report, no file
       const pb::Session& info = s.info();
       const char* units_name = frame.beta().units() == pb::BETA_UNITS_RAW ? "raw" : "area";
 

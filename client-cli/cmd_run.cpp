@@ -2,9 +2,9 @@
 // and a summary CSV, with a progress line per item on stderr. Schema: docs/cli.md.
 #include "commands.h"
 #include "constraint_options.h"
+#include "job_file.h"
 #include "output.h"
 
-#include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -20,7 +20,6 @@
 namespace hdeform::cli {
 
 namespace fs = std::filesystem;
-using json = nlohmann::json;
 
 namespace {
 
@@ -30,342 +29,117 @@ struct RunOptions {
   bool dry_run = false;
 };
 
-struct MeshEntry {
-  std::string name;
-  std::string source;  // file path or library name
-};
-
-struct ConstraintEntry {
-  std::string name;
-  json spec;
-};
-
-struct TransformEntry {
-  std::string name;
-  json spec;
-};
-
-struct Job {
-  std::string file;  // for messages
-  std::string dir;   // relative input paths resolve here
-  std::string name;
-  std::string output_dir;
-  std::string summary = "summary.csv";
-  std::string format = "glb";
-  std::string beta_units = "area";
-  std::vector<double> betas{0.0};
-  std::vector<MeshEntry> meshes;
-  std::vector<ConstraintEntry> constraints;
-  std::vector<TransformEntry> transforms;
-};
-
-// Per mesh, resolved before any call: constraints and transforms with {mesh} substituted.
-// A "betas" entry "auto": the server picks β per item, at the item's transforms.
-constexpr double kAutoBeta = -1.0;
-bool is_auto(double beta) { return beta == kAutoBeta; }
-
+// Per mesh and constraint set, resolved before any call: {mesh} substituted, files read.
 struct Resolved {
   pb::Constraints constraints;
   google::protobuf::RepeatedPtrField<pb::LocalBeta> local;  // the set's "local_beta"
   std::vector<std::vector<pb::HandleTransform>> transforms;  // [transform][handle]
 };
 
-std::string subst(std::string s, const std::string& mesh) {
-  for (std::size_t at; (at = s.find("{mesh}")) != std::string::npos;) s.replace(at, 6, mesh);
-  return s;
+void add_region(pb::Region& r, const RegionText& region, const std::string& where,
+                const Job& job, const std::string& mesh) {
+  for (const auto& text : region) add_selectors(r, subst_mesh(text, mesh), where, job.dir);
 }
 
-std::string line_of(const std::string& text, std::size_t byte) {
-  const std::size_t end = std::min(byte, text.size());
-  return std::to_string(1 + std::count(text.begin(), text.begin() + static_cast<long>(end), '\n'));
+Resolved resolve_unchecked(const Job& job, const ConstraintEntry& c, const std::string& mesh) {
+  Resolved r;
+  const std::string& w = c.where;
+  const bool has_sel = !c.sel.empty();
+  std::string sel;
+  if (has_sel) sel = read_file(resolve_path(subst_mesh(c.sel, mesh), job.dir));
+  if (c.has_fixed) {
+    add_region(*r.constraints.mutable_fixed(), c.fixed, w + ".fixed", job, mesh);
+  } else if (has_sel) {
+    auto* s = r.constraints.mutable_fixed()->add_selectors()->mutable_sel();
+    s->set_content(sel);
+    s->set_label(0);
+  }
+  if (!c.handles.empty()) {
+    for (std::size_t h = 0; h < c.handles.size(); ++h)
+      add_region(*r.constraints.add_handles(), c.handles[h],
+                 w + ".handles[" + std::to_string(h) + "]", job, mesh);
+  } else {
+    auto* s = r.constraints.add_handles()->add_selectors()->mutable_sel();
+    s->set_content(sel);
+    s->set_label(2);
+  }
+  for (const auto& l : c.local_beta) {
+    if (!l.text.empty()) {
+      *r.local.Add() = parse_local_beta(subst_mesh(l.text, mesh), l.where, job.dir);
+    } else {
+      pb::Region reg;
+      add_region(reg, l.region, l.where + ".region", job, mesh);
+      *r.local.Add() = make_local_beta(std::move(reg), l.beta, l.radius, l.where);
+    }
+  }
+  const std::size_t handles = static_cast<std::size_t>(r.constraints.handles_size());
+  for (const auto& t : job.transforms) {
+    std::vector<pb::HandleTransform> per_handle;
+    for (std::size_t h = 0; h < t.transforms.size(); ++h) {
+      TransformText text = t.transforms[h];
+      text.def_file = subst_mesh(text.def_file, mesh);
+      const std::string where =
+          t.per_handle ? t.where + ".handles[" + std::to_string(h) + "]" : t.where;
+      per_handle.push_back(parse_transform(text, where, job.dir));
+    }
+    if (!t.per_handle) per_handle.assign(handles, per_handle.front());
+    r.transforms.push_back(std::move(per_handle));
+  }
+  return r;
 }
 
-class JobParser {
+// Errors name the job file: "JOB: constraints[0].fixed …: problem".
+Resolved resolve(const Job& job, const ConstraintEntry& c, const std::string& mesh) {
+  try {
+    return resolve_unchecked(job, c, mesh);
+  } catch (const FileError&) {
+    throw;
+  } catch (const CliError& e) {
+    throw parse_error(job.file, 0, e.what());
+  }
+}
+
+// The session of one mesh: deleted (DeleteSession) as soon as its items are done, also
+// in-process and when an error escapes, so a job never holds more than one session.
+class MeshSession {
  public:
-  explicit JobParser(std::string file) : file_(std::move(file)) {}
-
-  [[noreturn]] void fail(const std::string& where, const std::string& problem) const {
-    throw parse_error(file_, 0, (where.empty() ? "" : where + ": ") + problem);
-  }
-
-  void keys(const json& obj, const std::string& where, const std::set<std::string>& allowed) const {
-    if (!obj.is_object()) fail(where, "expected an object");
-    for (const auto& [k, v] : obj.items())
-      if (!allowed.count(k)) fail(where, "unknown key '" + k + "'");
-  }
-
-  std::string str(const json& v, const std::string& where) const {
-    if (!v.is_string()) fail(where, "expected a string");
-    return v.get<std::string>();
-  }
-
-  double number(const json& v, const std::string& where) const {
-    if (!v.is_number()) fail(where, "expected a number");
-    return v.get<double>();
-  }
-
-  // A string, a number or an array of numbers → the CLI's comma syntax.
-  std::string numbers_text(const json& v, const std::string& where) const {
-    if (v.is_string()) return v.get<std::string>();
-    if (v.is_number()) return g17(v.get<double>());
-    if (v.is_array()) {
-      std::string s;
-      for (std::size_t i = 0; i < v.size(); ++i) {
-        if (i) s += ",";
-        s += g17(number(v[i], where + "[" + std::to_string(i) + "]"));
-      }
-      return s;
-    }
-    fail(where, "expected a string, a number or an array of numbers");
-  }
-
-  // A region: "SEL|SEL" or ["SEL", "SEL"] (united).
-  void region(pb::Region& r, const json& v, const std::string& where, const std::string& dir,
-              const std::string& mesh) const {
-    if (v.is_string()) {
-      add_selectors(r, subst(v.get<std::string>(), mesh), where, dir);
-    } else if (v.is_array()) {
-      if (v.empty()) fail(where, "empty region");
-      for (std::size_t i = 0; i < v.size(); ++i) {
-        const std::string w = where + "[" + std::to_string(i) + "]";
-        add_selectors(r, subst(str(v[i], w), mesh), w, dir);
-      }
-    } else {
-      fail(where, "expected a selector string or an array of selector strings");
-    }
-  }
-
-  TransformText transform_text(const json& t, const std::string& where,
-                               const std::string& mesh) const {
-    keys(t, where, {"rotate", "translate", "scale", "pivot", "def"});
-    TransformText tt;
-    if (t.contains("rotate")) tt.rotate = numbers_text(t["rotate"], where + ".rotate");
-    if (t.contains("translate")) tt.translate = numbers_text(t["translate"], where + ".translate");
-    if (t.contains("scale")) tt.scale = numbers_text(t["scale"], where + ".scale");
-    if (t.contains("pivot")) tt.pivot = numbers_text(t["pivot"], where + ".pivot");
-    if (t.contains("def")) tt.def_file = subst(str(t["def"], where + ".def"), mesh);
-    return tt;
-  }
-
-  Job parse(const std::string& text) const {
-    json doc;
+  MeshSession(Connection& conn, const std::string& source)
+      : client_(SessionClient::create(conn, source)) {}
+  ~MeshSession() { close(); }
+  MeshSession(const MeshSession&) = delete;
+  MeshSession& operator=(const MeshSession&) = delete;
+  SessionClient& client() { return client_; }
+  void close() {
+    if (closed_) return;
+    closed_ = true;
     try {
-      doc = json::parse(text);
-    } catch (const json::parse_error& e) {
-      std::string msg = e.what();
-      // "[json.exception.parse_error.101] parse error at line 3, column 5: syntax error …"
-      const auto colon = msg.find(": ", msg.find("column"));
-      if (colon != std::string::npos) msg = msg.substr(colon + 2);
-      throw FileError(file_ + ":" + line_of(text, e.byte > 0 ? e.byte - 1 : 0) + ": " + msg);
-    }
-    Job job;
-    job.file = file_;
-    job.dir = fs::path(file_).parent_path().string();
-    keys(doc, "", {"name", "output_dir", "summary", "format", "beta_units", "betas", "meshes",
-                   "constraints", "transforms", "description"});
-    job.name = doc.contains("name") ? str(doc["name"], "name") : fs::path(file_).stem().string();
-    job.output_dir = doc.contains("output_dir") ? str(doc["output_dir"], "output_dir")
-                                                : "hdeform-out/" + job.name;
-    if (doc.contains("summary")) job.summary = str(doc["summary"], "summary");
-    if (doc.contains("format")) {
-      job.format = str(doc["format"], "format");
-      if (job.format != "glb" && job.format != "obj" && job.format != "off" &&
-          job.format != "ply" && job.format != "none")
-        fail("format", "'" + job.format + "' is not glb, obj, off, ply or none");
-    }
-    if (doc.contains("beta_units")) {
-      job.beta_units = str(doc["beta_units"], "beta_units");
-      if (job.beta_units != "area" && job.beta_units != "raw")
-        fail("beta_units", "expected \"area\" or \"raw\"");
-    }
-    if (doc.contains("betas")) {
-      const json& b = doc["betas"];
-      if (!b.is_array() || b.empty())
-        fail("betas", "expected a non-empty array of numbers (or \"auto\")");
-      job.betas.clear();
-      for (std::size_t i = 0; i < b.size(); ++i) {
-        if (b[i].is_string()) {
-          if (b[i].get<std::string>() != "auto")
-            fail("betas[" + std::to_string(i) + "]", "expected a number or \"auto\"");
-          job.betas.push_back(kAutoBeta);
-          continue;
-        }
-        const double v = number(b[i], "betas[" + std::to_string(i) + "]");
-        if (v < 0 || v >= 1) fail("betas[" + std::to_string(i) + "]", g6(v) + " is outside [0, 1)");
-        job.betas.push_back(v);
-      }
-    }
-
-    if (!doc.contains("meshes") || !doc["meshes"].is_array() || doc["meshes"].empty())
-      fail("meshes", "expected a non-empty array");
-    for (std::size_t i = 0; i < doc["meshes"].size(); ++i) {
-      const json& m = doc["meshes"][i];
-      const std::string w = "meshes[" + std::to_string(i) + "]";
-      MeshEntry e;
-      if (m.is_string()) {
-        const std::string s = m.get<std::string>();
-        const std::string p = resolve_path(s, job.dir);
-        std::error_code ec;
-        if (fs::is_regular_file(p, ec)) {
-          e.source = p;
-          e.name = fs::path(p).stem().string();
-        } else if (s.find('/') != std::string::npos || fs::path(s).has_extension()) {
-          fail(w, p + ": no such file");
-        } else {
-          e.source = e.name = s;
-        }
-      } else {
-        keys(m, w, {"name", "file", "library"});
-        if (m.contains("file") == m.contains("library"))
-          fail(w, "give exactly one of \"file\" and \"library\"");
-        if (m.contains("file")) {
-          e.source = resolve_path(str(m["file"], w + ".file"), job.dir);
-          std::error_code ec;
-          if (!fs::is_regular_file(e.source, ec)) fail(w + ".file", e.source + ": no such file");
-          e.name = fs::path(e.source).stem().string();
-        } else {
-          e.source = e.name = str(m["library"], w + ".library");
-        }
-        if (m.contains("name")) e.name = str(m["name"], w + ".name");
-      }
-      job.meshes.push_back(e);
-    }
-
-    if (!doc.contains("constraints") || !doc["constraints"].is_array() ||
-        doc["constraints"].empty())
-      fail("constraints", "expected a non-empty array");
-    for (std::size_t i = 0; i < doc["constraints"].size(); ++i) {
-      const json& c = doc["constraints"][i];
-      const std::string w = "constraints[" + std::to_string(i) + "]";
-      keys(c, w, {"name", "sel", "fixed", "handles", "local_beta"});
-      ConstraintEntry e{c.contains("name") ? str(c["name"], w + ".name") : "c" + std::to_string(i), c};
-      job.constraints.push_back(e);
-    }
-
-    if (doc.contains("transforms")) {
-      if (!doc["transforms"].is_array() || doc["transforms"].empty())
-        fail("transforms", "expected a non-empty array");
-      for (std::size_t i = 0; i < doc["transforms"].size(); ++i) {
-        const json& t = doc["transforms"][i];
-        const std::string w = "transforms[" + std::to_string(i) + "]";
-        if (!t.is_object()) fail(w, "expected an object");
-        TransformEntry e{t.contains("name") ? str(t["name"], w + ".name") : "t" + std::to_string(i),
-                         t};
-        job.transforms.push_back(e);
-      }
-    } else {
-      job.transforms.push_back({"rest", json::object()});
-    }
-    for (const auto* list : {&job.constraints}) {
-      std::set<std::string> seen;
-      for (const auto& e : *list)
-        if (!seen.insert(e.name).second) fail("constraints", "duplicate name '" + e.name + "'");
-    }
-    std::set<std::string> seen;
-    for (const auto& e : job.transforms)
-      if (!seen.insert(e.name).second) fail("transforms", "duplicate name '" + e.name + "'");
-    return job;
-  }
-
-  // Constraints and transforms for one mesh ({mesh} substituted, files read).
-  Resolved resolve(const Job& job, const ConstraintEntry& ce, const std::string& mesh) const {
-    try {
-      return resolve_unchecked(job, ce, mesh);
-    } catch (const FileError&) {
-      throw;
+      client_.remove();
     } catch (const CliError& e) {
-      throw parse_error(file_, 0, e.what());
+      spdlog::warn("{}", e.what());
     }
-  }
-
-  Resolved resolve_unchecked(const Job& job, const ConstraintEntry& ce,
-                             const std::string& mesh) const {
-    Resolved r;
-    const std::size_t ci =
-        static_cast<std::size_t>(&ce - job.constraints.data());
-    const std::string w = "constraints[" + std::to_string(ci) + "]";
-    const json& c = ce.spec;
-    std::string sel;
-    if (c.contains("sel")) {
-      const std::string path = resolve_path(subst(str(c["sel"], w + ".sel"), mesh), job.dir);
-      sel = read_file(path);
-    }
-    if (c.contains("fixed")) {
-      region(*r.constraints.mutable_fixed(), c["fixed"], w + ".fixed", job.dir, mesh);
-    } else if (!sel.empty()) {
-      auto* s = r.constraints.mutable_fixed()->add_selectors()->mutable_sel();
-      s->set_content(sel);
-      s->set_label(0);
-    }
-    if (c.contains("handles")) {
-      const json& hs = c["handles"];
-      if (!hs.is_array() || hs.empty()) fail(w + ".handles", "expected a non-empty array of regions");
-      for (std::size_t h = 0; h < hs.size(); ++h)
-        region(*r.constraints.add_handles(), hs[h], w + ".handles[" + std::to_string(h) + "]",
-               job.dir, mesh);
-    } else if (!sel.empty()) {
-      auto* s = r.constraints.add_handles()->add_selectors()->mutable_sel();
-      s->set_content(sel);
-      s->set_label(2);
-    }
-    if (r.constraints.handles_size() == 0) fail(w, "no handle: give \"sel\" or \"handles\"");
-    if (c.contains("local_beta")) {
-      // ["SEL@BETA[@RADIUS]", {"region": REGION, "beta": B, "radius": R}, …]
-      const json& ls = c["local_beta"];
-      if (!ls.is_array() || ls.empty())
-        fail(w + ".local_beta", "expected a non-empty array of entries");
-      for (std::size_t i = 0; i < ls.size(); ++i) {
-        const std::string lw = w + ".local_beta[" + std::to_string(i) + "]";
-        const json& e = ls[i];
-        if (e.is_string()) {
-          *r.local.Add() = parse_local_beta(subst(e.get<std::string>(), mesh), lw, job.dir);
-          continue;
-        }
-        keys(e, lw, {"region", "beta", "radius"});
-        if (!e.contains("region") || !e.contains("beta"))
-          fail(lw, "expected \"region\" and \"beta\" (and optionally \"radius\")");
-        pb::Region reg;
-        region(reg, e["region"], lw + ".region", job.dir, mesh);
-        *r.local.Add() = make_local_beta(
-            std::move(reg), number(e["beta"], lw + ".beta"),
-            e.contains("radius") ? number(e["radius"], lw + ".radius") : 0.0, lw);
-      }
-    }
-    const std::size_t handles = static_cast<std::size_t>(r.constraints.handles_size());
-
-    for (std::size_t ti = 0; ti < job.transforms.size(); ++ti) {
-      const json& t = job.transforms[ti].spec;
-      const std::string tw = "transforms[" + std::to_string(ti) + "]";
-      std::vector<pb::HandleTransform> per_handle;
-      if (t.contains("handles")) {
-        keys(t, tw, {"name", "handles"});
-        const json& hs = t["handles"];
-        if (!hs.is_array()) fail(tw + ".handles", "expected an array, one transform per handle");
-        if (hs.size() != handles)
-          fail(tw + ".handles", std::to_string(hs.size()) + " transforms for " +
-                                    std::to_string(handles) + " handles of constraints '" +
-                                    ce.name + "'");
-        for (std::size_t h = 0; h < hs.size(); ++h) {
-          const std::string hw = tw + ".handles[" + std::to_string(h) + "]";
-          per_handle.push_back(parse_transform(transform_text(hs[h], hw, mesh), hw,
-                                               job.dir));
-        }
-      } else {
-        json copy = t;
-        copy.erase("name");
-        const auto one = parse_transform(transform_text(copy, tw, mesh), tw, job.dir);
-        per_handle.assign(handles, one);
-      }
-      r.transforms.push_back(std::move(per_handle));
-    }
-    return r;
   }
 
  private:
-  std::string file_;
+  SessionClient client_;
+  bool closed_ = false;
 };
 
-std::string beta_tag(double b) { return is_auto(b) ? "auto" : g6(b); }
+// A name as shown in progress lines, the table and the CSV: control characters as \xHH
+// (a job's names must not drive the terminal).
+std::string shown(const std::string& name) {
+  std::string out;
+  for (const char ch : name) {
+    const unsigned char c = static_cast<unsigned char>(ch);
+    if (c < 0x20 || c == 0x7f) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\x%02x", c);
+      out += buf;
+    } else {
+      out += ch;
+    }
+  }
+  return out;
+}
 
 }  // namespace
 
@@ -379,8 +153,7 @@ Command add_run_command(CLI::App& app, const GlobalOptions& global) {
 
   return [opts, &global]() -> int {
     const auto& o = *opts;
-    JobParser parser(o.job);
-    Job job = parser.parse(read_file(o.job));
+    Job job = parse_job(read_file(o.job), o.job, fs::path(o.job).parent_path().string());
     if (!o.output_dir.empty()) job.output_dir = o.output_dir;
     const pb::BetaUnits units = parse_beta_units(job.beta_units);
     const bool write_meshes = job.format != "none";
@@ -391,18 +164,18 @@ Command add_run_command(CLI::App& app, const GlobalOptions& global) {
     std::map<std::pair<std::size_t, std::size_t>, Resolved> resolved;
     for (std::size_t mi = 0; mi < job.meshes.size(); ++mi)
       for (std::size_t ci = 0; ci < job.constraints.size(); ++ci)
-        resolved[{mi, ci}] = parser.resolve(job, job.constraints[ci], job.meshes[mi].name);
+        resolved[{mi, ci}] = resolve(job, job.constraints[ci], job.meshes[mi].name);
 
-    const std::size_t total =
-        job.meshes.size() * job.constraints.size() * job.betas.size() * job.transforms.size();
+    const std::size_t total = job.item_count();
     if (o.dry_run) {
       std::size_t n = 0;
       for (const auto& m : job.meshes)
         for (const auto& c : job.constraints)
           for (double b : job.betas)
             for (const auto& t : job.transforms)
-              std::cout << "[" << ++n << "/" << total << "] " << m.name << " " << c.name << " "
-                        << t.name << " beta=" << beta_tag(b) << "\n";
+              std::cout << "[" << ++n << "/" << total << "] " << shown(m.name) << " "
+                        << shown(c.name) << " " << shown(t.name) << " beta=" << beta_tag(b)
+                        << "\n";
       return 0;
     }
 
@@ -430,10 +203,10 @@ Command add_run_command(CLI::App& app, const GlobalOptions& global) {
       // An automatic β shows its pick (CSV: the number; table: "auto=PICK").
       const bool picked = is_auto(beta) && frame;
       std::vector<std::string> row{
-          m.name, c.name, t.name,
+          shown(m.name), shown(c.name), shown(t.name),
           picked ? g17(frame->beta().value()) : is_auto(beta) ? "auto" : g17(beta)};
       std::vector<std::string> trow{
-          m.name, c.name, t.name,
+          shown(m.name), shown(c.name), shown(t.name),
           picked ? "auto=" + g6(frame->beta().value()) : beta_tag(beta)};
       for (const auto& col : measure_columns()) {
         if (!frame) {
@@ -458,19 +231,21 @@ Command add_run_command(CLI::App& app, const GlobalOptions& global) {
     };
     auto progress = [&](const MeshEntry& m, const ConstraintEntry& c, const TransformEntry& t,
                         double beta, const std::string& outcome) {
-      std::cerr << "[" << n << "/" << total << "] " << m.name << " " << c.name << " " << t.name
-                << " \u03b2=" << beta_tag(beta) << " \u2026 " << outcome << std::endl;
+      std::cerr << "[" << n << "/" << total << "] " << shown(m.name) << " " << shown(c.name)
+                << " " << shown(t.name) << " \u03b2=" << beta_tag(beta) << " \u2026 " << outcome
+                << std::endl;
     };
 
     for (std::size_t mi = 0; mi < job.meshes.size(); ++mi) {
       const MeshEntry& m = job.meshes[mi];
-      std::unique_ptr<SessionClient> s;
+      std::unique_ptr<MeshSession> session;
       std::string mesh_error;
       try {
-        s = std::make_unique<SessionClient>(SessionClient::create(conn, m.source));
+        session = std::make_unique<MeshSession>(conn, m.source);
       } catch (const CliError& e) {
         mesh_error = e.what();
       }
+      SessionClient* s = session ? &session->client() : nullptr;
       for (std::size_t ci = 0; ci < job.constraints.size(); ++ci) {
         const ConstraintEntry& c = job.constraints[ci];
         const Resolved& r = resolved[{mi, ci}];
@@ -518,13 +293,15 @@ Command add_run_command(CLI::App& app, const GlobalOptions& global) {
               const auto seq = static_cast<std::int64_t>(n);
               const pb::Frame frame = is_auto(beta) ? s->deform(r.transforms[ti], seq, b)
                                                     : s->update(r.transforms[ti], seq);
+              check_frame_finite(frame, t.where + " '" + shown(t.name) + "'");
               std::string output;
               if (write_meshes) {
-                output = (fs::path(job.output_dir) /
-                          (m.name + "-" + c.name + "-" + t.name + "-b" + beta_tag(beta) + "." +
-                           job.format))
-                             .string();
-                s->download(output, format);
+                // A plain file name (names sanitized, collisions rejected by parse_job),
+                // checked again to land inside the output folder.
+                const std::string file = item_file_name(job, m, c, t, beta);
+                const fs::path path = output_path_inside(job.output_dir, file);
+                output = (fs::path(job.output_dir) / file).string();
+                s->download(path.string(), format);
               }
               const double ms = ms_since(start);
               record(m, c, t, beta, &frame, ms, output, "ok");
@@ -542,13 +319,7 @@ Command add_run_command(CLI::App& app, const GlobalOptions& global) {
           }
         }
       }
-      if (s && conn.remote()) {
-        try {
-          s->remove();
-        } catch (const CliError& e) {
-          spdlog::warn("{}", e.what());
-        }
-      }
+      if (session) session->close();  // before the next mesh's session is created
     }
 
     // Summary CSV.
@@ -560,7 +331,7 @@ Command add_run_command(CLI::App& app, const GlobalOptions& global) {
       csv += "\n";
     }
     const std::string summary_path = (fs::path(job.output_dir) / job.summary).string();
-    write_file(summary_path, csv);
+    write_file(output_path_inside(job.output_dir, job.summary).string(), csv);
 
     print_table(std::cout, table, 3);
     std::cout << "summary: " << summary_path << "\n";

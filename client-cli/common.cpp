@@ -1,5 +1,7 @@
 #include "common.h"
 
+#include "mesh_check.h"
+
 #if HDEFORM_CLI_IN_PROCESS
 #include "service/server.h"
 #endif
@@ -16,11 +18,6 @@
 namespace hdeform::cli {
 
 namespace fs = std::filesystem;
-
-FileError parse_error(const std::string& file, int line, const std::string& problem) {
-  if (line > 0) return FileError(file + ":" + std::to_string(line) + ": " + problem);
-  return FileError(file + ": " + problem);
-}
 
 const char* status_code_name(grpc::StatusCode code) {
   switch (code) {
@@ -317,6 +314,10 @@ std::size_t SessionClient::download(const std::string& path, pb::MeshFormat form
   }
   grpc::Status status = reader->Finish();
   if (!status.ok()) throw RpcError("GetMesh", status);
+  const auto bad = count_non_finite_coordinates(bytes, mesh_format_extension(format));
+  if (bad && *bad > 0)
+    throw CliError(path + ": not written: the mesh from the server has " +
+                   std::to_string(*bad) + " non-finite (NaN/Inf) vertex coordinates");
   write_file(path, bytes);
   return bytes.size();
 }
@@ -341,6 +342,13 @@ void SessionClient::remove() {
   pb::DeleteSessionResponse resp;
   grpc::Status status = conn_->stub().DeleteSession(&ctx, req, &resp);
   if (!status.ok()) throw RpcError("DeleteSession", status);
+}
+
+void check_frame_finite(const pb::Frame& frame, const std::string& what) {
+  const std::size_t bad = count_non_finite_floats(frame.positions());
+  if (bad > 0)
+    throw CliError(what + ": the deformed mesh has " + std::to_string(bad) +
+                   " non-finite (NaN/Inf) vertex coordinates; no file written");
 }
 
 // ---------------------------------------------------------------------------------------

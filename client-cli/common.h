@@ -2,6 +2,7 @@
 // small session client that adds the x-session-id routing header to every call.
 #pragma once
 
+#include "errors.h"
 #include "hdeform/v1/deform.grpc.pb.h"
 
 #include <grpcpp/grpcpp.h>
@@ -20,18 +21,6 @@ class Server;
 namespace hdeform::cli {
 
 namespace pb = ::hdeform::v1;
-
-// A user-facing error: main() prints what() as the single line on stderr and exits 1.
-struct CliError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
-
-// A parse error in an input file: main() prints it bare, "FILE:LINE: problem".
-struct FileError : CliError {
-  using CliError::CliError;
-};
-// "FILE:LINE: problem" (LINE 0: "FILE: problem").
-FileError parse_error(const std::string& file, int line, const std::string& problem);
 
 // "RPC: CODE: server message".
 struct RpcError : CliError {
@@ -105,7 +94,8 @@ class SessionClient {
                    bool energies = false);
   pb::SweepResponse sweep(const std::vector<double>& betas, pb::BetaUnits units,
                           const std::vector<pb::HandleTransform>& transforms);
-  // Downloads the current (or rest) mesh into `path`; returns the number of bytes.
+  // Downloads the current (or rest) mesh into `path`; returns the number of bytes. A mesh
+  // with NaN/Inf vertex coordinates is not written (CliError).
   std::size_t download(const std::string& path, pb::MeshFormat format, bool rest = false);
   pb::Snapshot export_snapshot(bool include_mesh);
   void remove();
@@ -119,6 +109,10 @@ class SessionClient {
   std::string key_;
   pb::Session info_;
 };
+
+// Throws CliError "WHAT: the deformed mesh has N non-finite vertex coordinates …" when the
+// frame's positions hold NaN/Inf.
+void check_frame_finite(const pb::Frame& frame, const std::string& what);
 
 // Files.
 std::string read_file(const std::string& path);

@@ -108,108 +108,46 @@ ConstraintSpec build_constraint_spec(const ConstraintOptions& o) {
   return spec;
 }
 
-std::string resolve_path(const std::string& path, const std::string& base_dir) {
-  if (base_dir.empty() || path.empty() || fs::path(path).is_absolute()) return path;
-  return (fs::path(base_dir) / path).lexically_normal().string();
-}
-
 namespace {
 
-std::string trim(std::string s) {
-  const auto b = s.find_first_not_of(" \t\r\n");
-  if (b == std::string::npos) return "";
-  const auto e = s.find_last_not_of(" \t\r\n");
-  return s.substr(b, e - b + 1);
-}
-
-double to_double(const std::string& token, const std::string& where) {
-  const std::string t = trim(token);
-  if (t.empty()) throw CliError(where + ": empty number");
-  errno = 0;
-  char* end = nullptr;
-  const double v = std::strtod(t.c_str(), &end);
-  if (end != t.c_str() + t.size() || errno == ERANGE)
-    throw CliError(where + ": '" + t + "' is not a number");
-  if (!std::isfinite(v)) throw CliError(where + ": '" + t + "' is not finite");
-  return v;
-}
-
-pb::Vec3 vec3(const std::vector<double>& v, std::size_t at = 0) {
+pb::Vec3 vec3(double x, double y, double z) {
   pb::Vec3 r;
-  r.set_x(v[at]);
-  r.set_y(v[at + 1]);
-  r.set_z(v[at + 2]);
+  r.set_x(x);
+  r.set_y(y);
+  r.set_z(z);
   return r;
 }
+pb::Vec3 vec3(const std::array<double, 3>& v) { return vec3(v[0], v[1], v[2]); }
 
 }  // namespace
 
-std::vector<double> parse_numbers(const std::string& text, const std::string& where,
-                                  std::size_t count) {
-  std::vector<double> out;
-  std::string token;
-  std::istringstream ss(text);
-  while (std::getline(ss, token, ',')) out.push_back(to_double(token, where));
-  if (!text.empty() && text.back() == ',') throw CliError(where + ": trailing ','");
-  if (count > 0 && out.size() != count)
-    throw CliError(where + ": expected " + std::to_string(count) + " comma-separated numbers, got " +
-                   std::to_string(out.size()) + " in '" + text + "'");
-  return out;
-}
-
-pb::Selector parse_selector(const std::string& raw, const std::string& where,
+pb::Selector parse_selector(const std::string& text, const std::string& where,
                             const std::string& base_dir) {
-  const std::string text = trim(raw);
-  const auto colon = text.find(':');
-  if (colon == std::string::npos)
-    throw CliError(where + ": selector '" + text +
-                   "' needs a kind: ids:, box:, sphere:, half: or sel:");
-  const std::string kind = text.substr(0, colon);
-  const std::string args = text.substr(colon + 1);
-  const std::string w = where + " '" + text + "'";
+  const SelectorSpec spec = parse_selector_spec(text, where);
+  const auto& v = spec.numbers;
   pb::Selector s;
-  if (kind == "ids") {
+  if (spec.kind == "ids") {
     auto* ids = s.mutable_ids();
-    for (double v : parse_numbers(args, w)) {
-      if (v != std::floor(v) || v < 0 || v > 2147483647.0)
-        throw CliError(w + ": vertex id " + std::to_string(v) + " is not a non-negative integer");
-      ids->add_ids(static_cast<std::int32_t>(v));
-    }
-    if (ids->ids_size() == 0) throw CliError(w + ": no vertex ids");
-  } else if (kind == "box") {
-    const auto v = parse_numbers(args, w, 6);
-    *s.mutable_box()->mutable_min() = vec3(v, 0);
-    *s.mutable_box()->mutable_max() = vec3(v, 3);
-  } else if (kind == "sphere") {
-    const auto v = parse_numbers(args, w, 4);
-    *s.mutable_sphere()->mutable_center() = vec3(v, 0);
+    for (double id : v) ids->add_ids(static_cast<std::int32_t>(id));
+  } else if (spec.kind == "box") {
+    *s.mutable_box()->mutable_min() = vec3(v[0], v[1], v[2]);
+    *s.mutable_box()->mutable_max() = vec3(v[3], v[4], v[5]);
+  } else if (spec.kind == "sphere") {
+    *s.mutable_sphere()->mutable_center() = vec3(v[0], v[1], v[2]);
     s.mutable_sphere()->set_radius(v[3]);
-  } else if (kind == "half") {
-    const auto v = parse_numbers(args, w, 4);
-    *s.mutable_half_space()->mutable_normal() = vec3(v, 0);
+  } else if (spec.kind == "half") {
+    *s.mutable_half_space()->mutable_normal() = vec3(v[0], v[1], v[2]);
     s.mutable_half_space()->set_offset(v[3]);
-  } else if (kind == "sel") {
-    const auto last = args.rfind(':');
-    if (last == std::string::npos || last == 0)
-      throw CliError(w + ": expected sel:FILE:LABEL");
-    const std::string file = resolve_path(args.substr(0, last), base_dir);
-    const double label = to_double(args.substr(last + 1), w);
-    if (label != std::floor(label) || label < 0 || label > 2)
-      throw CliError(w + ": label must be 0, 1 or 2");
-    s.mutable_sel()->set_content(read_file(file));
-    s.mutable_sel()->set_label(static_cast<std::int32_t>(label));
-  } else {
-    throw CliError(where + ": unknown selector kind '" + kind +
-                   "' (ids, box, sphere, half or sel)");
+  } else {  // sel
+    s.mutable_sel()->set_content(read_file(resolve_path(spec.file, base_dir)));
+    s.mutable_sel()->set_label(spec.label);
   }
   return s;
 }
 
 pb::LocalBeta make_local_beta(pb::Region region, double beta, double radius,
                               const std::string& where) {
-  if (!(beta >= 0 && beta < 1))
-    throw CliError(where + ": beta " + g6(beta) + " is outside [0, 1)");
-  if (!(radius >= 0)) throw CliError(where + ": radius must be >= 0");
+  check_local_beta(beta, radius, where);
   pb::LocalBeta e;
   *e.mutable_region() = std::move(region);
   e.set_beta(beta);
@@ -217,95 +155,50 @@ pb::LocalBeta make_local_beta(pb::Region region, double beta, double radius,
   return e;
 }
 
-pb::LocalBeta parse_local_beta(const std::string& raw, const std::string& where,
+pb::LocalBeta parse_local_beta(const std::string& text, const std::string& where,
                                const std::string& base_dir) {
-  const std::string text = trim(raw);
-  const std::string w = where + " '" + text + "'";
-  std::vector<std::string> parts;
-  std::size_t start = 0;
-  for (std::size_t at; (at = text.find('@', start)) != std::string::npos; start = at + 1)
-    parts.push_back(text.substr(start, at - start));
-  parts.push_back(text.substr(start));
-  if (parts.size() < 2) throw CliError(w + ": expected SEL@BETA or SEL@BETA@RADIUS");
-  auto is_number = [](const std::string& s) {
-    const std::string t = trim(s);
-    char* end = nullptr;
-    std::strtod(t.c_str(), &end);
-    return !t.empty() && end == t.c_str() + t.size();
-  };
-  // From the right: BETA[@RADIUS] are numbers; everything before is the selector text.
-  const std::size_t numbers =
-      parts.size() >= 3 && is_number(parts.back()) && is_number(parts[parts.size() - 2]) ? 2 : 1;
-  std::string sel;
-  for (std::size_t i = 0; i + numbers < parts.size(); ++i) sel += (i ? "@" : "") + parts[i];
-  const double beta = parse_numbers(parts[parts.size() - numbers], w + ": BETA", 1)[0];
-  const double radius = numbers == 2 ? parse_numbers(parts.back(), w + ": RADIUS", 1)[0] : 0.0;
-  if (trim(sel).empty()) throw CliError(w + ": no selector before '@'");
+  const LocalBetaSpec spec = parse_local_beta_spec(text, where);
   pb::Region region;
-  add_selectors(region, sel, where, base_dir);
-  return make_local_beta(std::move(region), beta, radius, w);
+  add_selectors(region, spec.selectors, where, base_dir);
+  return make_local_beta(std::move(region), spec.beta, spec.radius,
+                         where + " '" + trim(text) + "'");
 }
 
 void add_selectors(pb::Region& region, const std::string& text, const std::string& where,
                    const std::string& base_dir) {
+  parse_selectors_spec(text, where);  // the whole text's syntax first, then read files
   std::string part;
   std::istringstream ss(text);
-  bool any = false;
-  while (std::getline(ss, part, '|')) {
-    if (trim(part).empty()) continue;
-    *region.add_selectors() = parse_selector(part, where, base_dir);
-    any = true;
+  while (std::getline(ss, part, '|'))
+    if (!trim(part).empty()) *region.add_selectors() = parse_selector(part, where, base_dir);
+}
+
+pb::HandleTransform make_transform(const TransformValues& t, const std::string& /*where*/,
+                                   const std::string& base_dir) {
+  pb::HandleTransform out;
+  if (!t.def_file.empty()) {
+    const std::string path = resolve_path(t.def_file, base_dir);
+    for (double v : parse_def(read_file(path), path)) out.add_matrix(v);
   }
-  if (!any) throw CliError(where + ": empty selector");
+  if (t.rotation) {
+    auto* q = out.mutable_rotation();
+    q->set_w((*t.rotation)[0]);
+    q->set_x((*t.rotation)[1]);
+    q->set_y((*t.rotation)[2]);
+    q->set_z((*t.rotation)[3]);
+  }
+  if (t.translate) *out.mutable_translation() = vec3(*t.translate);
+  if (t.scale.size() == 1)
+    out.set_uniform_scale(t.scale[0]);
+  else if (t.scale.size() == 3)
+    *out.mutable_axis_scale() = vec3(t.scale[0], t.scale[1], t.scale[2]);
+  if (t.pivot) *out.mutable_pivot() = vec3(*t.pivot);
+  return out;
 }
 
 pb::HandleTransform parse_transform(const TransformText& t, const std::string& where,
                                     const std::string& base_dir) {
-  pb::HandleTransform out;
-  if (!t.def_file.empty()) {
-    if (!t.rotate.empty() || !t.translate.empty() || !t.scale.empty())
-      throw CliError(where + ": a .def matrix excludes rotate/translate/scale");
-    const std::string path = resolve_path(t.def_file, base_dir);
-    for (double v : parse_def(read_file(path), path)) out.add_matrix(v);
-  }
-  if (!t.rotate.empty()) {
-    const std::string w = where + " rotate";
-    std::vector<double> axis_deg;
-    const std::string r = trim(t.rotate);
-    const auto comma = r.find(',');
-    const std::string first = comma == std::string::npos ? r : trim(r.substr(0, comma));
-    double ax = 0, ay = 0, az = 0, deg = 0;
-    if (first == "x" || first == "y" || first == "z" || first == "X" || first == "Y" ||
-        first == "Z") {
-      if (comma == std::string::npos) throw CliError(w + ": expected AXIS,DEG");
-      deg = parse_numbers(r.substr(comma + 1), w, 1)[0];
-      (first == "x" || first == "X" ? ax : first == "y" || first == "Y" ? ay : az) = 1;
-    } else {
-      const auto v = parse_numbers(r, w, 4);
-      ax = v[0], ay = v[1], az = v[2], deg = v[3];
-    }
-    const double n = std::sqrt(ax * ax + ay * ay + az * az);
-    if (n == 0) throw CliError(w + ": the rotation axis is zero");
-    const double half = deg * M_PI / 360.0;
-    auto* q = out.mutable_rotation();
-    q->set_w(std::cos(half));
-    q->set_x(std::sin(half) * ax / n);
-    q->set_y(std::sin(half) * ay / n);
-    q->set_z(std::sin(half) * az / n);
-  }
-  if (!t.translate.empty())
-    *out.mutable_translation() = vec3(parse_numbers(t.translate, where + " translate", 3));
-  if (!t.scale.empty()) {
-    const auto v = parse_numbers(t.scale, where + " scale");
-    if (v.size() == 1)
-      out.set_uniform_scale(v[0]);
-    else if (v.size() == 3)
-      *out.mutable_axis_scale() = vec3(v);
-    else
-      throw CliError(where + " scale: expected S or SX,SY,SZ");
-  }
-  if (!t.pivot.empty()) *out.mutable_pivot() = vec3(parse_numbers(t.pivot, where + " pivot", 3));
-  return out;
+  return make_transform(parse_transform_values(t, where), where, base_dir);
 }
 
 std::array<double, 16> parse_def(const std::string& content, const std::string& file) {

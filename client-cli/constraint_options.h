@@ -3,6 +3,7 @@
 #pragma once
 
 #include "common.h"
+#include "text_parsers.h"
 
 #include <CLI/CLI.hpp>
 
@@ -43,11 +44,10 @@ pb::Beta build_beta(const ConstraintOptions& options);
 bool has_constraints(const ConstraintOptions& options);
 ConstraintSpec build_constraint_spec(const ConstraintOptions& options);
 
-// --- parsers (`where` prefixes error messages, e.g. "--handle" or "job.json: transforms[0]")
+// --- parsers into messages (`where` prefixes error messages, e.g. "--handle" or
+// "job.json: transforms[0]"); the syntax is text_parsers.h's; these add the messages and
+// read the .sel/.def files.
 
-// Comma-separated numbers; `count` > 0 demands exactly that many.
-std::vector<double> parse_numbers(const std::string& text, const std::string& where,
-                                  std::size_t count = 0);
 // One selector: ids:… box:… sphere:… half:… sel:FILE:LABEL (FILE relative to base_dir).
 pb::Selector parse_selector(const std::string& text, const std::string& where,
                             const std::string& base_dir = "");
@@ -63,19 +63,12 @@ pb::LocalBeta parse_local_beta(const std::string& text, const std::string& where
 pb::LocalBeta make_local_beta(pb::Region region, double beta, double radius,
                               const std::string& where);
 
-struct TransformText {
-  std::string rotate;     // "AXIS,DEG": AXIS = x|y|z or "AX,AY,AZ"
-  std::string translate;  // "X,Y,Z"
-  std::string scale;      // "S" or "SX,SY,SZ"
-  std::string pivot;      // "X,Y,Z"
-  std::string def_file;   // a .def file (replaces rotate/scale/translate)
-};
 pb::HandleTransform parse_transform(const TransformText& text, const std::string& where,
                                     const std::string& base_dir = "");
+pb::HandleTransform make_transform(const TransformValues& values, const std::string& where,
+                                   const std::string& base_dir = "");
 
 // A .def file's 4×4 row-major matrix; errors are "FILE:LINE: problem".
 std::array<double, 16> parse_def(const std::string& content, const std::string& file);
-
-std::string resolve_path(const std::string& path, const std::string& base_dir);
 
 }  // namespace hdeform::cli

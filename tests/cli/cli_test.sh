@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # End-to-end tests of the hdeform CLI, run by ctest (LABELS cli):
 #   cli_test.sh CASE HDEFORM DATA_DIR [HDEFORM_SERVER]
-# Cases: deform, sweep, run, beta (automatic and local β), bad-inputs (in-process service)
-# and remote (a real
-# hdeform-server --port 0 started here: deform/sweep --server, and watch).
+# Cases: deform, sweep, run, beta (automatic and local β), bad-inputs, run-names (hostile
+# names in a job write only inside -o), non-finite (huge transforms: no file with NaN/Inf)
+# (in-process service); remote (a real hdeform-server --port 0 started here: deform/sweep
+# --server, and watch) and run-sessions (a job with 3 meshes on a --max-sessions 1 server).
 set -uo pipefail
 
 case_name=$1
@@ -61,9 +62,9 @@ TOP='half:0,0,1,0.8916'
 
 max_e_iso() { sed -n 's/^max e_iso  *//p' "$1"; }
 
-start_server() {
+start_server() {  # [extra hdeform-server options]
   [ -x "$SERVER_BIN" ] || fail "no hdeform-server binary"
-  "$SERVER_BIN" --port 0 --bind 127.0.0.1 --workers 1 >"$TMP/server.out" 2>"$TMP/server.err" &
+  "$SERVER_BIN" --port 0 --bind 127.0.0.1 --workers 1 "$@" >"$TMP/server.out" 2>"$TMP/server.err" &
   SERVER_PID=$!
   for _ in $(seq 1 300); do
     ADDR=$(sed -n 's/^hdeform-server listening on \([^ ]*\).*/\1/p' "$TMP/server.out")
@@ -110,6 +111,13 @@ run)
     || fail "expected 8 progress lines ending in 'ok N ms'"
   $CHECK summary "$TMP/out-small/summary.csv" 8 || fail "bad summary"
   [ "$(ls "$TMP"/out-small/*.glb | wc -l)" -eq 8 ] || fail "expected 8 GLB files"
+  # More meshes than the in-process service's 64 sessions: each session is deleted when its
+  # items are done.
+  "$PY" -c 'import json, sys; json.dump({"format": "none", "meshes": [{"name": "m%d" % i, "library": "cactus"} for i in range(65)], "constraints": [{"fixed": "half:0,0,-1,-0.15", "handles": ["half:0,0,1,0.8"]}], "transforms": [{"translate": [0, 0, 0.01]}]}, sys.stdout)' \
+    >"$TMP/m65.json"
+  "$HDEFORM" run "$TMP/m65.json" -o "$TMP/out-65" >/dev/null 2>"$TMP/progress" \
+    || { grep -v ' ok ' "$TMP/progress" | head -5 >&2; fail "run of 65 meshes in-process exited $?"; }
+  [ "$(grep -c ' ok [0-9]* ms' "$TMP/progress")" -eq 65 ] || fail "expected 65 ok items"
   ;;
 beta)
   "$HDEFORM" deform cactus "${SINGLE[@]}" >"$TMP/naive" || fail "naive deform exited $?"
@@ -259,6 +267,131 @@ remote)
   kill "$WATCH_PID" 2>/dev/null; wait "$WATCH_PID" 2>/dev/null; WATCH_PID=""
   expect_fail "watch unknown session" 'hdeform: WatchSession: NOT_FOUND: ' -- \
     "$HDEFORM" --server "$ADDR" watch sessions/doesnotexist --for 10
+  ;;
+run-names)
+  # Hostile names (path components, absolute paths, NUL and control characters, Windows
+  # separators, leading dots and dashes, a very long name) write only inside -o.
+  mkdir -p "$TMP/work/sub" && cd "$TMP/work/sub" || exit 1
+  long=$(printf 'L%.0s' $(seq 1 300))
+  cat >job.json <<JSON
+{
+  "name": "../../jobname",
+  "format": "off",
+  "meshes": [ { "name": "../../escaped", "library": "cactus" },
+              { "name": "$TMP/absolute", "library": "cactus" } ],
+  "constraints": [
+    { "name": "/etc/cron.d/x", "fixed": "half:0,0,-1,-0.15", "handles": ["half:0,0,1,0.8"] }
+  ],
+  "transforms": [
+    { "name": "..", "translate": [0, 0.01, 0] },
+    { "name": "a/b\\\\c\u0000d\u001b[31m", "rotate": "x,10" },
+    { "name": ".hidden", "scale": 1.1 },
+    { "name": "-rf", "translate": "0,0,0.01" },
+    { "name": "$long", "translate": [0.01, 0, 0] }
+  ]
+}
+JSON
+  find "$TMP" -mindepth 1 | sort >"$TMP/before"
+  "$HDEFORM" run job.json -o "$TMP/jobout" >"$TMP/stdout" 2>"$TMP/progress"
+  rc=$?
+  cat "$TMP/progress"
+  [ $rc -eq 0 ] || fail "run with hostile names exited $rc"
+  # names are shown with control characters escaped
+  grep -q 'a/b\\c\\x00d\\x1b\[31m' "$TMP/progress" || fail "control characters not escaped"
+  if grep -q "$(printf '\033')" "$TMP/progress" "$TMP/stdout" "$TMP/jobout/summary.csv"; then
+    fail "an escape character was printed"
+  fi
+  # Only the output folder and its files are new, each a plain name.
+  find "$TMP" -mindepth 1 | sort >"$TMP/after"
+  new=$(comm -13 "$TMP/before" "$TMP/after" | grep -v "^$TMP/\(jobout\|stdout\|progress\|before\|after\)$" \
+        | grep -v "^$TMP/jobout/[A-Za-z0-9_][A-Za-z0-9._-]*$")
+  [ -z "$new" ] || fail "files outside -o or with unsafe names: $new"
+  [ "$(find "$TMP/jobout" -type f -name '*.off' | wc -l)" -eq 10 ] || { ls -la "$TMP/jobout" >&2; fail "expected 10 OFF files"; }
+  [ -f "$TMP/jobout/summary.csv" ] || fail "no summary.csv"
+  [ ! -e "$TMP/absolute" ] && [ ! -e "$TMP/escaped" ] && [ ! -e "$TMP/work/escaped" ] || fail "escaped"
+  ls "$TMP/jobout" | awk 'length($0) > 255 { exit 1 }' || fail "a file name longer than 255"
+  ls "$TMP/jobout" | grep -qxF '___.._escaped-_etc_cron.d_x-__-b0.off' || { ls "$TMP/jobout" >&2; fail "sanitized name"; }
+  # names that collide once sanitized, summaries and output folders that leave -o
+  printf '{"meshes": ["cactus"], "constraints": [{"name": "a/b", "handles": ["ids:1"]}, {"name": "a_b", "handles": ["ids:2"]}]}\n' >c.json
+  expect_fail "colliding names" "^c\.json: constraints\[1\]: name 'a_b' and constraints\[0\] name 'a/b' give the same output file name part 'a_b'" -- \
+    "$HDEFORM" run c.json -o "$TMP/jobout2"
+  printf '{"summary": "../../s.csv", "meshes": ["cactus"], "constraints": [{"handles": ["ids:1"]}]}\n' >s.json
+  expect_fail "summary outside -o" "^s\.json: summary: '\.\./\.\./s\.csv' is not a plain file name" -- \
+    "$HDEFORM" run s.json -o "$TMP/jobout2"
+  printf '{"output_dir": "%s/elsewhere", "meshes": ["cactus"], "constraints": [{"handles": ["ids:1"]}]}\n' "$TMP" >o.json
+  expect_fail "absolute output_dir" "^o\.json: output_dir: '.*/elsewhere' is absolute" -- "$HDEFORM" run o.json
+  [ ! -e "$TMP/jobout2" ] && [ ! -e "$TMP/elsewhere" ] || fail "a rejected job created its output folder"
+  ;;
+non-finite)
+  cd "$TMP" || exit 1
+  # Command line and job: numbers that are not finite are rejected before any call.
+  expect_fail "--translate overflow" "hdeform: transform translate: '1e400' is not a finite number" -- \
+    "$HDEFORM" deform cactus --sel "$BS/cactus.sel" --translate 1e400,0,0 -o x.glb
+  expect_fail "--scale inf" "hdeform: transform scale: 'inf' is not a finite number" -- \
+    "$HDEFORM" deform cactus --sel "$BS/cactus.sel" --scale inf -o x.glb
+  printf '{"meshes": ["cactus"], "constraints": [{"handles": ["ids:1"]}], "transforms": [{"translate": [1e400, 0, 0]}]}\n' >j1.json
+  expect_fail "job number overflow" "^j1\.json: number overflow parsing '1e400'" -- "$HDEFORM" run j1.json -o out1
+  printf '{"meshes": ["cactus"], "constraints": [{"handles": ["ids:1"]}], "transforms": [{"scale": "nan"}]}\n' >j2.json
+  expect_fail "job scale nan" "^j2\.json: transforms\[0\] scale: 'nan' is not a finite number" -- "$HDEFORM" run j2.json -o out2
+  # Finite but huge: the result must not be written with NaN/Inf coordinates (the server
+  # rejects the transform, or the CLI finds non-finite positions); exit non-zero.
+  for fmt in glb obj; do
+    "$HDEFORM" deform cactus --sel "$BS/cactus.sel" --translate 1e300,0,0 -o "huge.$fmt" \
+      >"$TMP/out" 2>"$TMP/err" && fail "deform --translate 1e300 exited 0"
+    cat "$TMP/err"
+    [ "$(wc -l <"$TMP/err")" -eq 1 ] || fail "deform --translate 1e300: expected one stderr line"
+    grep -Eq 'non-finite|INVALID_ARGUMENT' "$TMP/err" || fail "deform --translate 1e300: unclear message"
+    [ ! -e "huge.$fmt" ] || fail "deform --translate 1e300 wrote huge.$fmt"
+  done
+  "$HDEFORM" deform cactus --sel "$BS/cactus.sel" --scale 1e300 -o scale.glb >/dev/null 2>"$TMP/err" \
+    && fail "deform --scale 1e300 exited 0"
+  [ ! -e scale.glb ] || fail "deform --scale 1e300 wrote scale.glb"
+  cat >huge.json <<JSON
+{ "format": "obj", "meshes": ["cactus"],
+  "constraints": [ { "name": "bench", "sel": "$BS/{mesh}.sel" } ],
+  "transforms": [ { "name": "ok", "translate": [0, 0.01, 0] },
+                  { "name": "huge", "translate": [1e300, 0, 0] },
+                  { "name": "big", "scale": 1e300 } ] }
+JSON
+  "$HDEFORM" run huge.json -o out3 >"$TMP/out" 2>"$TMP/progress" && fail "run with huge transforms exited 0"
+  cat "$TMP/progress"
+  grep -Eq '^\[1/3\] cactus bench ok .* ok [0-9]+ ms' "$TMP/progress" || fail "the finite item failed"
+  grep -Eq '^\[2/3\] cactus bench huge .* FAILED: .*(non-finite|INVALID_ARGUMENT)' "$TMP/progress" \
+    || fail "the huge item did not fail clearly"
+  grep -Eq '^\[3/3\] cactus bench big .* FAILED: ' "$TMP/progress" || fail "the scale 1e300 item did not fail"
+  grep -q '^hdeform: 2 of 3 items failed' "$TMP/progress" || fail "no failure count"
+  [ -f out3/cactus-bench-ok-b0.obj ] || fail "the finite item's file is missing"
+  [ "$(ls out3/*.obj | wc -l)" -eq 1 ] || { ls out3 >&2; fail "a non-finite mesh was written"; }
+  if grep -qiE '(^| )-?(nan|inf)( |$)' out3/*.obj; then fail "NaN/Inf in a written OBJ"; fi
+  ;;
+run-sessions)
+  # A job with more meshes than the server's --max-sessions: each session is deleted as
+  # soon as its items are done, so all items run and the server is left with no session.
+  start_server --max-sessions 1
+  cat >"$TMP/three.json" <<JSON
+{ "format": "none", "meshes": [ { "name": "m1", "library": "cactus" },
+    { "name": "m2", "library": "cactus" }, { "name": "m3", "library": "cactus" } ],
+  "constraints": [ { "name": "bench", "sel": "$BS/{mesh}.sel" } ],
+  "transforms": [ { "name": "bend", "def": "$BS/cactus.def" } ] }
+JSON
+  sed -i 's/{mesh}/cactus/' "$TMP/three.json"
+  "$HDEFORM" --server "$ADDR" run "$TMP/three.json" -o "$TMP/out" >"$TMP/stdout" 2>"$TMP/progress" \
+    || { cat "$TMP/progress" >&2; fail "run of 3 meshes on --max-sessions 1 exited $?"; }
+  cat "$TMP/progress"
+  [ "$(grep -Ec '^\[[1-3]/3\] m[1-3] bench bend .* ok [0-9]+ ms' "$TMP/progress")" -eq 3 ] \
+    || fail "expected 3 ok items"
+  $CHECK summary "$TMP/out/summary.csv" 3 || fail "bad summary"
+  # the slot is free again: another client can create a session
+  "$HDEFORM" --server "$ADDR" deform cactus --sel "$BS/cactus.sel" --def "$BS/cactus.def" \
+    >"$TMP/after" || fail "the server's only session slot is still taken after the job"
+  # a failing item (a bad .sel label) still closes its session
+  printf '{"format": "none", "meshes": ["cactus", {"name": "c2", "library": "cactus"}], "constraints": [{"handles": ["ids:99999999"]}]}\n' \
+    >"$TMP/bad.json"
+  "$HDEFORM" --server "$ADDR" run "$TMP/bad.json" -o "$TMP/out-bad" >/dev/null 2>"$TMP/progress" \
+    && fail "a job with a bad vertex id exited 0"
+  grep -q 'RESOURCE_EXHAUSTED' "$TMP/progress" && { cat "$TMP/progress" >&2; fail "a session was left open"; }
+  "$HDEFORM" --server "$ADDR" deform cactus --sel "$BS/cactus.sel" >/dev/null \
+    || fail "a failed job left its session open"
   ;;
 *)
   fail "unknown case $case_name"
