@@ -15,7 +15,9 @@
 #include <iostream>
 #include <memory>
 #include <pthread.h>
+#include <sys/resource.h>
 #include <string>
+#include <thread>
 
 namespace {
 
@@ -34,6 +36,16 @@ std::string default_web_root() {
 std::string host_port(const std::string& host, int port) {
   const bool v6 = host.find(':') != std::string::npos && host.front() != '[';
   return (v6 ? "[" + host + "]" : host) + ":" + std::to_string(port);
+}
+
+// Debian's soft limit of 1024 descriptors is below the gateway's 1024 waiting + 256 active
+// connections plus gRPC's own: take the hard limit (no privilege needed).
+void raise_open_file_limit() {
+  rlimit lim{};
+  if (::getrlimit(RLIMIT_NOFILE, &lim) == 0 && lim.rlim_cur < lim.rlim_max) {
+    lim.rlim_cur = lim.rlim_max;
+    ::setrlimit(RLIMIT_NOFILE, &lim);
+  }
 }
 
 }  // namespace
@@ -81,6 +93,39 @@ int main(int argc, char** argv) {
       ->envname("HDEFORM_WORKERS")
       ->check(CLI::Range(1, 256))
       ->capture_default_str();
+  hdeform::service::RequestLimits request;
+  std::size_t max_upload_inflight_mb = 1024;
+  double upload_stall_timeout = 30;
+  app.add_option("--max-handles", request.max_handles, "handle regions per session")
+      ->envname("HDEFORM_MAX_HANDLES")
+      ->capture_default_str();
+  app.add_option("--max-selectors", request.max_selectors, "selectors per region")
+      ->envname("HDEFORM_MAX_SELECTORS")
+      ->capture_default_str();
+  app.add_option("--max-selector-ids", request.max_selector_ids,
+                 "vertex ids in one ids/base_ids selector")
+      ->envname("HDEFORM_MAX_SELECTOR_IDS")
+      ->capture_default_str();
+  app.add_option("--max-local-beta", request.max_local_beta, "local beta entries per session")
+      ->envname("HDEFORM_MAX_LOCAL_BETA")
+      ->capture_default_str();
+  app.add_option("--max-sweep-betas", request.max_sweep_betas, "beta values in one Sweep")
+      ->envname("HDEFORM_MAX_SWEEP_BETAS")
+      ->capture_default_str();
+  app.add_option("--max-sweeps", request.max_concurrent_sweeps,
+                 "Sweeps running at once (each holds one transient factorization)")
+      ->envname("HDEFORM_MAX_SWEEPS")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--max-upload-inflight-mb", max_upload_inflight_mb,
+                 "upload bytes held by unfinished uploads, all clients together (MiB)")
+      ->envname("HDEFORM_MAX_UPLOAD_INFLIGHT_MB")
+      ->capture_default_str();
+  app.add_option("--upload-stall-timeout", upload_stall_timeout,
+                 "seconds an upload may send nothing before it is ended")
+      ->envname("HDEFORM_UPLOAD_STALL_TIMEOUT")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical, off")
       ->envname("HDEFORM_LOG_LEVEL")
       ->check(CLI::IsMember(
@@ -92,9 +137,37 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--web-root", web_root, "built web viewer served on --http-port")
       ->envname("HDEFORM_WEB_ROOT");
+#ifdef HDEFORM_HAVE_GATEWAY
+  hdeform::gateway::GatewayOptions http;
+  double header_timeout = 10, idle_timeout = 60, stall_timeout = 30;
+  app.add_option("--http-max-requests", http.max_connections,
+                 "HTTP requests in progress (streams included); above it 503")
+      ->envname("HDEFORM_HTTP_MAX_REQUESTS")
+      ->capture_default_str();
+  app.add_option("--http-max-idle", http.max_idle_connections,
+                 "HTTP connections waiting for a request; above it the oldest is closed")
+      ->envname("HDEFORM_HTTP_MAX_IDLE")
+      ->capture_default_str();
+  app.add_option("--http-header-timeout", header_timeout,
+                 "seconds a new HTTP connection has to send a whole request header")
+      ->envname("HDEFORM_HTTP_HEADER_TIMEOUT")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--http-idle-timeout", idle_timeout,
+                 "seconds a keep-alive HTTP connection may wait between requests")
+      ->envname("HDEFORM_HTTP_IDLE_TIMEOUT")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--http-stall-timeout", stall_timeout,
+                 "seconds a request body or a response may make no progress")
+      ->envname("HDEFORM_HTTP_STALL_TIMEOUT")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+#endif
   CLI11_PARSE(app, argc, argv);
 
   spdlog::set_level(spdlog::level::from_str(log_level));
+  raise_open_file_limit();
 
   // SIGINT/SIGTERM are taken by sigwait() below: block them before any thread starts.
   sigset_t signals;
@@ -112,6 +185,10 @@ int main(int argc, char** argv) {
   options.max_upload_bytes = max_upload_mb << 20;
   options.cache_bytes = cache_mb << 20;
   options.session_ttl = std::chrono::seconds(session_ttl);
+  options.request = request;
+  options.max_upload_inflight_bytes = max_upload_inflight_mb << 20;
+  options.upload_stall_timeout =
+      std::chrono::milliseconds(static_cast<long>(upload_stall_timeout * 1000));
 
   std::unique_ptr<hdeform::service::Server> server;
   try {
@@ -125,7 +202,13 @@ int main(int argc, char** argv) {
 #ifdef HDEFORM_HAVE_GATEWAY
   std::unique_ptr<hdeform::gateway::HttpGateway> gateway;
   if (http_port >= 0) {
-    hdeform::gateway::GatewayOptions g;
+    hdeform::gateway::GatewayOptions g = http;
+    auto ms = [](double seconds) {
+      return std::chrono::milliseconds(static_cast<long>(seconds * 1000));
+    };
+    g.header_timeout = ms(header_timeout);
+    g.idle_timeout = ms(idle_timeout);
+    g.stall_timeout = ms(stall_timeout);
     g.address = bind;
     g.port = http_port;
     g.web_root = web_root;
@@ -147,6 +230,19 @@ int main(int argc, char** argv) {
   int sig = 0;
   sigwait(&signals, &sig);
   spdlog::info("signal {}: shutting down", sig);
+  // Long work stops cooperatively (parsing, sweeps, automatic β poll the stop flag), but a
+  // single CHOLMOD factorization cannot be interrupted: never let one hold the process
+  // longer than this after SIGTERM. A second signal exits at once.
+  std::thread([] {
+    std::this_thread::sleep_for(std::chrono::seconds(5));
+    spdlog::warn("shutdown took over 5 s (a factorization still running); exiting");
+    std::_Exit(0);
+  }).detach();
+  std::thread([signals] {
+    int again = 0;
+    sigwait(&signals, &again);
+    std::_Exit(1);
+  }).detach();
 #ifdef HDEFORM_HAVE_GATEWAY
   if (gateway) gateway->stop();
   gateway.reset();

@@ -528,7 +528,7 @@ std::shared_ptr<const MeshRef> DeformService::load_library_mesh(const std::strin
   auto entry = library_.find(name);
   if (!entry) fail(grpc::StatusCode::NOT_FOUND, "no mesh '" + name + "' in the library");
   auto bytes = std::make_shared<const std::string>(read_file(entry->path));
-  return load_mesh(bytes, entry->path, entry->name, cache_, options_.max_vertices);
+  return load_mesh(bytes, entry->path, entry->name, cache_, read_limits());
 }
 
 std::shared_ptr<const MeshRef> DeformService::load_upload(std::shared_ptr<const std::string> bytes,
@@ -536,7 +536,14 @@ std::shared_ptr<const MeshRef> DeformService::load_upload(std::shared_ptr<const 
   if (bytes->size() > options_.max_upload_bytes)
     fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
          "upload exceeds the limit of " + std::to_string(options_.max_upload_bytes) + " bytes");
-  return load_mesh(std::move(bytes), filename, "", cache_, options_.max_vertices);
+  return load_mesh(std::move(bytes), filename, "", cache_, read_limits());
+}
+
+ReadLimits DeformService::read_limits() const {
+  ReadLimits limits;
+  limits.max_vertices = options_.max_vertices;
+  limits.cancel = &stopping_;  // a parse in progress stops when the server does
+  return limits;
 }
 
 grpc::ServerUnaryReactor* DeformService::finish_inline(grpc::CallbackServerContext* ctx,
@@ -777,7 +784,7 @@ grpc::ServerUnaryReactor* DeformService::ImportSession(grpc::CallbackServerConte
       auto bytes = std::make_shared<const std::string>(snap.mesh_bytes());
       mesh = snap.library_mesh().empty()
                  ? load_upload(bytes, filename)
-                 : load_mesh(bytes, filename, snap.library_mesh(), cache_, options_.max_vertices);
+                 : load_mesh(bytes, filename, snap.library_mesh(), cache_, read_limits());
     } else if (!snap.library_mesh().empty()) {
       mesh = load_library_mesh(snap.library_mesh());
     } else if (!snap.mesh_hash().empty()) {

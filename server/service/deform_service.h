@@ -83,6 +83,8 @@ class DeformService final : public v1::Deformation::CallbackService {
 
  private:
   using Work = std::function<void()>;
+  // Mesh parsing bounds: --max-vertices while parsing, stopped by shutdown.
+  ReadLimits read_limits() const;
   // Finish a unary call with fn's outcome: inline (cheap), on the pool, or on a session's
   // strand (NOT_FOUND when the session does not exist).
   grpc::ServerUnaryReactor* finish_inline(grpc::CallbackServerContext* ctx, const char* op,

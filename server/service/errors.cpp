@@ -1,6 +1,7 @@
 #include "errors.h"
 
 #include "mesh.h"
+#include "mesh_io.h"
 
 #include <spdlog/spdlog.h>
 
@@ -16,6 +17,12 @@ grpc::Status guarded(const std::function<void()>& fn, const char* what) {
   } catch (const ServiceError& e) {
     spdlog::debug("{}: {} ({})", op, e.what(), static_cast<int>(e.code()));
     return e.status();
+  } catch (const LimitExceeded& e) {
+    spdlog::debug("{}: limit: {}", op, e.what());
+    return {grpc::StatusCode::RESOURCE_EXHAUSTED, e.what()};
+  } catch (const ReadCancelled& e) {
+    spdlog::debug("{}: {}", op, e.what());
+    return {grpc::StatusCode::CANCELLED, e.what()};
   } catch (const Cancelled& e) {
     spdlog::debug("{}: {}", op, e.what());
     return {grpc::StatusCode::CANCELLED, e.what()};

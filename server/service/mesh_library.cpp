@@ -92,7 +92,7 @@ std::string read_file(const std::string& path) {
 std::shared_ptr<const MeshRef> load_mesh(std::shared_ptr<const std::string> bytes,
                                          const std::string& filename,
                                          const std::string& library_name, Cache& cache,
-                                         std::size_t max_vertices) {
+                                         const ReadLimits& limits) {
   std::string ext = fs::path(filename).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
@@ -105,13 +105,8 @@ std::shared_ptr<const MeshRef> load_mesh(std::shared_ptr<const std::string> byte
       "file/" + Sha256().add(ext).add(std::string_view("\0", 1)).add(*bytes).hex() + "/" +
       library_name;
   auto build = [&]() -> std::shared_ptr<const MeshRef> {
-    LoadedMesh loaded = read_mesh_bytes(*bytes, filename);
-    const std::size_t nv = std::max<std::size_t>(
-        static_cast<std::size_t>(loaded.mesh.num_vertices()), loaded.input_to_engine.size());
-    if (nv > max_vertices)
-      fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
-           "mesh has " + std::to_string(nv) + " vertices; this server allows at most " +
-               std::to_string(max_vertices) + " (--max-vertices)");
+    // The vertex limit is applied while parsing (a header count over it fails at once).
+    LoadedMesh loaded = read_mesh_bytes(*bytes, filename, limits);
     auto r = std::make_shared<MeshRef>();
     r->hash = mesh_hash(loaded.mesh);
     r->library_name = library_name;

@@ -6,6 +6,7 @@
 #include "cache.h"
 #include "deformer.h"
 #include "frames.h"
+#include "mesh_io.h"
 
 #include <cstddef>
 #include <memory>
@@ -54,12 +55,13 @@ class MeshLibrary {
 // The bundled data/ folder (compile-time path), or "" when it does not exist.
 std::string default_mesh_dir();
 
-// Parses a mesh file, enforces the vertex limit (RESOURCE_EXHAUSTED) and finds or builds
-// its MeshRef / PreparedMesh in the cache. Throws InvalidInput for a bad mesh.
+// Parses a mesh file, enforces the vertex limit while parsing (LimitExceeded →
+// RESOURCE_EXHAUSTED), polls limits' cancellation (ReadCancelled → CANCELLED) and finds or
+// builds its MeshRef / PreparedMesh in the cache. Throws InvalidInput for a bad mesh.
 std::shared_ptr<const MeshRef> load_mesh(std::shared_ptr<const std::string> bytes,
                                          const std::string& filename,
                                          const std::string& library_name, Cache& cache,
-                                         std::size_t max_vertices);
+                                         const ReadLimits& limits);
 
 std::string read_file(const std::string& path);  // throws ServiceError NOT_FOUND
 

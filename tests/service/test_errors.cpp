@@ -165,6 +165,8 @@ TEST(ServiceErrors, ResourceExhaustedVertices) {
   EXPECT_EQ(st.error_code(), StatusCode::RESOURCE_EXHAUSTED) << st.error_message();
   st = t.upload(slurp(data_path("botsch-sorkine/cactus.off")), "cactus.off", &s);
   EXPECT_EQ(st.error_code(), StatusCode::RESOURCE_EXHAUSTED) << st.error_message();
+  // Applied while parsing: the header's count is refused before any vertex is read.
+  EXPECT_NE(st.error_message().find("--max-vertices"), std::string::npos) << st.error_message();
 }
 
 TEST(ServiceErrors, ResourceExhaustedUploadBytes) {
