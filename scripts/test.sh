@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
-# The whole test suite: installs, builds everything, runs ctest (the viewer's npm build
-# and its browser tests run as ctest cases).
+# The whole test suite: installs, builds everything, checks that no suite vanished, runs
+# ctest (the viewer's npm build and its browser tests run as ctest cases).
 source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 install_deps
 configure -DHDEFORM_BUILD_TESTS=ON -DHDEFORM_BUILD_BENCH=ON
 build
+bash "$ROOT/scripts/check-suites.sh" "$BUILD" engine service security cli gateway routing browser bench
 cd "$BUILD"
 ctest --output-on-failure -j "$JOBS" --timeout 600 "$@"

@@ -42,6 +42,26 @@ pb::Constraints by_ids(const std::vector<int>& fixed, const std::vector<int>& ha
   return c;
 }
 
+// The wavy grid's left edge fixed, its right edge the handle.
+pb::Constraints grid_constraints() {
+  pb::Constraints c;
+  auto* f = c.mutable_fixed()->add_selectors()->mutable_half_space();
+  f->mutable_normal()->set_x(-1);
+  f->set_offset(-0.3);
+  auto* h = c.add_handles()->add_selectors()->mutable_half_space();
+  h->mutable_normal()->set_x(1);
+  h->set_offset(2.8);
+  return c;
+}
+
+// An n×n grid upload with grid_constraints(): big enough that a factorization takes a while.
+pb::Session grid_session(TestServer& t, int n) {
+  pb::Session s, out;
+  EXPECT_TRUE(t.upload(grid_off(n), "grid.off", &s).ok());
+  EXPECT_TRUE(t.set_constraints(s.name(), grid_constraints(), &out).ok());
+  return s;
+}
+
 std::vector<int> range(int from, int to) {
   std::vector<int> v;
   for (int i = from; i < to; ++i) v.push_back(i);
@@ -186,17 +206,7 @@ TEST(Security, RequestCapsGiveResourceExhausted) {
 // its transient factorizations leave the results of the session's own β unchanged.
 TEST(Security, SweepIsCancellableAndDoesNotBlockEdits) {
   TestServer t;
-  pb::Session s;
-  ASSERT_TRUE(t.upload(grid_off(120), "grid.off", &s).ok());
-  pb::Session out;
-  pb::Constraints c;
-  auto* f = c.mutable_fixed()->add_selectors()->mutable_half_space();
-  f->mutable_normal()->set_x(-1);
-  f->set_offset(-0.3);
-  auto* h = c.add_handles()->add_selectors()->mutable_half_space();
-  h->mutable_normal()->set_x(1);
-  h->set_offset(2.8);
-  ASSERT_TRUE(t.set_constraints(s.name(), c, &out).ok());
+  const pb::Session s = grid_session(t, 120);
 
   // 60 β of fresh factorizations: seconds of work. The deadline ends it early.
   pb::SweepRequest sweep;
@@ -239,17 +249,8 @@ TEST(Security, SweepIsCancellableAndDoesNotBlockEdits) {
 // Defect 7: a call queued on a session's strand ran after the session was deleted.
 TEST(Security, CallsQueuedBehindADeleteFailWithNotFound) {
   TestServer t;
-  pb::Session s;
-  ASSERT_TRUE(t.upload(grid_off(150), "grid.off", &s).ok());
-  pb::Session out;
-  pb::Constraints c;
-  auto* f = c.mutable_fixed()->add_selectors()->mutable_half_space();
-  f->mutable_normal()->set_x(-1);
-  f->set_offset(-0.3);
-  auto* h = c.add_handles()->add_selectors()->mutable_half_space();
-  h->mutable_normal()->set_x(1);
-  h->set_offset(2.8);
-  ASSERT_TRUE(t.set_constraints(s.name(), c, &out).ok());
+  const pb::Session s = grid_session(t, 150);
+  const pb::Constraints c = grid_constraints();
   // A β change (a new factorization) holds the strand while a SetConstraints queues behind it.
   std::thread slow([&] {
     pb::Session o;
@@ -419,17 +420,7 @@ TEST(Security, MeshHashIsSha256) {
 // Shutdown stops within a few seconds while workers are busy with a long sweep.
 TEST(Security, ShutdownStopsBusyWorkersQuickly) {
   auto t = std::make_unique<TestServer>();
-  pb::Session s;
-  ASSERT_TRUE(t->upload(grid_off(120), "grid.off", &s).ok());
-  pb::Session out;
-  pb::Constraints c;
-  auto* f = c.mutable_fixed()->add_selectors()->mutable_half_space();
-  f->mutable_normal()->set_x(-1);
-  f->set_offset(-0.3);
-  auto* h = c.add_handles()->add_selectors()->mutable_half_space();
-  h->mutable_normal()->set_x(1);
-  h->set_offset(2.8);
-  ASSERT_TRUE(t->set_constraints(s.name(), c, &out).ok());
+  const pb::Session s = grid_session(*t, 120);
   pb::SweepRequest sweep;
   sweep.set_name(s.name());
   for (int i = 0; i < 60; ++i) sweep.add_betas(0.01 + 0.015 * i);
