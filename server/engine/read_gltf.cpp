@@ -82,6 +82,24 @@ const unsigned char* accessor_data(const tinygltf::Model& model, const tinygltf:
   return buf.data.data() + bv.byteOffset + acc.byteOffset;
 }
 
+// tinygltf 2.7.0 (Debian 12) checks the BIN chunk's declared length against the GLB's length
+// without the chunk's own 8-byte header, so a buffer could be copied up to 8 bytes past the
+// end of the upload (heap overflow found by fuzz_glb). Checked here first; every other case
+// is left to tinygltf, which rejects it.
+void check_glb_bin_chunk(std::string_view bytes, const std::string& name) {
+  if (bytes.size() < 20) return;
+  const auto* p = reinterpret_cast<const unsigned char*>(bytes.data());
+  const bool swap = std::endian::native != std::endian::little;
+  const uint64_t length = load_raw<uint32_t>(p + 8, swap);
+  const uint64_t header_and_json = 20 + static_cast<uint64_t>(load_raw<uint32_t>(p + 12, swap));
+  if (length > bytes.size() || header_and_json + 8 > length) return;
+  const uint64_t bin = load_raw<uint32_t>(p + header_and_json, swap);
+  if (header_and_json + 8 + bin > length)
+    fail(name + ": invalid GLB: the BIN chunk at byte " + std::to_string(header_and_json) +
+         " declares " + plural(bin, "byte", "bytes") + " but " +
+         plural(length - header_and_json - 8, "byte follows", "bytes follow") + " its header");
+}
+
 bool node_has_transform(const tinygltf::Node& n) {
   if (!n.matrix.empty()) {
     for (size_t i = 0; i < n.matrix.size(); ++i)
@@ -117,6 +135,7 @@ LoadedMesh read_gltf(std::string_view bytes, ReadContext& ctx, bool binary,
   tinygltf::Model model;
   std::string err, warn;
   if (bytes.size() > std::numeric_limits<unsigned int>::max()) fail(name + ": file too large");
+  if (binary) check_glb_bin_chunk(bytes, name);
   const bool ok =
       binary ? loader.LoadBinaryFromMemory(&model, &err, &warn,
                                            reinterpret_cast<const unsigned char*>(bytes.data()),

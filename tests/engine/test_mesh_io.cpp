@@ -772,6 +772,25 @@ TEST(MeshIoBounds, GltfReusedAccessorsCannotMultiplyTheWork) {
   EXPECT_NE(m.find("accessors overlap or are reused"), std::string::npos) << m;
 }
 
+TEST(MeshIoBounds, GlbBinChunkLongerThanTheFileIsRefused) {
+  // Found by fuzz_glb (corpus/fuzz_glb/regress-bin-chunk-overflow.glb): tinygltf 2.7.0 lets
+  // the BIN chunk's length reach 8 bytes past the file, and copied a buffer from there.
+  std::string glb = serialise(seam_model(), true);
+  uint32_t json_len = 0, bin_len = 0;
+  std::memcpy(&json_len, glb.data() + 12, 4);
+  std::memcpy(&bin_len, glb.data() + 20 + json_len, 4);
+  ASSERT_EQ(20 + json_len + 8 + bin_len, glb.size());
+  const uint32_t longer = bin_len + 8;
+  std::memcpy(glb.data() + 20 + json_len, &longer, 4);
+  EXPECT_EQ(msg_of(glb, "b.glb"), "b.glb: invalid GLB: the BIN chunk at byte " + std::to_string(20 + json_len) +
+                                      " declares " + std::to_string(longer) + " bytes but " +
+                                      std::to_string(bin_len) + " bytes follow its header");
+  // The fuzzer's input itself.
+  const std::string crash = read_all(kData + "/../tests/fuzz/corpus/fuzz_glb/regress-bin-chunk-overflow.glb");
+  ASSERT_FALSE(crash.empty());
+  EXPECT_EQ(msg_of(crash, "c.glb"), "c.glb: invalid GLB: the BIN chunk at byte 536 declares 76 bytes but 72 bytes follow its header");
+}
+
 TEST(MeshIoLimits, DeclaredCountsFailImmediately) {
   ReadLimits lim;
   lim.max_vertices = 2000000;
