@@ -117,6 +117,10 @@ int main(int argc, char** argv) {
       ->envname("HDEFORM_MAX_SWEEPS")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  app.add_option("--max-watchers", request.max_watchers, "WatchSession streams per session")
+      ->envname("HDEFORM_MAX_WATCHERS")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   app.add_option("--max-upload-inflight-mb", max_upload_inflight_mb,
                  "upload bytes held by unfinished uploads, all clients together (MiB)")
       ->envname("HDEFORM_MAX_UPLOAD_INFLIGHT_MB")

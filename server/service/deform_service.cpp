@@ -420,9 +420,21 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
     solving_ = true;
     ++inflight_;
     ++solves_;
-    auto request = std::make_shared<v1::DeformRequest>(std::move(*pending_));
-    pending_.reset();
-    session_->post([this, request] {
+    // The update is taken when the solve starts, not when it is queued: under load the
+    // strand's queue wait can be long, and newer updates arriving meanwhile must win.
+    session_->post([this] {
+      std::shared_ptr<v1::DeformRequest> request;
+      {
+        std::lock_guard lock(mutex_);
+        if (pending_) {
+          request = std::make_shared<v1::DeformRequest>(std::move(*pending_));
+          pending_.reset();
+        }
+      }
+      if (!request) {  // the stream finished while this waited
+        solved({grpc::StatusCode::CANCELLED, "Deform ended"}, nullptr);
+        return;
+      }
       std::shared_ptr<v1::Frame> frame;
       const auto status = guarded(
           [&] {
@@ -755,6 +767,17 @@ grpc::ServerWriteReactor<v1::SessionEvent>* DeformService::WatchSession(
       void OnDone() override { delete this; }
     };
     return new Fail({grpc::StatusCode::NOT_FOUND, "no session '" + request->name() + "'"});
+  }
+  // Each watcher's memory is bounded (one pending frame, one state); their number is too.
+  if (static_cast<std::size_t>(session->observers()) >= options_.request.max_watchers) {
+    class Fail final : public grpc::ServerWriteReactor<v1::SessionEvent> {
+     public:
+      explicit Fail(grpc::Status s) { Finish(std::move(s)); }
+      void OnDone() override { delete this; }
+    };
+    return new Fail({grpc::StatusCode::RESOURCE_EXHAUSTED,
+                     session->name() + " has " + std::to_string(session->observers()) +
+                         " watchers, the limit (--max-watchers)"});
   }
   return new WatchReactor(std::move(session));
 }

@@ -14,6 +14,7 @@ struct RequestLimits {
   std::size_t max_local_beta = 16;           // --max-local-beta: local β entries
   std::size_t max_sweep_betas = 64;          // --max-sweep-betas: β values in one Sweep
   std::size_t max_concurrent_sweeps = 1;     // --max-sweeps: Sweeps running at once (server)
+  std::size_t max_watchers = 64;             // --max-watchers: WatchSession streams per session
 };
 
 // Throws ServiceError RESOURCE_EXHAUSTED "WHAT: COUNT exceeds the limit of LIMIT (FLAG)".

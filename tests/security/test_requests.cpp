@@ -202,6 +202,31 @@ TEST(Security, RequestCapsGiveResourceExhausted) {
   by.check();
 }
 
+// WatchSession streams per session are capped (each one's memory is bounded already).
+TEST(Security, WatchersPerSessionAreCapped) {
+  hdeform::service::ServerOptions o;
+  o.request.max_watchers = 2;
+  TestServer t(o);
+  const pb::Session s = t.library_session("bar");
+  pb::WatchSessionRequest req;
+  req.set_name(s.name());
+  grpc::ClientContext a_ctx, b_ctx, c_ctx;
+  auto a = t.stub->WatchSession(&a_ctx, req);
+  auto b = t.stub->WatchSession(&b_ctx, req);
+  pb::SessionEvent ev;
+  ASSERT_TRUE(a->Read(&ev));
+  ASSERT_TRUE(b->Read(&ev));
+  auto c = t.stub->WatchSession(&c_ctx, req);
+  EXPECT_FALSE(c->Read(&ev));
+  const auto st = c->Finish();
+  EXPECT_EQ(st.error_code(), StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_TRUE(contains(st.error_message(), "--max-watchers")) << st.error_message();
+  a_ctx.TryCancel();
+  b_ctx.TryCancel();
+  a->Finish();
+  b->Finish();
+}
+
 // Sweep: stops at its deadline, never blocks the session's edits for its whole length, and
 // its transient factorizations leave the results of the session's own β unchanged.
 TEST(Security, SweepIsCancellableAndDoesNotBlockEdits) {
