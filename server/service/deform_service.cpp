@@ -53,6 +53,7 @@ class CreateSessionReactor final : public grpc::ServerReadReactor<v1::CreateSess
       } else if (ctx_->IsCancelled()) {
         Finish({grpc::StatusCode::CANCELLED, "upload cancelled by the client"});
       } else {
+        ticket_->received_all();
         finish_upload();
       }
       return;

@@ -70,7 +70,7 @@ void UploadBudget::watch() {
     lock.unlock();
     const std::int64_t limit = now_ns() - std::chrono::nanoseconds(stall_timeout_).count();
     for (auto& t : live) {
-      if (t->last_ns_.load() > limit || t->stalled_) continue;
+      if (t->last_ns_.load() > limit || t->stalled_ || t->received_all_) continue;
       std::lock_guard ticket_lock(t->mutex_);
       if (!t->ctx_) continue;
       // TryCancel never runs OnDone inline, so holding the ticket lock here is safe; OnDone

@@ -26,6 +26,9 @@ class UploadBudget {
     // Reserve `bytes` more for this upload; false when the server-wide budget is spent.
     bool charge(std::size_t bytes);
     bool stalled() const { return stalled_.load(); }
+    // The client finished sending: from now on the server is working (parsing, preparing),
+    // which is not a stall, so the watchdog leaves this upload alone.
+    void received_all() { received_all_ = true; }
     void detach();  // releases the bytes; the context is not used afterwards
     ~Ticket();
 
@@ -38,6 +41,7 @@ class UploadBudget {
     std::atomic<std::int64_t> last_ns_;
     std::size_t charged_ = 0;
     std::atomic<bool> stalled_{false};
+    std::atomic<bool> received_all_{false};
   };
 
   UploadBudget(std::size_t max_bytes, std::chrono::milliseconds stall_timeout);
