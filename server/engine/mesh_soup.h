@@ -6,6 +6,9 @@
 #include "mesh_io.h"
 
 #include <algorithm>
+#include <array>
+#include <bit>
+#include <cstdint>
 #include <charconv>
 #include <cstddef>
 #include <cstring>
@@ -186,5 +189,22 @@ T load_raw(const unsigned char* p, bool swap) {
   std::memcpy(&v, b, sizeof(T));
   return v;
 }
+
+// A vertex position as a hash key for welding by exact position (STL, glTF): the bits of
+// x, y, z, with −0 folded into +0 so the two weld.
+struct PosKey {
+  std::array<uint64_t, 3> b;
+  PosKey(double x, double y, double z) : b{bits(x), bits(y), bits(z)} {}
+  bool operator==(const PosKey&) const = default;
+  static uint64_t bits(double v) { return std::bit_cast<uint64_t>(v == 0 ? 0.0 : v); }
+};
+struct PosKeyHash {
+  size_t operator()(const PosKey& k) const {
+    uint64_t h = k.b[0] * 0x9E3779B97F4A7C15ULL;
+    h ^= (k.b[1] + 0x632BE59BD9B4E019ULL + (h << 6) + (h >> 2));
+    h ^= (k.b[2] * 0xC2B2AE3D27D4EB4FULL + (h << 6) + (h >> 2));
+    return static_cast<size_t>(h ^ (h >> 29));
+  }
+};
 
 }  // namespace hdeform::detail

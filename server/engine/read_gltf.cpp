@@ -111,18 +111,6 @@ bool node_has_transform(const tinygltf::Node& n) {
   return false;
 }
 
-struct PosKey {
-  std::array<uint64_t, 3> b;
-  bool operator==(const PosKey&) const = default;
-};
-struct PosKeyHash {
-  size_t operator()(const PosKey& k) const {
-    uint64_t h = k.b[0] * 0x9E3779B97F4A7C15ULL;
-    h ^= (k.b[1] + 0x632BE59BD9B4E019ULL + (h << 6) + (h >> 2));
-    h ^= (k.b[2] * 0xC2B2AE3D27D4EB4FULL + (h << 6) + (h >> 2));
-    return static_cast<size_t>(h ^ (h >> 29));
-  }
-};
 
 }  // namespace
 
@@ -278,12 +266,7 @@ LoadedMesh read_gltf(std::string_view bytes, ReadContext& ctx, bool binary,
   engine_xyz.reserve(input_xyz.size());
   for (size_t v = 0; v < n_in; ++v) {
     ctx.tick();
-    PosKey key;
-    for (int k = 0; k < 3; ++k) {
-      double x = input_xyz[3 * v + k];
-      if (x == 0) x = 0;  // −0 and +0 weld
-      key.b[k] = std::bit_cast<uint64_t>(x);
-    }
+    const PosKey key(input_xyz[3 * v], input_xyz[3 * v + 1], input_xyz[3 * v + 2]);
     auto [it, fresh] = ids.try_emplace(key, static_cast<int>(engine_xyz.size() / 3));
     if (fresh)
       for (int k = 0; k < 3; ++k) engine_xyz.push_back(input_xyz[3 * v + k]);

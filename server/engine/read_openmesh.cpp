@@ -22,30 +22,13 @@
 namespace hdeform::detail {
 namespace {
 
-struct PosKey {
-  std::array<uint64_t, 3> b;
-  bool operator==(const PosKey&) const = default;
-};
-struct PosKeyHash {
-  size_t operator()(const PosKey& k) const {
-    uint64_t h = k.b[0] * 0x9E3779B97F4A7C15ULL;
-    h ^= (k.b[1] + 0x632BE59BD9B4E019ULL + (h << 6) + (h >> 2));
-    h ^= (k.b[2] * 0xC2B2AE3D27D4EB4FULL + (h << 6) + (h >> 2));
-    return static_cast<size_t>(h ^ (h >> 29));
-  }
-};
 
 // Merges corners with bit-identical positions into one soup vertex.
 class Welder {
  public:
   explicit Welder(Soup& s) : s_(s) {}
   int add(const double p[3]) {
-    PosKey key;
-    for (int k = 0; k < 3; ++k) {
-      const double x = p[k] == 0 ? 0.0 : p[k];  // −0 and +0 weld
-      key.b[static_cast<size_t>(k)] = std::bit_cast<uint64_t>(x);
-    }
-    auto [it, fresh] = ids_.try_emplace(key, s_.num_vertices());
+    auto [it, fresh] = ids_.try_emplace(PosKey(p[0], p[1], p[2]), s_.num_vertices());
     if (fresh) s_.add_vertex(p[0], p[1], p[2]);
     return it->second;
   }
