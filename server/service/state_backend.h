@@ -1,0 +1,68 @@
+// Durable session state (docs/deployment.md "State"): one opaque record per session id and
+// uploaded mesh files stored once each, by the SHA-256 of their bytes. Two backends: SQLite
+// in a local folder (the embedded default) and Redis (shared by replicas, for failover).
+// The service decides what a record holds (stored_session.proto); a backend only keeps bytes.
+//
+// Every method is thread-safe and blocking. A write has reached the backend's durable store
+// when it returns (SQLite: committed with synchronous=FULL; Redis: acknowledged by the
+// server). Failures throw StateError with a message that names the store and the problem.
+#pragma once
+
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace hdeform::service {
+
+class StateError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+class StateBackend {
+ public:
+  virtual ~StateBackend() = default;
+
+  // "sqlite DIR/state.sqlite3" or "redis 127.0.0.1:6379" (never a password): for logs.
+  virtual std::string describe() const = 0;
+
+  // ---- session records, by session id ([A-Za-z0-9_-]{1,64}) ----
+  // Stores `record` only if `id` has none yet; false when it exists (someone owns the id).
+  virtual bool create_session(const std::string& id, const std::string& record) = 0;
+  // Stores `record` for `id`, replacing any previous one.
+  virtual void put_session(const std::string& id, const std::string& record) = 0;
+  virtual std::optional<std::string> get_session(const std::string& id) = 0;
+  // Idempotent.
+  virtual void delete_session(const std::string& id) = 0;
+  // Every stored id (any order).
+  virtual std::vector<std::string> list_sessions() = 0;
+
+  // ---- mesh files, content-addressed ----
+  // Stores `bytes` once (a second put of the same bytes is a no-op) and returns its key:
+  // 64 lower-case hex digits, the SHA-256 of the bytes.
+  virtual std::string put_mesh(const std::string& bytes) = 0;
+  // The bytes stored under `key`, verified against it (a corrupt file throws StateError);
+  // nullopt when absent. `key` must be 64 hex digits (else StateError).
+  virtual std::optional<std::string> get_mesh(const std::string& key) = 0;
+  // Drops every stored mesh whose key is not in `keep` (no session refers to it any more).
+  // Returns how many were dropped.
+  virtual std::size_t purge_meshes(const std::vector<std::string>& keep) = 0;
+};
+
+// DIR/state.sqlite3 (WAL mode, synchronous=FULL, application_id 'hdfm', a schema version)
+// and DIR/meshes/KEY.mesh; DIR is created if missing. One server per folder: an exclusive
+// lock on DIR/lock (StateError naming the folder when another process holds it). A file that
+// is not an hdeform state database (another program's SQLite file, a corrupt one, a newer
+// schema) throws StateError and is left untouched.
+std::unique_ptr<StateBackend> open_sqlite_state(const std::filesystem::path& dir);
+
+// redis://[:PASSWORD@]HOST[:PORT][/DB]. Keys under the prefix "hdeform:" (sessions as
+// hdeform:session:ID, their ids in the set hdeform:sessions, meshes as hdeform:mesh:KEY).
+// Connects at once (StateError when the server cannot be reached), reconnects once per
+// call after a broken connection; every command has a 2 s timeout.
+std::unique_ptr<StateBackend> open_redis_state(const std::string& url);
+
+}  // namespace hdeform::service
