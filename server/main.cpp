@@ -141,6 +141,22 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--web-root", web_root, "built web viewer served on --http-port")
       ->envname("HDEFORM_WEB_ROOT");
+  std::string tls_cert, tls_key, tls_client_ca;
+  auto* tls_cert_opt =
+      app.add_option("--tls-cert", tls_cert,
+                     "TLS certificate chain (PEM): TLS on the gRPC port and HTTPS on --http-port")
+          ->envname("HDEFORM_TLS_CERT")
+          ->check(CLI::ExistingFile);
+  auto* tls_key_opt = app.add_option("--tls-key", tls_key, "TLS private key (PEM, unencrypted)")
+                          ->envname("HDEFORM_TLS_KEY")
+                          ->check(CLI::ExistingFile);
+  app.add_option("--tls-client-ca", tls_client_ca,
+                 "CA certificates (PEM): require client certificates signed by them")
+      ->envname("HDEFORM_TLS_CLIENT_CA")
+      ->check(CLI::ExistingFile)
+      ->needs(tls_cert_opt);
+  tls_cert_opt->needs(tls_key_opt);
+  tls_key_opt->needs(tls_cert_opt);
 #ifdef HDEFORM_HAVE_GATEWAY
   hdeform::gateway::GatewayOptions http;
   double header_timeout = 10, idle_timeout = 60, stall_timeout = 30;
@@ -193,6 +209,9 @@ int main(int argc, char** argv) {
   options.max_upload_inflight_bytes = max_upload_inflight_mb << 20;
   options.upload_stall_timeout =
       std::chrono::milliseconds(static_cast<long>(upload_stall_timeout * 1000));
+  options.tls_cert_file = tls_cert;
+  options.tls_key_file = tls_key;
+  options.tls_client_ca_file = tls_client_ca;
 
   std::unique_ptr<hdeform::service::Server> server;
   try {
@@ -216,6 +235,9 @@ int main(int argc, char** argv) {
     g.address = bind;
     g.port = http_port;
     g.web_root = web_root;
+    g.tls_cert_file = tls_cert;
+    g.tls_key_file = tls_key;
+    g.tls_client_ca_file = tls_client_ca;
     g.max_body_bytes = options.max_upload_bytes + (16u << 20);
     try {
       gateway = std::make_unique<hdeform::gateway::HttpGateway>(g, server->in_process_channel());
@@ -224,7 +246,8 @@ int main(int argc, char** argv) {
       server->shutdown();
       return 1;
     }
-    std::cout << "hdeform-server http on " << host_port(bind, gateway->port())
+    std::cout << (tls_cert.empty() ? "hdeform-server http on " : "hdeform-server https on ")
+              << host_port(bind, gateway->port())
               << (web_root.empty() ? " (API only)" : " (viewer: " + web_root + ")") << std::endl;
   }
 #else

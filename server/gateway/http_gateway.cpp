@@ -18,6 +18,16 @@
 // one HTTP chunk (gRPC-Web data frame), then the trailers frame. No per-method code. A server
 // stream may stay quiet for any time: no socket operation is pending while it waits.
 //
+// TLS (GatewayOptions::tls_cert_file/tls_key_file): the same model over HTTPS. A connection's
+// Stream is plain TCP or TLS over it, with the deadlines on the TCP layer either way; a new TLS
+// connection's handshake and its first request header share one header_timeout, and a failed
+// handshake (a plain-HTTP client, an untrusted client certificate, a silent peer) is logged at
+// debug and closes the connection. TLS 1.2 at least; with tls_client_ca_file every client must
+// present a certificate signed by that CA.
+//
+// The request header Authorization (every value) is passed on as gRPC metadata
+// `authorization` to every gRPC-Web call and to /upload's CreateSession (capability tokens).
+//
 // Safe to expose: static files are served only if their canonical path is a regular file
 // inside the canonical web root; a POST whose Origin is not the request's own host is refused
 // (403), and /upload also needs a header a cross-site page cannot send without a CORS
@@ -37,15 +47,24 @@
 //   GET  /…                                 static files from web_root (index.html for /)
 #include "http_gateway.h"
 
+#include <openssl/err.h>
+#include <openssl/pem.h>
+#include <openssl/ssl.h>
+#include <poll.h>
 #include <spdlog/spdlog.h>
 #include <sys/socket.h>
 
 #include <algorithm>
 #include <atomic>
 #include <boost/asio.hpp>
+#include <boost/asio/ssl.hpp>
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
+#include <boost/beast/ssl.hpp>
+#include <cerrno>
 #include <chrono>
+#include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <future>
 #include <grpcpp/generic/generic_stub.h>
@@ -143,6 +162,154 @@ std::string query_param(std::string_view query, std::string_view key) {
   return {};
 }
 
+// ---- TLS ------------------------------------------------------------------------------------
+
+// A connection's byte stream: plain TCP, or TLS over TCP. Either way one beast::tcp_stream
+// owns the socket and carries the deadlines (expires_after), so the rest of the gateway is the
+// same for both. Like tcp_stream it is not thread-safe: use it on its strand only.
+class Stream {
+ public:
+  using executor_type = beast::tcp_stream::executor_type;
+
+  Stream(tcp::socket socket, asio::ssl::context* tls) {
+    if (tls) {
+      tls_.emplace(std::move(socket), *tls);
+    } else {
+      plain_.emplace(std::move(socket));
+    }
+  }
+  bool is_tls() const { return tls_.has_value(); }
+  beast::tcp_stream& tcp_layer() { return tls_ ? tls_->next_layer() : *plain_; }
+  executor_type get_executor() { return tcp_layer().get_executor(); }
+  tcp::socket& socket() { return tcp_layer().socket(); }
+  void expires_after(milliseconds timeout) { tcp_layer().expires_after(timeout); }
+  void close() { tcp_layer().close(); }  // also cancels its operations; no TLS close_notify
+
+  template <class Handler>
+  void async_handshake(Handler&& handler) {
+    tls_->async_handshake(asio::ssl::stream_base::server, std::forward<Handler>(handler));
+  }
+  template <class MutableBuffers, class Token>
+  auto async_read_some(const MutableBuffers& buffers, Token&& token) {
+    return asio::async_initiate<Token, void(beast::error_code, std::size_t)>(
+        [this](auto handler, const MutableBuffers& b) {
+          if (tls_) {
+            tls_->async_read_some(b, std::move(handler));
+          } else {
+            plain_->async_read_some(b, std::move(handler));
+          }
+        },
+        token, buffers);
+  }
+  template <class ConstBuffers, class Token>
+  auto async_write_some(const ConstBuffers& buffers, Token&& token) {
+    return asio::async_initiate<Token, void(beast::error_code, std::size_t)>(
+        [this](auto handler, const ConstBuffers& b) {
+          if (tls_) {
+            tls_->async_write_some(b, std::move(handler));
+          } else {
+            plain_->async_write_some(b, std::move(handler));
+          }
+        },
+        token, buffers);
+  }
+
+ private:
+  std::optional<beast::tcp_stream> plain_;
+  std::optional<beast::ssl_stream<beast::tcp_stream>> tls_;
+};
+
+// Every TLS start-up error names the file it is about.
+[[noreturn]] void tls_error(const std::string& what, const std::string& path,
+                            const std::string& why) {
+  ERR_clear_error();
+  throw std::runtime_error("hdeform-gateway: " + what + " '" + path + "': " + why);
+}
+
+// The whole PEM file (at most 16 MiB is read).
+std::string read_tls_file(const std::string& what, const std::string& path) {
+  constexpr std::size_t kMaxBytes = 16u << 20;
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f) tls_error(what, path, std::string("cannot open: ") + std::strerror(errno));
+  std::string bytes;
+  char buffer[8192];
+  std::size_t n = 0;
+  while (bytes.size() <= kMaxBytes && (n = std::fread(buffer, 1, sizeof buffer, f)) > 0) {
+    bytes.append(buffer, n);
+  }
+  const int error = std::ferror(f) ? errno : 0;
+  std::fclose(f);
+  if (error != 0) tls_error(what, path, std::string("cannot read: ") + std::strerror(error));
+  if (bytes.size() > kMaxBytes) tls_error(what, path, "larger than 16 MiB; not a PEM file");
+  return bytes;
+}
+
+// The server's TLS context (TLS 1.2 at least); throws naming the file at fault.
+std::unique_ptr<asio::ssl::context> make_tls_context(const GatewayOptions& o) {
+  if (o.tls_cert_file.empty() && o.tls_key_file.empty()) {
+    if (!o.tls_client_ca_file.empty()) {
+      throw std::runtime_error("hdeform-gateway: --tls-client-ca needs --tls-cert and --tls-key");
+    }
+    return nullptr;
+  }
+  if (o.tls_cert_file.empty() || o.tls_key_file.empty()) {
+    throw std::runtime_error(std::string("hdeform-gateway: TLS needs both --tls-cert and --tls-key (") +
+                             (o.tls_cert_file.empty() ? "--tls-cert" : "--tls-key") + " is missing)");
+  }
+  const std::string cert_what = "TLS certificate (--tls-cert)";
+  const std::string key_what = "TLS private key (--tls-key)";
+  const std::string ca_what = "TLS client CA (--tls-client-ca)";
+  const std::string cert = read_tls_file(cert_what, o.tls_cert_file);
+  const std::string key = read_tls_file(key_what, o.tls_key_file);
+  auto ctx = std::make_unique<asio::ssl::context>(asio::ssl::context::tls_server);
+  ctx->set_options(asio::ssl::context::default_workarounds | asio::ssl::context::single_dh_use);
+  if (SSL_CTX_set_min_proto_version(ctx->native_handle(), TLS1_2_VERSION) != 1) {
+    throw std::runtime_error("hdeform-gateway: cannot require TLS 1.2");
+  }
+  // Never ask for a pass phrase (OpenSSL's default would prompt on the terminal).
+  ctx->set_password_callback([](std::size_t, asio::ssl::context::password_purpose) {
+    return std::string();
+  });
+  beast::error_code ec;
+  ctx->use_certificate_chain(asio::buffer(cert), ec);
+  if (ec) tls_error(cert_what, o.tls_cert_file, "no usable PEM certificate (" + ec.message() + ")");
+  ctx->use_private_key(asio::buffer(key), asio::ssl::context::pem, ec);
+  if (ec) {  // a key OpenSSL cannot read, or one for another certificate?
+    std::unique_ptr<BIO, decltype(&BIO_free)> bio(
+        BIO_new_mem_buf(key.data(), static_cast<int>(key.size())), BIO_free);
+    std::unique_ptr<EVP_PKEY, decltype(&EVP_PKEY_free)> parsed(
+        PEM_read_bio_PrivateKey(bio.get(), nullptr, [](char*, int, int, void*) { return 0; },
+                                nullptr),
+        EVP_PKEY_free);
+    if (!parsed) {
+      tls_error(key_what, o.tls_key_file,
+                "no PEM private key in it (or it is encrypted: pass phrases are not supported)");
+    }
+  }
+  if (ec || SSL_CTX_check_private_key(ctx->native_handle()) != 1) {
+    tls_error(key_what, o.tls_key_file,
+              "does not match the certificate in '" + o.tls_cert_file + "'");
+  }
+  if (!o.tls_client_ca_file.empty()) {
+    // Trust every certificate in the file for client certificates, and name them to clients.
+    const std::string ca = read_tls_file(ca_what, o.tls_client_ca_file);
+    std::unique_ptr<BIO, decltype(&BIO_free)> bio(
+        BIO_new_mem_buf(ca.data(), static_cast<int>(ca.size())), BIO_free);
+    int count = 0;
+    while (X509* x = PEM_read_bio_X509(bio.get(), nullptr, nullptr, nullptr)) {
+      const bool ok = X509_STORE_add_cert(SSL_CTX_get_cert_store(ctx->native_handle()), x) == 1 &&
+                      SSL_CTX_add_client_CA(ctx->native_handle(), x) == 1;
+      X509_free(x);
+      if (!ok) tls_error(ca_what, o.tls_client_ca_file, "cannot use a certificate in it");
+      ++count;
+    }
+    if (count == 0) tls_error(ca_what, o.tls_client_ca_file, "no PEM certificate in it");
+    ctx->set_verify_mode(asio::ssl::verify_peer | asio::ssl::verify_fail_if_no_peer_cert);
+  }
+  ERR_clear_error();
+  return ctx;
+}
+
 grpc::ByteBuffer to_byte_buffer(std::string_view bytes) {
   grpc::Slice slice(bytes.data(), bytes.size());
   return grpc::ByteBuffer(&slice, 1);
@@ -202,12 +369,31 @@ StaticLookup find_static(const std::filesystem::path& root, std::string_view pat
   return {http::status::ok, std::move(*file)};
 }
 
+// The request's Authorization values become gRPC metadata `authorization` (capability
+// tokens for the service). gRPC only accepts printable ASCII there; another value is left out,
+// so the service sees no token rather than the call failing in gRPC. The header parser bounds
+// the whole header (kMaxHeaderBytes), so the values are bounded too.
+void forward_authorization(const http::request_header<>& req, grpc::ClientContext& context) {
+  for (auto [it, end] = req.equal_range(http::field::authorization); it != end; ++it) {
+    const auto value = it->value();
+    if (std::all_of(value.begin(), value.end(), [](char ch) { return ch >= 0x20 && ch <= 0x7e; })) {
+      context.AddMetadata("authorization", std::string(value.data(), value.size()));
+    } else {
+      spdlog::debug("hdeform-gateway: an Authorization value with non-ASCII bytes is not passed on");
+    }
+  }
+}
+
 // One generic gRPC call driven synchronously on its own completion queue. While waiting it
 // polls the HTTP socket so a browser that goes away cancels a long server stream.
 class GenericCall {
  public:
-  GenericCall(grpc::GenericStub& stub, const std::string& method, int socket_fd)
-      : socket_fd_(socket_fd) {
+  // `request` is the HTTP request header (its Authorization is forwarded); `tls`: the socket
+  // carries TLS, so a peer that went away is seen by its FIN even with unread bytes queued.
+  GenericCall(grpc::GenericStub& stub, const std::string& method, int socket_fd, bool tls,
+              const http::request_header<>& request)
+      : socket_fd_(socket_fd), tls_(tls) {
+    forward_authorization(request, context_);  // metadata before the call is prepared
     stream_ = stub.PrepareCall(&context_, method, &cq_);
   }
   ~GenericCall() {
@@ -250,6 +436,12 @@ class GenericCall {
 
   bool peer_gone() const {
     if (socket_fd_ < 0) return false;
+    if (tls_) {
+      // A TLS client's close_notify stays unread in the socket, so a peek would never see the
+      // end of the stream: ask the kernel whether the peer shut its side instead.
+      pollfd p{socket_fd_, POLLRDHUP, 0};
+      return ::poll(&p, 1, 0) > 0 && (p.revents & (POLLRDHUP | POLLHUP | POLLERR)) != 0;
+    }
     char byte;
     const auto n = ::recv(socket_fd_, &byte, 1, MSG_PEEK | MSG_DONTWAIT);
     if (n == 0) return true;  // orderly shutdown by the browser
@@ -279,6 +471,7 @@ class GenericCall {
   }
 
   int socket_fd_;
+  bool tls_;
   bool cancelled_ = false;
   grpc::ClientContext context_;
   grpc::CompletionQueue cq_;
@@ -362,11 +555,12 @@ std::string too_large_text(std::size_t limit) {
 }  // namespace
 
 struct HttpGateway::Impl {
-  // One TCP connection. tcp_stream is not thread-safe, so every operation on it starts on
+  // One TCP connection. Stream is not thread-safe, so every operation on it starts on
   // its strand (its executor); worker threads get there through await_op.
   struct Connection {
-    explicit Connection(tcp::socket socket) : stream(std::move(socket)) {}
-    beast::tcp_stream stream;
+    Connection(tcp::socket socket, asio::ssl::context* tls) : stream(std::move(socket), tls) {}
+    Stream stream;                                                 // plain TCP or TLS
+    bool handshaken = false;                                       // TLS: handshake done
     beast::flat_buffer buffer;                                     // read ahead of the parser
     std::optional<http::request_parser<http::empty_body>> header;  // the request being read
     bool served = false;  // answered a request before: the next one may keep it idle longer
@@ -392,6 +586,7 @@ struct HttpGateway::Impl {
   GatewayOptions options;
   std::filesystem::path web_root;  // canonical; empty = API only
   grpc::GenericStub stub;
+  std::unique_ptr<asio::ssl::context> tls;  // null: plain HTTP
   asio::io_context ioc;
   // Keeps ioc.run() going while no connection is pending: a worker may start an operation
   // at any time until stop() has joined it.
@@ -413,7 +608,7 @@ struct HttpGateway::Impl {
   int bound_port = 0;
 
   Impl(const GatewayOptions& opts, std::shared_ptr<grpc::Channel> channel)
-      : options(opts), stub(std::move(channel)) {
+      : options(opts), stub(std::move(channel)), tls(make_tls_context(opts)) {
     if (!options.web_root.empty()) {
       std::error_code ec;
       web_root = std::filesystem::canonical(options.web_root, ec);
@@ -461,7 +656,7 @@ struct HttpGateway::Impl {
       accept_failures = 0;
       beast::error_code ignored;
       socket.set_option(tcp::no_delay(true), ignored);  // frames are small; send them now
-      auto c = std::make_shared<Connection>(std::move(socket));
+      auto c = std::make_shared<Connection>(std::move(socket), tls.get());
       remember(c);
       asio::dispatch(c->stream.get_executor(), [this, c] { await_request(c); });
       do_accept();
@@ -555,6 +750,22 @@ struct HttpGateway::Impl {
       close(*c);
       return;
     }
+    if (c->stream.is_tls() && !c->handshaken) {
+      // A new TLS connection: the handshake and then the first request header must arrive
+      // within one header_timeout together (a peer that never says hello is closed by it).
+      c->stream.expires_after(options.header_timeout);
+      c->stream.async_handshake([this, c](beast::error_code ec) {
+        if (ec) {
+          spdlog::debug("hdeform-gateway: TLS handshake failed: {}", ec.message());
+          leave(*c);
+          close(*c);
+          return;
+        }
+        c->handshaken = true;
+        read_header(c, /*fresh_deadline=*/false);
+      });
+      return;
+    }
     if (!c->served || c->buffer.size() > 0) {  // a new connection, or a pipelined request
       read_header(c);
       return;
@@ -574,11 +785,12 @@ struct HttpGateway::Impl {
                               });
   }
 
-  void read_header(const ConnectionPtr& c) {
+  // `fresh_deadline` false: the deadline already running (a TLS handshake's) covers the header.
+  void read_header(const ConnectionPtr& c, bool fresh_deadline = true) {
     c->header.emplace();
     c->header->header_limit(kMaxHeaderBytes);
     c->header->body_limit(options.max_body_bytes);  // a larger Content-Length fails: 413
-    c->stream.expires_after(options.header_timeout);
+    if (fresh_deadline) c->stream.expires_after(options.header_timeout);
     http::async_read_header(c->stream, c->buffer, *c->header,
                             [this, c](beast::error_code ec, std::size_t) { on_header(c, ec); });
   }
@@ -634,7 +846,7 @@ struct HttpGateway::Impl {
   // After an early answer the client may still be sending a body. Closing with unread data
   // makes the kernel reset the connection, which can destroy the answer before the client
   // reads it; so half-close and drain for a bounded time and size first (as nginx's
-  // lingering close does).
+  // lingering close does). Over TLS the raw bytes are drained, undecrypted.
   void linger(const ConnectionPtr& c) {
     beast::error_code ignored;
     c->stream.socket().shutdown(tcp::socket::shutdown_send, ignored);
@@ -644,14 +856,14 @@ struct HttpGateway::Impl {
 
   void drain(const ConnectionPtr& c, std::size_t drained) {
     c->buffer.clear();
-    c->stream.async_read_some(c->buffer.prepare(kDrainChunk),
-                              [this, c, drained](beast::error_code ec, std::size_t n) {
-                                if (ec || drained + n >= kLingerBytes) {
-                                  close(*c);
-                                } else {
-                                  drain(c, drained + n);
-                                }
-                              });
+    c->stream.tcp_layer().async_read_some(
+        c->buffer.prepare(kDrainChunk), [this, c, drained](beast::error_code ec, std::size_t n) {
+          if (ec || drained + n >= kLingerBytes) {
+            close(*c);
+          } else {
+            drain(c, drained + n);
+          }
+        });
   }
 
   // ---- workers -------------------------------------------------------------------------------
@@ -874,7 +1086,7 @@ struct HttpGateway::Impl {
       return sent ? next : After::close;
     }
 
-    GenericCall call(stub, path, c.stream.socket().native_handle());
+    GenericCall call(stub, path, c.stream.socket().native_handle(), c.stream.is_tls(), req);
     const auto timeout_header = req["grpc-timeout"];
     if (const auto timeout = grpc_web::parse_timeout(
             std::string_view(timeout_header.data(), timeout_header.size()))) {
@@ -950,7 +1162,7 @@ struct HttpGateway::Impl {
     if (auto id = query_param(query, "session_id"); !id.empty()) header->set_session_id(id);
 
     GenericCall call(stub, std::string(kServicePrefix) + "CreateSession",
-                     c.stream.socket().native_handle());
+                     c.stream.socket().native_handle(), c.stream.is_tls(), head);
     set_call(c, &call.context());
     const CallRegistration unset{this, c};
 

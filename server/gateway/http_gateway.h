@@ -31,6 +31,10 @@ struct GatewayOptions {
   // A request body that sends nothing, or a response the client does not read, for this long
   // ends the connection. A quiet server stream (no frames to send) is never cut by it.
   std::chrono::milliseconds stall_timeout{30'000};
+  // HTTPS (--tls-cert, --tls-key, --tls-client-ca): PEM files. Cert and key together turn TLS
+  // on (both or neither; TLS 1.2 at least); with a client CA, every client must present a
+  // certificate signed by it. The constructor throws naming a missing or bad file.
+  std::string tls_cert_file, tls_key_file, tls_client_ca_file;
 };
 
 class HttpGateway {

@@ -29,6 +29,11 @@ struct ServerOptions {
   // An upload that sends nothing for this long is ended with DEADLINE_EXCEEDED
   // (--upload-stall-timeout); its bytes are released.
   std::chrono::milliseconds upload_stall_timeout{30'000};
+  // TLS on the gRPC port (--tls-cert, --tls-key, --tls-client-ca): PEM files. Cert and key
+  // together turn TLS on (both or neither); with a client CA, every client must present a
+  // certificate signed by it. Checked at start-up (the constructor throws naming the file).
+  // The in-process channel is never affected.
+  std::string tls_cert_file, tls_key_file, tls_client_ca_file;
 };
 
 class DeformService;  // deform_service.h
