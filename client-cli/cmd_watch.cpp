@@ -61,25 +61,23 @@ Command add_watch_command(CLI::App& app, const GlobalOptions& global) {
       throw CliError("watch needs --server HOST:PORT (an in-process service has no sessions)");
     Connection conn(global);
     const std::string name = session_name_of(o.session);
-
-    grpc::ClientContext ctx;
-    prepare(ctx, session_id_of(name), 0);  // a stream: no deadline
+    const std::string id = session_id_of(name);
     pb::WatchSessionRequest req;
     req.set_name(name);
-    auto reader = conn.stub().WatchSession(&ctx, req);
 
-    // --for: cancel the stream from a timer thread.
+    // --for: cancel the current stream from a timer thread.
     std::atomic<bool> timed_out{false};
     std::mutex mu;
     std::condition_variable cv;
     bool done = false;
+    grpc::ClientContext* current = nullptr;  // guarded by mu
     std::thread timer;
     if (o.duration > 0) {
       timer = std::thread([&] {
         std::unique_lock lock(mu);
         if (!cv.wait_for(lock, std::chrono::duration<double>(o.duration), [&] { return done; })) {
           timed_out = true;
-          ctx.TryCancel();
+          if (current) current->TryCancel();
         }
       });
     }
@@ -94,24 +92,52 @@ Command add_watch_command(CLI::App& app, const GlobalOptions& global) {
 
     long events = 0;
     bool deleted = false;
-    pb::SessionEvent ev;
-    while (reader->Read(&ev)) {
-      switch (ev.event_case()) {
-        case pb::SessionEvent::kFrame: std::cout << frame_line(ev.frame()) << std::endl; break;
-        case pb::SessionEvent::kState: std::cout << state_line(ev.state()) << std::endl; break;
-        case pb::SessionEvent::kDeleted:
-          std::cout << "deleted " << ev.deleted() << std::endl;
-          deleted = true;
+    bool may_reopen = true;
+    grpc::Status status;
+    for (;;) {
+      grpc::ClientContext ctx;
+      conn.prepare(ctx, id, 0, TokenScope::kSession, id);  // a stream: no deadline
+      {
+        std::lock_guard lock(mu);
+        current = &ctx;
+        if (timed_out) ctx.TryCancel();
+      }
+      auto reader = conn.stub().WatchSession(&ctx, req);
+      const long before = events;
+      pb::SessionEvent ev;
+      while (reader->Read(&ev)) {
+        switch (ev.event_case()) {
+          case pb::SessionEvent::kFrame: std::cout << frame_line(ev.frame()) << std::endl; break;
+          case pb::SessionEvent::kState: std::cout << state_line(ev.state()) << std::endl; break;
+          case pb::SessionEvent::kDeleted:
+            std::cout << "deleted " << ev.deleted() << std::endl;
+            deleted = true;
+            break;
+          default: break;
+        }
+        ++events;
+        if (deleted || (o.count > 0 && events >= o.count)) {
+          ctx.TryCancel();
           break;
-        default: break;
+        }
       }
-      ++events;
-      if (deleted || (o.count > 0 && events >= o.count)) {
-        ctx.TryCancel();
-        break;
+      status = reader->Finish();
+      {
+        std::lock_guard lock(mu);
+        current = nullptr;
       }
+      const bool stopped = timed_out || deleted || (o.count > 0 && events >= o.count);
+      // The retry policy for streams: a stream cut by UNAVAILABLE (the server restarted, a
+      // replica died) is reopened once; a reopened stream that delivered events may be
+      // reopened again after a later cut.
+      if (events > before) may_reopen = true;
+      if (status.error_code() == grpc::StatusCode::UNAVAILABLE && !stopped && may_reopen) {
+        may_reopen = false;
+        conn.wait_before_retry("WatchSession");
+        continue;
+      }
+      break;
     }
-    grpc::Status status = reader->Finish();
     stop_timer();
     if (!status.ok() && !(status.error_code() == grpc::StatusCode::CANCELLED &&
                           (timed_out || deleted || (o.count > 0 && events >= o.count))))

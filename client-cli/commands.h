@@ -16,5 +16,6 @@ Command add_deform_command(CLI::App& app, const GlobalOptions& global);
 Command add_sweep_command(CLI::App& app, const GlobalOptions& global);
 Command add_run_command(CLI::App& app, const GlobalOptions& global);
 Command add_watch_command(CLI::App& app, const GlobalOptions& global);
+Command add_list_command(CLI::App& app, const GlobalOptions& global);
 
 }  // namespace hdeform::cli

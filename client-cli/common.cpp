@@ -8,12 +8,18 @@
 
 #include <spdlog/spdlog.h>
 
+#include <netdb.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <cctype>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <set>
 #include <sstream>
+#include <thread>
 
 namespace hdeform::cli {
 
@@ -58,28 +64,112 @@ RpcError::RpcError(const std::string& rpc, const grpc::Status& status)
 // ---------------------------------------------------------------------------------------
 // Connection
 
+void check_token(const std::string& token) {
+  // A metadata value the server can take as one token: printable ASCII without spaces or
+  // commas (the server splits joined headers at commas), at most 256 characters.
+  if (token.size() > 256) throw CliError("--token: longer than 256 characters");
+  for (unsigned char c : token)
+    if (c <= 0x20 || c >= 0x7f || c == ',')
+      throw CliError("--token: not a token (give the token itself: printable characters, no "
+                     "spaces, no commas, no 'Bearer ' prefix)");
+}
+
+namespace {
+
+constexpr auto kRetryPause = std::chrono::milliseconds(200);
+
+std::chrono::system_clock::time_point deadline_in(double seconds) {
+  return std::chrono::system_clock::now() +
+         std::chrono::milliseconds(static_cast<long>(seconds * 1000));
+}
+
+// Whether something accepts TCP connections at HOST:PORT (when a gRPC connection failed:
+// a listener there means the handshake failed, e.g. plain text against a TLS server).
+bool tcp_listener_at(const std::string& target) {
+  std::string host, port;
+  if (!target.empty() && target.front() == '[') {
+    const auto close = target.find(']');
+    if (close == std::string::npos || close + 1 >= target.size() || target[close + 1] != ':')
+      return false;
+    host = target.substr(1, close - 1);
+    port = target.substr(close + 2);
+  } else {
+    const auto colon = target.rfind(':');
+    if (colon == std::string::npos || target.find(':') != colon) return false;  // no scheme
+    host = target.substr(0, colon);
+    port = target.substr(colon + 1);
+  }
+  if (host.empty() || port.empty()) return false;
+  addrinfo hints{};
+  hints.ai_socktype = SOCK_STREAM;
+  addrinfo* res = nullptr;
+  if (::getaddrinfo(host.c_str(), port.c_str(), &hints, &res) != 0) return false;
+  bool ok = false;
+  for (addrinfo* a = res; a && !ok; a = a->ai_next) {
+    const int fd = ::socket(a->ai_family, a->ai_socktype | SOCK_CLOEXEC, a->ai_protocol);
+    if (fd < 0) continue;
+    ok = ::connect(fd, a->ai_addr, a->ai_addrlen) == 0;
+    ::close(fd);
+  }
+  ::freeaddrinfo(res);
+  return ok;
+}
+
+}  // namespace
+
 Connection::Connection(const GlobalOptions& options) : options_(options) {
+  if (!options_.token.empty()) check_token(options_.token);
   if (!options_.server.empty()) {
     remote_ = true;
     grpc::ChannelArguments args;
     args.SetMaxReceiveMessageSize(-1);  // frames of big meshes exceed gRPC's 4 MiB default
     args.SetMaxSendMessageSize(-1);
-    channel_ = grpc::CreateCustomChannel(options_.server, grpc::InsecureChannelCredentials(),
-                                         args);
-    auto deadline = std::chrono::system_clock::now() +
-                    std::chrono::milliseconds(static_cast<long>(options_.connect_timeout_s * 1000));
+    // After a server restart, reconnect within a fraction of a second (gRPC's default first
+    // backoff is 1 s, growing to 120 s): the retry below waits for it.
+    args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 100);
+    args.SetInt(GRPC_ARG_MIN_RECONNECT_BACKOFF_MS, 100);
+    args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 1000);
+    std::shared_ptr<grpc::ChannelCredentials> creds;
+    const bool tls = !options_.tls_ca.empty();
+    if (tls) {
+      grpc::SslCredentialsOptions ssl;
+      ssl.pem_root_certs = read_file(options_.tls_ca);
+      if (!options_.tls_cert.empty()) {
+        ssl.pem_cert_chain = read_file(options_.tls_cert);
+        ssl.pem_private_key = read_file(options_.tls_key);
+      }
+      creds = grpc::SslCredentials(ssl);
+    } else {
+      creds = grpc::InsecureChannelCredentials();
+    }
+    channel_ = grpc::CreateCustomChannel(options_.server, creds, args);
+    const auto deadline = deadline_in(options_.connect_timeout_s);
+    auto cannot = [&](const std::string& why) {
+      std::string msg = "cannot connect to hdeform-server at " + options_.server;
+      if (tls) msg += " over TLS";
+      msg += why;
+      // Something listens there, but the gRPC connection failed: a TLS mismatch.
+      if (why.empty() && tcp_listener_at(options_.server))
+        msg += tls ? " (the TLS handshake failed: does the server use TLS, was its certificate "
+                     "for this host name signed by --tls-ca, does it require a client "
+                     "certificate (--tls-cert/--tls-key)?)"
+                   : " (the server accepts connections but the handshake failed: if it uses "
+                     "TLS, pass --tls-ca)";
+      return CliError(msg);
+    };
     // Fail fast when the connection is refused; wait up to the deadline otherwise.
     for (auto state = channel_->GetState(true); state != GRPC_CHANNEL_READY;
          state = channel_->GetState(true)) {
       if (state == GRPC_CHANNEL_TRANSIENT_FAILURE || state == GRPC_CHANNEL_SHUTDOWN)
-        throw CliError("cannot connect to hdeform-server at " + options_.server);
-      if (!channel_->WaitForStateChange(state, deadline))
-        throw CliError("cannot connect to hdeform-server at " + options_.server + " (timed out)");
+        throw cannot("");
+      if (!channel_->WaitForStateChange(state, deadline)) throw cannot(" (timed out)");
     }
-    spdlog::debug("connected to {}", options_.server);
+    spdlog::debug("connected to {}{}", options_.server, tls ? " (TLS)" : "");
   } else {
+    if (!options_.tls_ca.empty())
+      spdlog::debug("--tls-ca: no effect without --server (the in-process service)");
 #if HDEFORM_CLI_IN_PROCESS
-    service::ServerOptions so;
+    service::ServerOptions so;  // the defaults: no durable state, no TLS, no operator token
     so.listen_address = "";
     server_ = std::make_shared<service::Server>(so);
     channel_ = server_->in_process_channel();
@@ -101,11 +191,61 @@ Connection::~Connection() {
   server_.reset();
 }
 
-void prepare(grpc::ClientContext& ctx, const std::string& route_key, double timeout_s) {
+void Connection::remember_tokens(const pb::Session& session) {
+  if (session.edit_token().empty() && session.view_token().empty()) return;
+  jar_[session_id_of(session.name())] = {session.edit_token(), session.view_token()};
+}
+
+const SessionTokens* Connection::tokens_for(const std::string& session_id) const {
+  const auto it = jar_.find(session_id_of(session_id));
+  return it == jar_.end() ? nullptr : &it->second;
+}
+
+void Connection::prepare(grpc::ClientContext& ctx, const std::string& route_key,
+                         double timeout_s, TokenScope scope,
+                         const std::string& session_id) const {
   if (!route_key.empty()) ctx.AddMetadata("x-session-id", route_key);
-  if (timeout_s > 0)
-    ctx.set_deadline(std::chrono::system_clock::now() +
-                     std::chrono::milliseconds(static_cast<long>(timeout_s * 1000)));
+  std::set<std::string> tokens;  // each once
+  if (scope == TokenScope::kSession) {
+    const auto* own = tokens_for(session_id.empty() ? route_key : session_id);
+    if (own) tokens.insert(!own->edit.empty() ? own->edit : own->view);
+  } else if (scope == TokenScope::kAll) {
+    for (const auto& [id, t] : jar_) {
+      if (!t.edit.empty()) tokens.insert(t.edit);
+      else if (!t.view.empty()) tokens.insert(t.view);
+    }
+  }
+  if (scope != TokenScope::kNone && !options_.token.empty()) tokens.insert(options_.token);
+  for (const auto& t : tokens) ctx.AddMetadata("authorization", "Bearer " + t);
+  if (timeout_s > 0) ctx.set_deadline(deadline_in(timeout_s));
+}
+
+bool Connection::wait_before_retry(const char* what) {
+  spdlog::info("{}: the server is unavailable; retrying once in {} ms", what,
+               kRetryPause.count());
+  std::this_thread::sleep_for(kRetryPause);
+  const bool ready = channel_->WaitForConnected(deadline_in(options_.connect_timeout_s));
+  if (!ready) spdlog::info("{}: the server is still unavailable", what);
+  return ready;
+}
+
+grpc::Status Connection::call(const char* rpc,
+                              const std::function<void(grpc::ClientContext&)>& setup,
+                              const Attempt& attempt, bool retry) {
+  grpc::Status status;
+  {
+    grpc::ClientContext ctx;
+    setup(ctx);
+    status = attempt(ctx);
+  }
+  if (status.error_code() != grpc::StatusCode::UNAVAILABLE || !retry || !remote_) return status;
+  wait_before_retry(rpc);
+  grpc::ClientContext ctx;
+  setup(ctx);
+  status = attempt(ctx);
+  if (status.error_code() == grpc::StatusCode::UNAVAILABLE)
+    return grpc::Status(status.error_code(), status.error_message() + " (retried once)");
+  return status;
 }
 
 std::string session_id_of(const std::string& name) {
@@ -138,6 +278,19 @@ SessionClient::SessionClient(Connection& conn, std::string name, std::string key
                              pb::Session info)
     : conn_(&conn), name_(std::move(name)), key_(std::move(key)), info_(std::move(info)) {}
 
+void SessionClient::call(const char* rpc, const Connection::Attempt& attempt, double timeout_s) {
+  const std::string id = session_id_of(name_);
+  grpc::Status status = conn_->call(
+      rpc,
+      [&](grpc::ClientContext& ctx) {
+        conn_->prepare(ctx, key_, timeout_s, TokenScope::kSession, id);
+      },
+      attempt);
+  if (!status.ok()) throw RpcError(rpc, status);
+}
+
+// Not retried: a CreateSession that reached the server before it died may have created the
+// session, and its tokens are answered only once.
 SessionClient SessionClient::create(Connection& conn, const std::string& mesh) {
   const std::string id = random_session_id();
   pb::CreateSessionRequest header_msg;
@@ -157,7 +310,7 @@ SessionClient SessionClient::create(Connection& conn, const std::string& mesh) {
   }
 
   grpc::ClientContext ctx;
-  prepare(ctx, id, conn.options().call_timeout_s);
+  conn.prepare(ctx, id, conn.options().call_timeout_s, TokenScope::kNone);
   pb::Session session;
   auto writer = conn.stub().CreateSession(&ctx, &session);
   bool ok = writer->Write(header_msg);
@@ -176,6 +329,9 @@ SessionClient SessionClient::create(Connection& conn, const std::string& mesh) {
     spdlog::debug("server named the session {} (proposed {})", session.name(), id);
   spdlog::info("created {} ({} vertices, {} triangles)", session.name(), session.vertex_count(),
                session.triangle_count());
+  conn.remember_tokens(session);
+  session.clear_edit_token();  // kept in the jar only
+  session.clear_view_token();
   return SessionClient(conn, session.name(), id, session);
 }
 
@@ -183,41 +339,44 @@ SessionClient SessionClient::import(Connection& conn, const pb::Snapshot& snapsh
   return import(conn, snapshot, random_session_id());
 }
 
+// Not retried (as CreateSession). Presents every token known: a snapshot that names its mesh
+// by hash alone needs the edit token of a live session on that mesh.
 SessionClient SessionClient::import(Connection& conn, const pb::Snapshot& snapshot,
                                     const std::string& session_id) {
   const std::string key = session_id_of(session_id);
   grpc::ClientContext ctx;
-  prepare(ctx, key, conn.options().call_timeout_s);
+  conn.prepare(ctx, key, conn.options().call_timeout_s, TokenScope::kAll);
   pb::ImportSessionRequest req;
   *req.mutable_snapshot() = snapshot;
   req.set_session_id(key);
   pb::Session session;
   grpc::Status status = conn.stub().ImportSession(&ctx, req, &session);
   if (!status.ok()) throw RpcError("ImportSession", status);
+  conn.remember_tokens(session);
+  session.clear_edit_token();
+  session.clear_view_token();
   return SessionClient(conn, session.name(), key, session);
 }
 
 pb::Session SessionClient::get() {
-  grpc::ClientContext ctx;
-  prepare(ctx, key_, timeout());
   pb::GetSessionRequest req;
   req.set_name(name_);
   pb::Session s;
-  grpc::Status status = conn_->stub().GetSession(&ctx, req, &s);
-  if (!status.ok()) throw RpcError("GetSession", status);
+  call("GetSession", [&](grpc::ClientContext& ctx) {
+    return conn_->stub().GetSession(&ctx, req, &s);
+  }, timeout());
   info_ = s;
   return s;
 }
 
 pb::Session SessionClient::set_constraints(const pb::Constraints& constraints) {
-  grpc::ClientContext ctx;
-  prepare(ctx, key_, timeout());
   pb::SetConstraintsRequest req;
   req.set_name(name_);
   *req.mutable_constraints() = constraints;
   pb::Session s;
-  grpc::Status status = conn_->stub().SetConstraints(&ctx, req, &s);
-  if (!status.ok()) throw RpcError("SetConstraints", status);
+  call("SetConstraints", [&](grpc::ClientContext& ctx) {
+    return conn_->stub().SetConstraints(&ctx, req, &s);
+  }, timeout());
   info_ = s;
   return s;
 }
@@ -230,90 +389,92 @@ pb::Session SessionClient::set_beta(double value, pb::BetaUnits units) {
 }
 
 pb::Session SessionClient::set_beta(const pb::Beta& beta) {
-  grpc::ClientContext ctx;
-  prepare(ctx, key_, timeout());
   pb::SetBetaRequest req;
   req.set_name(name_);
   *req.mutable_beta() = beta;
   pb::Session s;
-  grpc::Status status = conn_->stub().SetBeta(&ctx, req, &s);
-  if (!status.ok()) throw RpcError("SetBeta", status);
+  call("SetBeta", [&](grpc::ClientContext& ctx) {
+    return conn_->stub().SetBeta(&ctx, req, &s);
+  }, timeout());
   info_ = s;
   return s;
 }
 
 pb::Frame SessionClient::update(const std::vector<pb::HandleTransform>& transforms,
                                 std::int64_t sequence, bool energies) {
-  grpc::ClientContext ctx;
-  prepare(ctx, key_, timeout());
   pb::UpdateHandlesRequest req;
   req.set_name(name_);
   req.set_sequence(sequence);
   req.set_energies(energies);
   for (const auto& t : transforms) *req.add_transforms() = t;
   pb::Frame frame;
-  grpc::Status status = conn_->stub().UpdateHandles(&ctx, req, &frame);
-  if (!status.ok()) throw RpcError("UpdateHandles", status);
+  // Absolute transforms: solving them twice leaves the same pose.
+  call("UpdateHandles", [&](grpc::ClientContext& ctx) {
+    return conn_->stub().UpdateHandles(&ctx, req, &frame);
+  }, timeout());
   return frame;
 }
 
 pb::Frame SessionClient::deform(const std::vector<pb::HandleTransform>& transforms,
                                 std::int64_t sequence, const pb::Beta& beta, bool energies) {
-  grpc::ClientContext ctx;
-  prepare(ctx, key_, timeout());
-  auto stream = conn_->stub().Deform(&ctx);
   pb::DeformRequest req;
   req.set_name(name_);
   req.set_sequence(sequence);
   req.set_energies(energies);
   for (const auto& t : transforms) *req.add_transforms() = t;
   *req.mutable_beta() = beta;
-  stream->Write(req);
-  stream->WritesDone();
-  pb::Frame frame, got;
+  pb::Frame frame;
   bool any = false;
-  while (stream->Read(&got)) {
-    frame.Swap(&got);
-    any = true;
-  }
-  grpc::Status status = stream->Finish();
-  if (!status.ok()) throw RpcError("Deform", status);
+  // The stream is reopened once (and the message sent again) if it fails with UNAVAILABLE.
+  call("Deform", [&](grpc::ClientContext& ctx) {
+    auto stream = conn_->stub().Deform(&ctx);
+    stream->Write(req);
+    stream->WritesDone();
+    pb::Frame got;
+    any = false;
+    while (stream->Read(&got)) {
+      frame.Swap(&got);
+      any = true;
+    }
+    return stream->Finish();
+  }, timeout());
   if (!any) throw CliError("Deform: the server sent no frame");
   return frame;
 }
 
 pb::SweepResponse SessionClient::sweep(const std::vector<double>& betas, pb::BetaUnits units,
                                        const std::vector<pb::HandleTransform>& transforms) {
-  grpc::ClientContext ctx;
-  prepare(ctx, key_, timeout());
   pb::SweepRequest req;
   req.set_name(name_);
   for (double b : betas) req.add_betas(b);
   req.set_units(units);
   for (const auto& t : transforms) *req.add_transforms() = t;
   pb::SweepResponse resp;
-  grpc::Status status = conn_->stub().Sweep(&ctx, req, &resp);
-  if (!status.ok()) throw RpcError("Sweep", status);
+  call("Sweep", [&](grpc::ClientContext& ctx) {
+    resp.Clear();
+    return conn_->stub().Sweep(&ctx, req, &resp);
+  }, timeout());
   return resp;
 }
 
 std::size_t SessionClient::download(const std::string& path, pb::MeshFormat format, bool rest) {
-  grpc::ClientContext ctx;
-  prepare(ctx, key_, timeout());
   pb::GetMeshRequest req;
   req.set_name(name_);
   req.set_rest(rest);
   req.set_format(format);
-  auto reader = conn_->stub().GetMesh(&ctx, req);
   std::string bytes;
-  pb::MeshChunk chunk;
-  while (reader->Read(&chunk)) {
-    if (bytes.empty() && chunk.total_bytes() > 0)
-      bytes.reserve(static_cast<std::size_t>(chunk.total_bytes()));
-    bytes += chunk.data();
-  }
-  grpc::Status status = reader->Finish();
-  if (!status.ok()) throw RpcError("GetMesh", status);
+  // A download cut by UNAVAILABLE starts again from its first chunk.
+  call("GetMesh", [&](grpc::ClientContext& ctx) {
+    bytes.clear();
+    auto reader = conn_->stub().GetMesh(&ctx, req);
+    pb::MeshChunk chunk;
+    while (reader->Read(&chunk)) {
+      if (bytes.empty() && chunk.total_bytes() > 0)
+        bytes.reserve(static_cast<std::size_t>(chunk.total_bytes()));
+      bytes += chunk.data();
+    }
+    return reader->Finish();
+  }, timeout());
   const auto bad = count_non_finite_coordinates(bytes, mesh_format_extension(format));
   if (bad && *bad > 0)
     throw CliError(path + ": not written: the mesh from the server has " +
@@ -323,25 +484,44 @@ std::size_t SessionClient::download(const std::string& path, pb::MeshFormat form
 }
 
 pb::Snapshot SessionClient::export_snapshot(bool include_mesh) {
-  grpc::ClientContext ctx;
-  prepare(ctx, key_, timeout());
   pb::ExportSessionRequest req;
   req.set_name(name_);
   req.set_include_mesh(include_mesh);
   pb::Snapshot snap;
-  grpc::Status status = conn_->stub().ExportSession(&ctx, req, &snap);
-  if (!status.ok()) throw RpcError("ExportSession", status);
+  call("ExportSession", [&](grpc::ClientContext& ctx) {
+    return conn_->stub().ExportSession(&ctx, req, &snap);
+  }, timeout());
   return snap;
 }
 
 void SessionClient::remove() {
-  grpc::ClientContext ctx;
-  prepare(ctx, key_, timeout());
   pb::DeleteSessionRequest req;
   req.set_name(name_);
   pb::DeleteSessionResponse resp;
-  grpc::Status status = conn_->stub().DeleteSession(&ctx, req, &resp);
-  if (!status.ok()) throw RpcError("DeleteSession", status);
+  int attempts = 0;
+  call("DeleteSession", [&](grpc::ClientContext& ctx) {
+    grpc::Status status = conn_->stub().DeleteSession(&ctx, req, &resp);
+    // A retry that finds the session gone: the first attempt deleted it.
+    if (++attempts > 1 && status.error_code() == grpc::StatusCode::NOT_FOUND)
+      return grpc::Status::OK;
+    return status;
+  }, timeout());
+}
+
+std::vector<pb::Session> list_sessions(Connection& conn) {
+  pb::ListSessionsRequest req;
+  pb::ListSessionsResponse resp;
+  grpc::Status status = conn.call(
+      "ListSessions",
+      [&](grpc::ClientContext& ctx) {
+        conn.prepare(ctx, "", conn.options().call_timeout_s, TokenScope::kAll);
+      },
+      [&](grpc::ClientContext& ctx) {
+        resp.Clear();
+        return conn.stub().ListSessions(&ctx, req, &resp);
+      });
+  if (!status.ok()) throw RpcError("ListSessions", status);
+  return {resp.sessions().begin(), resp.sessions().end()};
 }
 
 void check_frame_finite(const pb::Frame& frame, const std::string& what) {

@@ -1,5 +1,6 @@
-// Shared pieces of the hdeform CLI: errors, the connection (remote or in-process) and a
-// small session client that adds the x-session-id routing header to every call.
+// Shared pieces of the hdeform CLI: errors, the connection (remote or in-process, plain or
+// TLS) with its token jar and retry policy, and a small session client that adds the
+// x-session-id routing header and the session's capability token to every call.
 #pragma once
 
 #include "errors.h"
@@ -9,6 +10,8 @@
 
 #include <chrono>
 #include <cstdint>
+#include <functional>
+#include <map>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -35,7 +38,24 @@ struct GlobalOptions {
   std::string log_level = "warn";
   double connect_timeout_s = 10;
   double call_timeout_s = 600;   // per unary call (a factorization of a big mesh takes a while)
+  // --token / HDEFORM_TOKEN: a session's edit or view token (or the operator token), sent as
+  // `authorization: Bearer TOKEN`. Secret: never logged or printed.
+  std::string token;
+  // --tls-ca turns TLS on (root CA, PEM); --tls-cert/--tls-key: a client certificate.
+  std::string tls_ca, tls_cert, tls_key;
 };
+
+// Throws CliError (never naming the token's text) when --token is not a plain token.
+void check_token(const std::string& token);
+
+// The two tokens of a session (Session.edit_token / view_token).
+struct SessionTokens {
+  std::string edit, view;
+};
+
+// Which tokens a call presents: none (CreateSession), those for its session (its own from
+// the jar, and --token), or every token known (ListSessions, ImportSession).
+enum class TokenScope { kNone, kSession, kAll };
 
 // A channel to hdeform-server: remote (--server) or an in-process Server.
 class Connection {
@@ -49,16 +69,35 @@ class Connection {
   bool remote() const { return remote_; }
   const GlobalOptions& options() const { return options_; }
 
+  // The token jar: the tokens of the sessions this run created (CreateSession/ImportSession
+  // answers), by session id.
+  void remember_tokens(const pb::Session& session);
+  const SessionTokens* tokens_for(const std::string& session_id) const;
+
+  // Prepares one attempt of a call: the x-session-id routing header (when `route_key` is
+  // set), `authorization: Bearer …` entries as `scope` says (kSession: the jar's edit token
+  // of `session_id`, and --token) and a deadline (none when timeout_s <= 0).
+  void prepare(grpc::ClientContext& ctx, const std::string& route_key, double timeout_s,
+               TokenScope scope = TokenScope::kSession, const std::string& session_id = "") const;
+
+  // The retry policy (docs/cli.md "Retries"): runs `attempt` with a fresh context; when a
+  // remote call fails with UNAVAILABLE and `retry` is set, waits 200 ms and for the channel to
+  // reconnect (up to the connect timeout), then runs it once more.
+  using Attempt = std::function<grpc::Status(grpc::ClientContext&)>;
+  grpc::Status call(const char* rpc, const std::function<void(grpc::ClientContext&)>& setup,
+                    const Attempt& attempt, bool retry = true);
+  // The pause before a retry: 200 ms, then waits up to the connect timeout for the channel to
+  // be ready again. False when it is not.
+  bool wait_before_retry(const char* what);
+
  private:
   GlobalOptions options_;
   bool remote_ = false;
+  std::map<std::string, SessionTokens> jar_;
   std::shared_ptr<hdeform::service::Server> server_;  // declared first: destroyed last
   std::shared_ptr<grpc::Channel> channel_;
   std::unique_ptr<pb::Deformation::Stub> stub_;
 };
-
-// Prepares a call: the x-session-id routing header (when the key is known) and a deadline.
-void prepare(grpc::ClientContext& ctx, const std::string& route_key, double timeout_s);
 
 // "sessions/abc" → "abc"; "abc" → "abc".
 std::string session_id_of(const std::string& name);
@@ -81,6 +120,8 @@ class SessionClient {
   const std::string& name() const { return name_; }
   const std::string& route_key() const { return key_; }
   const pb::Session& info() const { return info_; }
+  // The session's tokens when this run created it, else nullptr.
+  const SessionTokens* tokens() const { return conn_->tokens_for(session_id_of(name_)); }
 
   pb::Session get();
   pb::Session set_constraints(const pb::Constraints& constraints);
@@ -103,12 +144,18 @@ class SessionClient {
  private:
   SessionClient(Connection& conn, std::string name, std::string key, pb::Session info);
   double timeout() const { return conn_->options().call_timeout_s; }
+  // One call on this session with the retry policy; throws RpcError on failure.
+  void call(const char* rpc, const Connection::Attempt& attempt, double timeout_s);
 
   Connection* conn_;
   std::string name_;
   std::string key_;
   pb::Session info_;
 };
+
+// ListSessions, presenting every token known (--token and the jar): the sessions they open
+// (all of them with the operator token).
+std::vector<pb::Session> list_sessions(Connection& conn);
 
 // Throws CliError "WHAT: the deformed mesh has N non-finite vertex coordinates …" when the
 // frame's positions hold NaN/Inf.

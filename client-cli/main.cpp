@@ -1,6 +1,6 @@
 // hdeform — the command-line client of hdeform.v1 (docs/cli.md).
 //
-//   hdeform [--server HOST:PORT] [--log-level L] deform|sweep|run|watch …
+//   hdeform [--server HOST:PORT] [--token T] [--tls-ca F] [--log-level L] deform|sweep|run|watch|list …
 //
 // Without --server the same service runs in-process (hdeform::service::Server with no TCP
 // port) and the commands talk to it over its in-process channel.
@@ -45,6 +45,26 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--timeout", global.call_timeout_s, "deadline of each call, in seconds")
       ->capture_default_str();
+  // No capture_default_str: a token is a secret and never shown (not even in --help).
+  app.add_option("--token", global.token,
+                 "a session's edit or view token (or the operator token), sent with every call "
+                 "that names a session (prefer the variable: a command line is visible in ps)")
+      ->envname("HDEFORM_TOKEN");
+  auto* tls_ca = app.add_option("--tls-ca", global.tls_ca,
+                                "root CA certificate (PEM): connect to --server over TLS")
+                     ->envname("HDEFORM_TLS_CA")
+                     ->check(CLI::ExistingFile);
+  auto* tls_cert = app.add_option("--tls-cert", global.tls_cert,
+                                  "client certificate chain (PEM), for a server that requires one")
+                       ->envname("HDEFORM_TLS_CLIENT_CERT")
+                       ->check(CLI::ExistingFile)
+                       ->needs(tls_ca);
+  auto* tls_key = app.add_option("--tls-key", global.tls_key,
+                                 "the client certificate's private key (PEM)")
+                      ->envname("HDEFORM_TLS_CLIENT_KEY")
+                      ->check(CLI::ExistingFile);
+  tls_cert->needs(tls_key);
+  tls_key->needs(tls_cert);
 
   std::vector<std::pair<CLI::App*, Command>> commands;
   auto reg = [&](Command (*add)(CLI::App&, const GlobalOptions&)) {
@@ -56,6 +76,7 @@ int main(int argc, char** argv) {
   reg(add_sweep_command);
   reg(add_run_command);
   reg(add_watch_command);
+  reg(add_list_command);
 
   try {
     app.parse(argc, argv);

@@ -30,9 +30,15 @@ void run_in_work_session(const Connection& conn, WorkSession& w, bool keep,
   try {
     body(s);
     if (ours) {
-      if (keep)
+      if (keep) {
         keep_out << "session " << s.name() << "\n";
-      else
+        // The only time these are shown: whoever holds the edit token can change and delete
+        // the session; the view token only reads it (GetSession, GetMesh, watch).
+        if (const SessionTokens* t = s.tokens()) {
+          keep_out << "edit token: " << t->edit << "\n";
+          keep_out << "view token: " << t->view << "\n";
+        }
+      } else
         s.remove();
     }
   } catch (...) {

@@ -27,7 +27,8 @@ WorkSession open_work_session(Connection& conn, const std::string& mesh,
 // --session keeps its own.
 std::unique_ptr<ConstraintSpec> constraint_spec_for(const ConstraintOptions& c);
 // Runs body on the session; then a session this command created on a remote server is
-// removed, or with keep its name is printed to keep_out ("session NAME"). When anything
+// removed, or with keep its name and tokens are printed to keep_out ("session NAME",
+// "edit token: T", "view token: T"). When anything
 // throws, the created session is removed (unless keep) and the exception goes on.
 void run_in_work_session(const Connection& conn, WorkSession& w, bool keep,
                          std::ostream& keep_out, const std::function<void(SessionClient&)>& body);

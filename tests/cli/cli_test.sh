@@ -4,7 +4,12 @@
 # Cases: deform, sweep, run, beta (automatic and local β), bad-inputs, run-names (hostile
 # names in a job write only inside -o), non-finite (huge transforms: no file with NaN/Inf)
 # (in-process service); remote (a real hdeform-server --port 0 started here: deform/sweep
-# --server, and watch) and run-sessions (a job with 3 meshes on a --max-sessions 1 server).
+# --server, and watch), run-sessions (a job with 3 meshes on a --max-sessions 1 server),
+# tokens (a kept session's edit/view tokens used by later runs), tls (--tls-ca against a
+# server with a certificate made here with openssl) and restart (a session survives kill -9
+# of a server with --state-dir; watch and an in-flight call retry).
+# Every server started here gets --no-state (or a --state-dir in $TMP): never the user's
+# ~/.local/share/hdeform.
 set -uo pipefail
 
 case_name=$1
@@ -18,8 +23,11 @@ CHECK="$PY $HERE/check_outputs.py"
 TMP=$(mktemp -d "${TMPDIR:-/tmp}/hdeform-cli-test.XXXXXX")
 SERVER_PID=""
 WATCH_PID=""
+SWEEP_PID=""
+SERVER_PORT=""  # set by start_server; a restart reuses it
 cleanup() {
   [ -n "$WATCH_PID" ] && kill "$WATCH_PID" 2>/dev/null
+  [ -n "$SWEEP_PID" ] && kill "$SWEEP_PID" 2>/dev/null
   if [ -n "$SERVER_PID" ]; then
     kill "$SERVER_PID" 2>/dev/null
     wait "$SERVER_PID" 2>/dev/null
@@ -62,17 +70,62 @@ TOP='half:0,0,1,0.8916'
 
 max_e_iso() { sed -n 's/^max e_iso  *//p' "$1"; }
 
-start_server() {  # [extra hdeform-server options]
+start_server() {  # [extra hdeform-server options]; --no-state unless a --state-dir is given
   [ -x "$SERVER_BIN" ] || fail "no hdeform-server binary"
-  "$SERVER_BIN" --port 0 --bind 127.0.0.1 --workers 1 "$@" >"$TMP/server.out" 2>"$TMP/server.err" &
+  local state=--no-state port=0 a
+  for a in "$@"; do [ "$a" = --state-dir ] && state=; done
+  [ -n "$SERVER_PORT" ] && port=$SERVER_PORT  # restart: the same port
+  "$SERVER_BIN" --port "$port" --bind 127.0.0.1 --workers 1 $state "$@" \
+    >"$TMP/server.out" 2>"$TMP/server.err" &
   SERVER_PID=$!
   for _ in $(seq 1 300); do
     ADDR=$(sed -n 's/^hdeform-server listening on \([^ ]*\).*/\1/p' "$TMP/server.out")
-    [ -n "$ADDR" ] && return 0
+    [ -n "$ADDR" ] && { SERVER_PORT=${ADDR##*:}; return 0; }
     kill -0 "$SERVER_PID" 2>/dev/null || { cat "$TMP/server.err" >&2; fail "hdeform-server exited"; }
     sleep 0.1
   done
   fail "hdeform-server did not report its address"
+}
+
+# keep_session FILE: the session name and tokens a `--keep` run printed into FILE.
+keep_session() {
+  SESSION=$(sed -n 's/^session \(sessions\/.*\)$/\1/p' "$1")
+  EDIT=$(sed -n 's/^edit token: \(.*\)$/\1/p' "$1")
+  VIEW=$(sed -n 's/^view token: \(.*\)$/\1/p' "$1")
+  [ -n "$SESSION" ] || { cat "$1" >&2; fail "--keep printed no session name"; }
+  [ -n "$EDIT" ] && [ -n "$VIEW" ] && [ "$EDIT" != "$VIEW" ] \
+    || { cat "$1" >&2; fail "--keep did not print two tokens"; }
+}
+
+# wait_for PATTERN FILE: up to 10 s for a line matching PATTERN in FILE.
+wait_for() {
+  for _ in $(seq 1 100); do
+    grep -Eq -- "$1" "$2" && return 0
+    sleep 0.1
+  done
+  cat "$2" >&2
+  fail "no line /$1/ in $2"
+}
+
+# make_pki DIR: a CA and a server certificate for 127.0.0.1 / localhost signed by it, a
+# client certificate signed by it, and an unrelated second CA.
+make_pki() {
+  local d=$1 ssl=${OPENSSL:-openssl}
+  mkdir -p "$d"
+  printf 'subjectAltName = IP:127.0.0.1,DNS:localhost\n' >"$d/server.ext"
+  printf 'extendedKeyUsage = clientAuth\n' >"$d/client.ext"
+  for ca in ca other-ca; do
+    "$ssl" req -x509 -newkey ec -pkeyopt ec_paramgen_curve:P-256 -nodes -days 2 \
+      -subj "/CN=hdeform test $ca" -keyout "$d/$ca.key" -out "$d/$ca.pem" 2>>"$d/log" \
+      || { cat "$d/log" >&2; fail "openssl: $ca"; }
+  done
+  for who in server client; do
+    "$ssl" req -new -newkey ec -pkeyopt ec_paramgen_curve:P-256 -nodes -subj "/CN=$who" \
+      -keyout "$d/$who.key" -out "$d/$who.csr" 2>>"$d/log" || { cat "$d/log" >&2; fail "openssl: $who key"; }
+    "$ssl" x509 -req -in "$d/$who.csr" -CA "$d/ca.pem" -CAkey "$d/ca.key" -CAcreateserial \
+      -days 2 -extfile "$d/$who.ext" -out "$d/$who.pem" 2>>"$d/log" \
+      || { cat "$d/log" >&2; fail "openssl: sign $who"; }
+  done
 }
 
 case "$case_name" in
@@ -247,13 +300,12 @@ remote)
   # watch: keep a session, watch it, move its handle from another client
   "$HDEFORM" --server "$ADDR" deform cactus --sel "$BS/cactus.sel" --def "$BS/cactus.def" --keep \
     >"$TMP/kept" || fail "deform --keep exited $?"
-  SESSION=$(sed -n 's/^session \(sessions\/.*\)$/\1/p' "$TMP/kept")
-  [ -n "$SESSION" ] || fail "deform --keep printed no session name"
+  keep_session "$TMP/kept"
   echo "kept $SESSION"
-  "$HDEFORM" --server "$ADDR" watch "$SESSION" --for 60 >"$TMP/watch" 2>"$TMP/watch.err" &
+  "$HDEFORM" --server "$ADDR" --token "$VIEW" watch "$SESSION" --for 60 >"$TMP/watch" 2>"$TMP/watch.err" &
   WATCH_PID=$!
   sleep 1
-  "$HDEFORM" --server "$ADDR" deform --session "$SESSION" --beta 0.1 --translate 0,0.01,0 \
+  "$HDEFORM" --server "$ADDR" --token "$EDIT" deform --session "$SESSION" --beta 0.1 --translate 0,0.01,0 \
     >"$TMP/out3" || fail "deform --session exited $?"
   check_measures "$TMP/out3"
   for _ in $(seq 1 100); do
@@ -266,7 +318,154 @@ remote)
   grep -q "^state $SESSION " "$TMP/watch" || fail "watch printed no state line"
   kill "$WATCH_PID" 2>/dev/null; wait "$WATCH_PID" 2>/dev/null; WATCH_PID=""
   expect_fail "watch unknown session" 'hdeform: WatchSession: NOT_FOUND: ' -- \
-    "$HDEFORM" --server "$ADDR" watch sessions/doesnotexist --for 10
+    "$HDEFORM" --server "$ADDR" --token "$VIEW" watch sessions/doesnotexist --for 10
+  ;;
+tokens)
+  start_server
+  # deform --keep prints the name and both tokens on stdout; sweep --keep on stderr (its
+  # stdout may be the CSV).
+  "$HDEFORM" --server "$ADDR" deform cactus --sel "$BS/cactus.sel" --def "$BS/cactus.def" --keep \
+    >"$TMP/kept" || fail "deform --keep exited $?"
+  cat "$TMP/kept"
+  keep_session "$TMP/kept"
+  "$HDEFORM" --server "$ADDR" sweep cactus --sel "$BS/cactus.sel" --betas 0 --csv - --keep \
+    >"$TMP/sweep.csv" 2>"$TMP/sweep.err" || fail "sweep --keep exited $?"
+  grep -q '^edit token: ' "$TMP/sweep.err" && grep -q '^view token: ' "$TMP/sweep.err" \
+    || fail "sweep --keep printed no tokens on stderr"
+  grep -q 'token' "$TMP/sweep.csv" && fail "sweep --keep printed a token into the CSV"
+  # The edit token, by --token and by HDEFORM_TOKEN, opens the session in another run.
+  "$HDEFORM" --server "$ADDR" --token "$EDIT" deform --session "$SESSION" --translate 0,0.01,0 \
+    >"$TMP/out" 2>"$TMP/err" || { cat "$TMP/err" >&2; fail "--token EDIT: exited $?"; }
+  check_measures "$TMP/out"
+  HDEFORM_TOKEN=$EDIT "$HDEFORM" --server "$ADDR" deform --session "$SESSION" --rotate z,5 \
+    -o "$TMP/env.glb" >"$TMP/out" || fail "HDEFORM_TOKEN=EDIT: exited $?"
+  $CHECK glb "$TMP/env.glb" 5261 || fail "bad GLB"
+  "$HDEFORM" --server "$ADDR" deform --session "$SESSION" --translate 0,0.02,0 --token "$EDIT" \
+    --log-level debug >/dev/null 2>"$TMP/debug.err" || fail "--token after the command: exited $?"
+  # The view token reads (watch) but does not edit; no token, a wrong one: clear errors.
+  "$HDEFORM" --server "$ADDR" --token "$VIEW" watch "$SESSION" --count 1 >"$TMP/watch" \
+    || fail "watch with the view token exited $?"
+  grep -q "^state $SESSION " "$TMP/watch" || fail "watch with the view token: no state line"
+  expect_fail "view token for an edit" \
+    "hdeform: UpdateHandles: PERMISSION_DENIED: .*edit token.*view token" -- \
+    "$HDEFORM" --server "$ADDR" --token "$VIEW" deform --session "$SESSION" --translate 0,0.01,0
+  expect_fail "view token for an edit (environment)" "hdeform: SetBeta: PERMISSION_DENIED: " -- \
+    env HDEFORM_TOKEN="$VIEW" "$HDEFORM" --server "$ADDR" deform --session "$SESSION" --beta 0.2
+  expect_fail "no token" "hdeform: GetSession: UNAUTHENTICATED: .*authorization: Bearer" -- \
+    "$HDEFORM" --server "$ADDR" deform --session "$SESSION" --translate 0,0.01,0
+  expect_fail "no token (watch)" "hdeform: WatchSession: UNAUTHENTICATED: " -- \
+    "$HDEFORM" --server "$ADDR" watch "$SESSION" --for 10
+  expect_fail "wrong token" "hdeform: GetSession: PERMISSION_DENIED: .*not one of this session's" -- \
+    "$HDEFORM" --server "$ADDR" --token 0123456789abcdef0123456789abcdef deform --session "$SESSION" --rotate x,1
+  expect_fail "a token with a space" "hdeform: --token: not a token" -- \
+    "$HDEFORM" --server "$ADDR" --token "Bearer $EDIT" deform --session "$SESSION" --rotate x,1
+  # list: the sessions the token opens; none without one.
+  "$HDEFORM" --server "$ADDR" --token "$VIEW" list >"$TMP/list" || fail "list exited $?"
+  cat "$TMP/list"
+  [ "$(grep -c "^$SESSION mesh=cactus vertices=5261 " "$TMP/list")" -eq 1 ] || fail "list: not the session"
+  [ "$(wc -l <"$TMP/list")" -eq 1 ] || fail "list: sessions of other tokens listed"
+  "$HDEFORM" --server "$ADDR" list >"$TMP/list0" || fail "list without a token exited $?"
+  [ ! -s "$TMP/list0" ] || fail "list without a token listed sessions"
+  # A token is never printed except by --keep: not in logs, not in errors.
+  for f in "$TMP/debug.err" "$TMP/err" "$TMP/watch"; do
+    if grep -qF -- "$EDIT" "$f" || grep -qF -- "$VIEW" "$f"; then fail "a token was printed in $f"; fi
+  done
+  # In-process runs use the tokens of the sessions they create (every deform above did).
+  "$HDEFORM" deform cactus --sel "$BS/cactus.sel" --def "$BS/cactus.def" --keep >"$TMP/inproc" \
+    || fail "in-process deform exited $?"
+  grep -q '^session \|token' "$TMP/inproc" && fail "in-process --keep printed a session (it ends with the run)"
+  ;;
+tls)
+  make_pki "$TMP/pki"
+  P=$TMP/pki
+  start_server --tls-cert "$P/server.pem" --tls-key "$P/server.key"
+  "$HDEFORM" --server "$ADDR" --tls-ca "$P/ca.pem" deform cactus --sel "$BS/cactus.sel" \
+    --def "$BS/cactus.def" -o "$TMP/tls.glb" >"$TMP/out" || fail "deform --tls-ca exited $?"
+  check_measures "$TMP/out"
+  $CHECK glb "$TMP/tls.glb" 5261 || fail "bad GLB over TLS"
+  HDEFORM_TLS_CA=$P/ca.pem "$HDEFORM" --server "localhost:$SERVER_PORT" sweep cactus --sel "$BS/cactus.sel" \
+    --betas 0,0.1 --csv - >"$TMP/tls.csv" || fail "HDEFORM_TLS_CA + localhost: exited $?"
+  $CHECK sweep-csv "$TMP/tls.csv" 0,0.1 || fail "bad CSV over TLS"
+  # kept over TLS, then used with its token over TLS
+  "$HDEFORM" --server "$ADDR" --tls-ca "$P/ca.pem" deform cactus --sel "$BS/cactus.sel" --keep \
+    >"$TMP/kept" || fail "deform --keep over TLS exited $?"
+  keep_session "$TMP/kept"
+  "$HDEFORM" --server "$ADDR" --tls-ca "$P/ca.pem" --token "$EDIT" deform --session "$SESSION" \
+    --rotate x,10 >/dev/null || fail "deform --session over TLS exited $?"
+  expect_fail "plain text to a TLS server" \
+    "hdeform: cannot connect to hdeform-server at $ADDR \\(.*pass --tls-ca\\)" -- \
+    "$HDEFORM" --server "$ADDR" --timeout 5 deform cactus --sel "$BS/cactus.sel"
+  expect_fail "a CA that did not sign the server's certificate" \
+    "hdeform: cannot connect to hdeform-server at $ADDR over TLS \\(the TLS handshake failed" -- \
+    "$HDEFORM" --server "$ADDR" --tls-ca "$P/other-ca.pem" deform cactus --sel "$BS/cactus.sel"
+  expect_fail "--tls-cert without --tls-key" "hdeform: .*--tls-cert requires --tls-key" -- \
+    "$HDEFORM" --server "$ADDR" --tls-ca "$P/ca.pem" --tls-cert "$P/client.pem" deform cactus --sel "$BS/cactus.sel"
+  expect_fail "--tls-ca not a file" "hdeform: .*--tls-ca.*$TMP/nope.pem" -- \
+    "$HDEFORM" --server "$ADDR" --tls-ca "$TMP/nope.pem" deform cactus --sel "$BS/cactus.sel"
+  # mutual TLS: a server that requires client certificates signed by the CA
+  kill "$SERVER_PID" 2>/dev/null; wait "$SERVER_PID" 2>/dev/null; SERVER_PID=""; SERVER_PORT=""
+  start_server --tls-cert "$P/server.pem" --tls-key "$P/server.key" --tls-client-ca "$P/ca.pem"
+  "$HDEFORM" --server "$ADDR" --tls-ca "$P/ca.pem" --tls-cert "$P/client.pem" --tls-key "$P/client.key" \
+    deform cactus --sel "$BS/cactus.sel" --def "$BS/cactus.def" >"$TMP/out" || fail "mutual TLS: exited $?"
+  check_measures "$TMP/out"
+  HDEFORM_TLS_CA=$P/ca.pem HDEFORM_TLS_CLIENT_CERT=$P/client.pem HDEFORM_TLS_CLIENT_KEY=$P/client.key \
+    "$HDEFORM" --server "$ADDR" deform cactus --sel "$BS/cactus.sel" >/dev/null \
+    || fail "mutual TLS from the environment: exited $?"
+  expect_fail "mutual TLS without a client certificate" \
+    "hdeform: (cannot connect to hdeform-server at $ADDR over TLS|CreateSession: UNAVAILABLE: )" -- \
+    "$HDEFORM" --server "$ADDR" --tls-ca "$P/ca.pem" deform cactus --sel "$BS/cactus.sel"
+  ;;
+restart)
+  # Durable state: a kept session survives kill -9 of its server. The watcher's stream and an
+  # in-flight Sweep are cut; each is retried once, when the server is back on the same port.
+  STATE=$TMP/state
+  start_server --state-dir "$STATE"
+  "$HDEFORM" --server "$ADDR" deform cactus --sel "$BS/cactus.sel" --def "$BS/cactus.def" --keep \
+    >"$TMP/kept" || fail "deform --keep exited $?"
+  keep_session "$TMP/kept"
+  "$HDEFORM" --server "$ADDR" --token "$VIEW" --log-level info watch "$SESSION" --for 120 \
+    >"$TMP/watch" 2>"$TMP/watch.err" &
+  WATCH_PID=$!
+  wait_for "^state $SESSION " "$TMP/watch"
+  v1=$(sed -n "s|^state $SESSION version=\([0-9]*\) .*|\1|p" "$TMP/watch" | head -1)
+  # 1. kill -9 with no call in flight; restart; a later run finds the session restored
+  kill -9 "$SERVER_PID"; wait "$SERVER_PID" 2>/dev/null; SERVER_PID=""
+  start_server --state-dir "$STATE"
+  echo "restarted on $ADDR"
+  "$HDEFORM" --server "$ADDR" --token "$EDIT" deform --session "$SESSION" --translate 0,0.01,0 \
+    >"$TMP/out" 2>"$TMP/err" || { cat "$TMP/err" "$TMP/server.err" >&2; fail "deform --session after the restart: exited $?"; }
+  cat "$TMP/out"
+  grep -q '^cactus: 5261 vertices, 10518 triangles, 446 fixed, 1 handle(s)' "$TMP/out" \
+    || fail "the restored session lost its constraints"
+  check_measures "$TMP/out"
+  # the watcher reopened its stream: a second state line (same version as before the kill,
+  # or later), then the new frame
+  wait_for "^frame seq=1 " "$TMP/watch"
+  [ "$(grep -c "^state $SESSION " "$TMP/watch")" -ge 2 ] || { cat "$TMP/watch" >&2; fail "watch did not reopen"; }
+  grep -q 'WatchSession: the server is unavailable; retrying once' "$TMP/watch.err" \
+    || { cat "$TMP/watch.err" >&2; fail "watch: no retry logged"; }
+  v2=$(sed -n "s|^state $SESSION version=\([0-9]*\) .*|\1|p" "$TMP/watch" | sed -n 2p)
+  [ "$v2" -ge "$v1" ] || fail "the restored session is at version $v2, before the kill at $v1"
+  kill -0 "$WATCH_PID" 2>/dev/null || fail "watch ended after the restart"
+  # 2. kill -9 while a Sweep runs (64 β, each a factorization: seconds); the CLI retries it
+  # once the server is back and prints every row.
+  betas=$(seq -s, 0.01 0.01 0.64)
+  "$HDEFORM" --server "$ADDR" --token "$EDIT" --log-level info sweep --session "$SESSION" \
+    --betas "$betas" --csv - >"$TMP/sweep.csv" 2>"$TMP/sweep.err" &
+  SWEEP_PID=$!
+  sleep 0.5
+  kill -0 "$SWEEP_PID" 2>/dev/null || { cat "$TMP/sweep.err" >&2; fail "the sweep ended before the kill (too fast for this test)"; }
+  kill -9 "$SERVER_PID"; wait "$SERVER_PID" 2>/dev/null; SERVER_PID=""
+  sleep 0.5
+  start_server --state-dir "$STATE"
+  wait "$SWEEP_PID" || { cat "$TMP/sweep.err" >&2; fail "the sweep across a restart exited $?"; }
+  SWEEP_PID=""
+  grep -q 'Sweep: the server is unavailable; retrying once' "$TMP/sweep.err" \
+    || { cat "$TMP/sweep.err" >&2; fail "sweep: no retry logged"; }
+  $CHECK sweep-csv "$TMP/sweep.csv" "$betas" || fail "bad CSV after the retry"
+  kill "$WATCH_PID" 2>/dev/null; wait "$WATCH_PID" 2>/dev/null; WATCH_PID=""
+  # the tokens were never printed by the CLI's logs
+  if grep -qF -- "$EDIT" "$TMP/watch.err" "$TMP/sweep.err" "$TMP/err"; then fail "a token in a log"; fi
   ;;
 run-names)
   # Hostile names (path components, absolute paths, NUL and control characters, Windows
