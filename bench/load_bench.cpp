@@ -318,6 +318,7 @@ std::string status_text(const grpc::Status& s) {
 // One session of the run and how its handle moves.
 struct SessionPlan {
   std::string mesh, name;
+  std::string edit_token;            // CreateSession's answer: presented on every call
   int vertex_count = 0;
   int long_axis = 2, side_axis = 0;  // bounding-box axes: along the shape, across it
   double extent = 1;                 // bounding-box length along long_axis
@@ -335,6 +336,7 @@ class Editor final : public grpc::ClientBidiReactor<pb::DeformRequest, pb::Frame
       : plan_(plan), index_(index), shared_(shared) {}
 
   void start(pb::Deformation::Stub& stub) {
+    ctx_.AddMetadata("authorization", "Bearer " + plan_.edit_token);
     stub.async()->Deform(&ctx_, this);
     AddHold();
     StartRead(&frame_);
@@ -530,6 +532,7 @@ class Watcher final : public grpc::ClientReadReactor<pb::SessionEvent> {
 
   void start(pb::Deformation::Stub& stub) {
     request_.set_name(plan_.name);
+    ctx_.AddMetadata("authorization", "Bearer " + plan_.edit_token);
     stub.async()->WatchSession(&ctx_, &request_, this);
     StartRead(&event_);
     StartCall();
@@ -644,10 +647,12 @@ pb::Constraints constraints_for(const pb::LibraryMesh& mesh, const pb::Session& 
   return c;
 }
 
+// `token`: the session's edit token (empty for calls that name no session).
 template <class Call>
-grpc::Status with_deadline(Call&& call, int seconds = 120) {
+grpc::Status with_deadline(Call&& call, const std::string& token = "", int seconds = 120) {
   grpc::ClientContext ctx;
   ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(seconds));
+  if (!token.empty()) ctx.AddMetadata("authorization", "Bearer " + token);
   return call(ctx);
 }
 
@@ -669,6 +674,7 @@ std::optional<SessionPlan> open_session(pb::Deformation::Stub& stub, const pb::L
     return std::nullopt;
   }
   plan.name = s.name();
+  plan.edit_token = s.edit_token();
   plan.vertex_count = s.vertex_count();
   std::array<double, 3> size{};
   for (int k = 0; k < 3; ++k) size[k] = coord(s.bbox_max(), k) - coord(s.bbox_min(), k);
@@ -680,7 +686,8 @@ std::optional<SessionPlan> open_session(pb::Deformation::Stub& stub, const pb::L
   *req.mutable_constraints() = constraints_for(mesh, s, data_dir, plan);
   pb::Session out;
   status = with_deadline(
-      [&](grpc::ClientContext& ctx) { return stub.SetConstraints(&ctx, req, &out); });
+      [&](grpc::ClientContext& ctx) { return stub.SetConstraints(&ctx, req, &out); },
+      plan.edit_token);
   if (!status.ok()) {
     error = "SetConstraints " + plan.name + " (" + mesh.name() + "): " + status_text(status);
     return std::nullopt;
@@ -763,7 +770,7 @@ int main(int argc, char** argv) {
   if (server.empty()) {
     // The default --max-sessions (64) is below a 100-session run; our flags come first so
     // --server-args can override them.
-    std::vector<std::string> args{"--port", "0", "--max-sessions",
+    std::vector<std::string> args{"--port", "0", "--no-state", "--max-sessions",
                                   std::to_string(std::max(64, sessions + 8)), "--log-level",
                                   "warn"};
     for (auto& a : split(server_args, ' ')) args.push_back(a);
@@ -957,9 +964,11 @@ int main(int argc, char** argv) {
     pb::DeleteSessionRequest req;
     req.set_name(plans[i].name);
     pb::DeleteSessionResponse resp;
-    auto st = with_deadline([&](grpc::ClientContext& ctx) {
-      return stubs[i % stubs.size()]->DeleteSession(&ctx, req, &resp);
-    });
+    auto st = with_deadline(
+        [&](grpc::ClientContext& ctx) {
+          return stubs[i % stubs.size()]->DeleteSession(&ctx, req, &resp);
+        },
+        plans[i].edit_token);
     if (!st.ok()) shared.error("DeleteSession " + plans[i].name + ": " + status_text(st));
   }
   // Deleting a session ends its watchers with `deleted` + OK; whoever is still open after

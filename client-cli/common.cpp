@@ -216,7 +216,10 @@ void Connection::prepare(grpc::ClientContext& ctx, const std::string& route_key,
     }
   }
   if (scope != TokenScope::kNone && !options_.token.empty()) tokens.insert(options_.token);
-  for (const auto& t : tokens) ctx.AddMetadata("authorization", "Bearer " + t);
+  // One entry, comma-separated: nginx refuses a request with two Authorization headers (400).
+  std::string value;
+  for (const auto& t : tokens) value += (value.empty() ? "Bearer " : ", Bearer ") + t;
+  if (!value.empty()) ctx.AddMetadata("authorization", value);
   if (timeout_s > 0) ctx.set_deadline(deadline_in(timeout_s));
 }
 

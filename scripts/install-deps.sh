@@ -20,6 +20,8 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   # routing test (docker/ nginx config; curl plays the browser), browser tests
   nginx-light curl chromium python3
+  # test certificates (TLS tests)
+  openssl
 )
 # The machine image ships Node.js 20 (with npm); Debian's npm conflicts with it.
 command -v npm >/dev/null 2>&1 || packages+=(nodejs npm)

@@ -10,6 +10,7 @@
 #include <spdlog/spdlog.h>
 
 #include <csignal>
+#include <cstdlib>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -46,6 +47,15 @@ void raise_open_file_limit() {
     lim.rlim_cur = lim.rlim_max;
     ::setrlimit(RLIMIT_NOFILE, &lim);
   }
+}
+
+// The per-user data folder (XDG base directories): where sessions survive a restart.
+std::string default_state_dir() {
+  if (const char* xdg = std::getenv("XDG_DATA_HOME"); xdg && *xdg == '/')
+    return std::string(xdg) + "/hdeform";
+  if (const char* home = std::getenv("HOME"); home && *home)
+    return std::string(home) + "/.local/share/hdeform";
+  return "hdeform-state";
 }
 
 }  // namespace
@@ -130,6 +140,29 @@ int main(int argc, char** argv) {
       ->envname("HDEFORM_UPLOAD_STALL_TIMEOUT")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  std::string state_dir = default_state_dir(), state_redis, admin_token;
+  bool no_state = false;
+  auto* state_dir_opt =
+      app.add_option("--state-dir", state_dir,
+                     "folder for durable sessions (SQLite + uploaded meshes); default: "
+                     "$XDG_DATA_HOME/hdeform or ~/.local/share/hdeform")
+          ->envname("HDEFORM_STATE_DIR")
+          ->capture_default_str();
+  auto* no_state_opt =
+      app.add_flag("--no-state", no_state, "keep sessions in memory only (lost on restart)")
+          ->envname("HDEFORM_NO_STATE");
+  auto* redis_opt =
+      app.add_option("--state-redis", state_redis,
+                     "keep session state in Redis (redis://[:PASSWORD@]HOST[:PORT][/DB]) so "
+                     "that replicas can take over each other's sessions")
+          ->envname("HDEFORM_STATE_REDIS");
+  no_state_opt->excludes(state_dir_opt)->excludes(redis_opt);
+  redis_opt->excludes(state_dir_opt);
+  // No capture_default_str and never logged: the value is a secret. Prefer the variable
+  // (a command line is visible to every local user in `ps`).
+  app.add_option("--admin-token", admin_token,
+                 "operator token: opens every session, lists all (prefer the variable)")
+      ->envname("HDEFORM_ADMIN_TOKEN");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical, off")
       ->envname("HDEFORM_LOG_LEVEL")
       ->check(CLI::IsMember(
@@ -209,6 +242,16 @@ int main(int argc, char** argv) {
   options.max_upload_inflight_bytes = max_upload_inflight_mb << 20;
   options.upload_stall_timeout =
       std::chrono::milliseconds(static_cast<long>(upload_stall_timeout * 1000));
+  if (!no_state) {
+    if (!state_redis.empty()) options.state_redis = state_redis;
+    else options.state_dir = state_dir;
+  }
+  if (!admin_token.empty() && admin_token.size() < 16) {
+    spdlog::critical("--admin-token must be at least 16 characters (a guessable token opens "
+                     "every session)");
+    return 2;
+  }
+  options.admin_token = admin_token;
   options.tls_cert_file = tls_cert;
   options.tls_key_file = tls_key;
   options.tls_client_ca_file = tls_client_ca;

@@ -171,8 +171,12 @@ class CreateSessionReactor final : public grpc::ServerReadReactor<v1::CreateSess
             // The client left while its mesh was parsed: create nothing nobody will own.
             if (ctx_->IsCancelled())
               fail(grpc::StatusCode::CANCELLED, "upload cancelled by the client");
-            auto session = svc_->sessions().create(std::move(mesh), header_.session_id());
+            IssuedTokens tokens;
+            auto session =
+                svc_->sessions().create(std::move(mesh), header_.session_id(), {}, &tokens);
             *response_ = session->describe();
+            response_->set_edit_token(tokens.edit);
+            response_->set_view_token(tokens.view);
           },
           "CreateSession");
       Finish(status);
@@ -350,7 +354,9 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
 // has come back from the pool.
 class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1::Frame> {
  public:
-  explicit DeformReactor(DeformService* svc) : svc_(svc) { StartRead(&in_); }
+  DeformReactor(DeformService* svc, grpc::CallbackServerContext* ctx) : svc_(svc), ctx_(ctx) {
+    StartRead(&in_);
+  }
 
   void OnReadDone(bool ok) override {
     std::unique_lock lock(mutex_);
@@ -366,9 +372,12 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
                        "the first DeformRequest must name the session"});
         return;
       }
-      session_ = svc_->sessions().find(in_.name());
-      if (!session_) {
-        finish_locked({grpc::StatusCode::NOT_FOUND, "no session '" + in_.name() + "'"});
+      const auto status = guarded(
+          [&] { session_ = svc_->session_for(*ctx_, in_.name(), Access::kEdit, "Deform"); },
+          "Deform");
+      if (!status.ok()) {
+        session_.reset();
+        finish_locked(status);
         return;
       }
       session_->stream_opened();
@@ -446,6 +455,10 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
             u.energies = request->energies();
             u.beta = request->has_beta() ? &request->beta() : nullptr;
             frame = session_->update(u);
+            // Handle moves are saved as SessionStore::moved() says; a β change is an
+            // accepted change like SetBeta: durable before its frame goes out.
+            if (u.beta) svc_->sessions().save(*session_);
+            else svc_->sessions().moved(*session_);
           },
           "Deform");
       solved(status, std::move(frame));
@@ -500,6 +513,7 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
   }
 
   DeformService* svc_;
+  grpc::CallbackServerContext* ctx_;
   std::mutex mutex_;
   v1::DeformRequest in_;
   std::optional<v1::DeformRequest> pending_;
@@ -521,6 +535,8 @@ DeformService::DeformService(const ServerOptions& options)
       library_(options.mesh_dir.empty() ? default_mesh_dir() : options.mesh_dir),
       store_(limits_from(options), *pool_, cache_),
       uploads_(options.max_upload_inflight_bytes, options.upload_stall_timeout) {
+  if (!options.admin_token.empty()) admin_hash_ = hash_token(options.admin_token);
+  open_state();
   store_.start_sweeper();
   spdlog::info("mesh library: {} ({} meshes)", library_.dir().empty() ? "(none)" : library_.dir(),
                library_.list().size());
@@ -552,6 +568,77 @@ std::shared_ptr<const MeshRef> DeformService::load_upload(std::shared_ptr<const 
   return load_mesh(std::move(bytes), filename, "", cache_, read_limits());
 }
 
+void DeformService::open_state() {
+  if (!options_.state_dir.empty() && !options_.state_redis.empty())
+    throw StateError("give --state-dir or --state-redis, not both");
+  if (options_.state_dir.empty() && options_.state_redis.empty()) return;
+  Persistence p;
+  if (!options_.state_redis.empty()) {
+    state_ = open_redis_state(options_.state_redis);
+    p.save_every_move = true;
+    p.revalidate = std::chrono::milliseconds(1000);
+  } else {
+    state_ = open_sqlite_state(options_.state_dir);
+    p.purge_meshes = true;  // this server is the folder's only user (its lock)
+  }
+  p.backend = state_;
+  p.load_mesh = [this](const v1::Snapshot& snap, const std::string& key) {
+    return load_stored_mesh(snap, key);
+  };
+  spdlog::info("session state: {}", state_->describe());
+  store_.attach(std::move(p));
+}
+
+std::shared_ptr<const MeshRef> DeformService::load_stored_mesh(const v1::Snapshot& snap,
+                                                               const std::string& key) {
+  std::shared_ptr<const MeshRef> mesh;
+  if (!snap.library_mesh().empty()) {
+    mesh = load_library_mesh(snap.library_mesh());
+  } else {
+    auto bytes = state_->get_mesh(key);
+    if (!bytes) throw StateError("its mesh " + key + " is missing from " + state_->describe());
+    mesh = load_mesh(std::make_shared<const std::string>(std::move(*bytes)), snap.filename(), "",
+                     cache_, read_limits());
+  }
+  if (!snap.mesh_hash().empty() && snap.mesh_hash() != mesh->hash)
+    fail(grpc::StatusCode::FAILED_PRECONDITION,
+         "its mesh '" + mesh->display_name() + "' has changed since the session was stored");
+  return mesh;
+}
+
+bool DeformService::is_admin(const std::vector<TokenHash>& token_hashes) const {
+  if (!admin_hash_) return false;
+  bool admin = false;
+  for (const auto& h : token_hashes) admin |= same_hash(h, *admin_hash_);
+  return admin;
+}
+
+void DeformService::authorize(const grpc::ServerContextBase& ctx, const Session& session,
+                              Access needed, const char* op) const {
+  const auto hashes = presented_token_hashes(ctx);
+  const std::string what = std::string(op) + " on " + session.name() + " needs the session's " +
+                           access_name(needed) + " token";
+  if (hashes.empty())
+    fail(grpc::StatusCode::UNAUTHENTICATED,
+         what + ": send the metadata 'authorization: Bearer TOKEN' (CreateSession returned "
+                "the edit and view tokens)");
+  if (is_admin(hashes)) return;
+  const Access got = session.grant(hashes);
+  if (static_cast<int>(got) >= static_cast<int>(needed)) return;
+  fail(grpc::StatusCode::PERMISSION_DENIED,
+       got == Access::kView ? what + "; the token presented is its view token (read-only)"
+                            : what + "; the token presented is not one of this session's");
+}
+
+std::shared_ptr<Session> DeformService::session_for(const grpc::ServerContextBase& ctx,
+                                                    const std::string& name, Access needed,
+                                                    const char* op) {
+  auto session = store_.find(name);
+  if (!session) fail(grpc::StatusCode::NOT_FOUND, "no session '" + name + "'");
+  authorize(ctx, *session, needed, op);
+  return session;
+}
+
 ReadLimits DeformService::read_limits() const {
   ReadLimits limits;
   limits.max_vertices = options_.max_vertices;
@@ -576,11 +663,13 @@ grpc::ServerUnaryReactor* DeformService::finish_on_pool(grpc::CallbackServerCont
 grpc::ServerUnaryReactor* DeformService::finish_on_session(grpc::CallbackServerContext* ctx,
                                                            const char* op,
                                                            const std::string& name,
+                                                           Access needed,
                                                            std::function<void(Session&)> fn) {
   auto* reactor = ctx->DefaultReactor();
-  auto session = store_.find(name);
-  if (!session) {
-    reactor->Finish({grpc::StatusCode::NOT_FOUND, "no session '" + name + "'"});
+  std::shared_ptr<Session> session;
+  const auto status = guarded([&] { session = session_for(*ctx, name, needed, op); }, op);
+  if (!status.ok()) {
+    reactor->Finish(status);
     return reactor;
   }
   session->post([reactor, op, session, fn = std::move(fn)] {
@@ -603,15 +692,22 @@ grpc::ServerReadReactor<v1::CreateSessionRequest>* DeformService::CreateSession(
 grpc::ServerUnaryReactor* DeformService::GetSession(grpc::CallbackServerContext* ctx,
                                                     const v1::GetSessionRequest* request,
                                                     v1::Session* response) {
-  return finish_inline(ctx, "GetSession",
-                       [&] { *response = store_.get(request->name())->describe(); });
+  return finish_inline(ctx, "GetSession", [&] {
+    *response = session_for(*ctx, request->name(), Access::kView, "GetSession")->describe();
+  });
 }
 
 grpc::ServerUnaryReactor* DeformService::ListSessions(grpc::CallbackServerContext* ctx,
                                                       const v1::ListSessionsRequest*,
                                                       v1::ListSessionsResponse* response) {
   return finish_inline(ctx, "ListSessions", [&] {
-    for (auto& s : store_.list()) *response->add_sessions() = s->describe();
+    const auto hashes = presented_token_hashes(*ctx);
+    const bool all = is_admin(hashes);
+    if (hashes.empty()) return;  // no token opens no session
+    for (auto& s : store_.list())
+      if (all || s->grant(hashes) != Access::kNone) *response->add_sessions() = s->describe();
+    for (auto& e : store_.list_stored())
+      if (all || e.tokens.grant(hashes) != Access::kNone) *response->add_sessions() = e.described;
   });
 }
 
@@ -619,6 +715,7 @@ grpc::ServerUnaryReactor* DeformService::DeleteSession(grpc::CallbackServerConte
                                                        const v1::DeleteSessionRequest* request,
                                                        v1::DeleteSessionResponse*) {
   return finish_inline(ctx, "DeleteSession", [&] {
+    session_for(*ctx, request->name(), Access::kEdit, "DeleteSession");
     if (!store_.remove(request->name()))
       fail(grpc::StatusCode::NOT_FOUND, "no session '" + request->name() + "'");
   });
@@ -640,43 +737,52 @@ grpc::ServerUnaryReactor* DeformService::ListMeshes(grpc::CallbackServerContext*
 grpc::ServerUnaryReactor* DeformService::SetConstraints(grpc::CallbackServerContext* ctx,
                                                         const v1::SetConstraintsRequest* request,
                                                         v1::Session* response) {
-  return finish_on_session(ctx, "SetConstraints", request->name(), [request, response](Session& s) {
-    *response = s.set_constraints(request->constraints(), request->expected_version());
-  });
+  return finish_on_session(ctx, "SetConstraints", request->name(), Access::kEdit,
+                           [this, request, response](Session& s) {
+                             *response = s.set_constraints(request->constraints(),
+                                                           request->expected_version());
+                             store_.save(s);
+                           });
 }
 
 grpc::ServerUnaryReactor* DeformService::SetBeta(grpc::CallbackServerContext* ctx,
                                                  const v1::SetBetaRequest* request,
                                                  v1::Session* response) {
-  return finish_on_session(ctx, "SetBeta", request->name(), [request, response](Session& s) {
-    *response = s.set_beta(request->beta(), request->expected_version());
-  });
+  return finish_on_session(ctx, "SetBeta", request->name(), Access::kEdit,
+                           [this, request, response](Session& s) {
+                             *response = s.set_beta(request->beta(), request->expected_version());
+                             store_.save(s);
+                           });
 }
 
 grpc::ServerUnaryReactor* DeformService::UpdateHandles(grpc::CallbackServerContext* ctx,
                                                        const v1::UpdateHandlesRequest* request,
                                                        v1::Frame* response) {
-  return finish_on_session(ctx, "UpdateHandles", request->name(), [request, response](Session& s) {
-    Session::Update u;
-    u.sequence = request->sequence();
-    u.transforms = &request->transforms();
-    u.energies = request->energies();
-    u.expected_version = request->expected_version();
-    auto frame = s.update(u);
-    response->Swap(frame.get());
-  });
+  return finish_on_session(ctx, "UpdateHandles", request->name(), Access::kEdit,
+                           [this, request, response](Session& s) {
+                             Session::Update u;
+                             u.sequence = request->sequence();
+                             u.transforms = &request->transforms();
+                             u.energies = request->energies();
+                             u.expected_version = request->expected_version();
+                             auto frame = s.update(u);
+                             store_.moved(s);  // a drag: saved coalesced (SQLite) or at once (Redis)
+                             response->Swap(frame.get());
+                           });
 }
 
 grpc::ServerWriteReactor<v1::MeshChunk>* DeformService::GetMesh(
-    grpc::CallbackServerContext*, const v1::GetMeshRequest* request) {
-  auto session = store_.find(request->name());
-  if (!session) {
+    grpc::CallbackServerContext* ctx, const v1::GetMeshRequest* request) {
+  std::shared_ptr<Session> session;
+  const auto status = guarded(
+      [&] { session = session_for(*ctx, request->name(), Access::kView, "GetMesh"); }, "GetMesh");
+  if (!status.ok()) {
     class Fail final : public grpc::ServerWriteReactor<v1::MeshChunk> {
      public:
       explicit Fail(grpc::Status s) { Finish(std::move(s)); }
       void OnDone() override { delete this; }
     };
-    return new Fail({grpc::StatusCode::NOT_FOUND, "no session '" + request->name() + "'"});
+    return new Fail(status);
   }
   return new MeshWriter(std::move(session), *request);
 }
@@ -734,7 +840,7 @@ grpc::ServerUnaryReactor* DeformService::Sweep(grpc::CallbackServerContext* ctx,
   job->response = response;
   const auto status = guarded(
       [&] {
-        job->session = store_.get(request->name());
+        job->session = session_for(*ctx, request->name(), Access::kEdit, "Sweep");
         job->plan = job->session->sweep_plan(*request);
         if (++running_sweeps_ > options_.request.max_concurrent_sweeps) {
           --running_sweeps_;
@@ -754,20 +860,23 @@ grpc::ServerUnaryReactor* DeformService::Sweep(grpc::CallbackServerContext* ctx,
 }
 
 grpc::ServerBidiReactor<v1::DeformRequest, v1::Frame>* DeformService::Deform(
-    grpc::CallbackServerContext*) {
-  return new DeformReactor(this);
+    grpc::CallbackServerContext* ctx) {
+  return new DeformReactor(this, ctx);
 }
 
 grpc::ServerWriteReactor<v1::SessionEvent>* DeformService::WatchSession(
-    grpc::CallbackServerContext*, const v1::WatchSessionRequest* request) {
-  auto session = store_.find(request->name());
-  if (!session) {
+    grpc::CallbackServerContext* ctx, const v1::WatchSessionRequest* request) {
+  std::shared_ptr<Session> session;
+  const auto status = guarded(
+      [&] { session = session_for(*ctx, request->name(), Access::kView, "WatchSession"); },
+      "WatchSession");
+  if (!status.ok()) {
     class Fail final : public grpc::ServerWriteReactor<v1::SessionEvent> {
      public:
       explicit Fail(grpc::Status s) { Finish(std::move(s)); }
       void OnDone() override { delete this; }
     };
-    return new Fail({grpc::StatusCode::NOT_FOUND, "no session '" + request->name() + "'"});
+    return new Fail(status);
   }
   // Each watcher's memory is bounded (one pending frame, one state); their number is too.
   if (static_cast<std::size_t>(session->observers()) >= options_.request.max_watchers) {
@@ -786,15 +895,20 @@ grpc::ServerWriteReactor<v1::SessionEvent>* DeformService::WatchSession(
 grpc::ServerUnaryReactor* DeformService::ExportSession(grpc::CallbackServerContext* ctx,
                                                        const v1::ExportSessionRequest* request,
                                                        v1::Snapshot* response) {
-  return finish_on_session(ctx, "ExportSession", request->name(), [request, response](Session& s) {
-    *response = s.export_snapshot(request->include_mesh());
-  });
+  return finish_on_session(ctx, "ExportSession", request->name(), Access::kEdit,
+                           [request, response](Session& s) {
+                             *response = s.export_snapshot(request->include_mesh());
+                           });
 }
 
 grpc::ServerUnaryReactor* DeformService::ImportSession(grpc::CallbackServerContext* ctx,
                                                        const v1::ImportSessionRequest* request,
                                                        v1::Session* response) {
-  return finish_on_pool(ctx, "ImportSession", [this, request, response] {
+  // The caller's tokens are read now: the context's metadata is not to be used from the pool
+  // after the call could have ended.
+  auto hashes = presented_token_hashes(*ctx);
+  return finish_on_pool(ctx, "ImportSession", [this, request, response,
+                                               hashes = std::move(hashes)] {
     const auto& snap = request->snapshot();
     store_.check_id(request->session_id());
     store_.check_capacity();
@@ -812,11 +926,15 @@ grpc::ServerUnaryReactor* DeformService::ImportSession(grpc::CallbackServerConte
     } else if (!snap.library_mesh().empty()) {
       mesh = load_library_mesh(snap.library_mesh());
     } else if (!snap.mesh_hash().empty()) {
-      mesh = store_.find_mesh(snap.mesh_hash());
+      // A hash alone must not open someone else's upload: it takes the edit token of a
+      // session on that mesh.
+      mesh = store_.find_mesh(snap.mesh_hash(), hashes, is_admin(hashes));
       if (!mesh)
         fail(grpc::StatusCode::NOT_FOUND,
              "mesh " + snap.mesh_hash() +
-                 " is not on this server: export the snapshot with include_mesh");
+                 " is not on this server under the tokens presented: import by mesh_hash "
+                 "alone needs the edit token of a live session on that mesh; otherwise export "
+                 "the snapshot with include_mesh");
     } else {
       fail(grpc::StatusCode::INVALID_ARGUMENT,
            "snapshot names no mesh (mesh_bytes, library_mesh or mesh_hash)");
@@ -825,10 +943,27 @@ grpc::ServerUnaryReactor* DeformService::ImportSession(grpc::CallbackServerConte
       fail(grpc::StatusCode::INVALID_ARGUMENT, "snapshot mesh hash " + snap.mesh_hash() +
                                                    " does not match the mesh's hash " +
                                                    mesh->hash);
-    auto session =
-        store_.create(mesh, request->session_id(), [&snap](Session& s) { s.restore(snap); });
+    IssuedTokens tokens;
+    auto session = store_.create(
+        mesh, request->session_id(), [&snap](Session& s) { s.restore(snap); }, &tokens);
     *response = session->describe();
+    response->set_edit_token(tokens.edit);
+    response->set_view_token(tokens.view);
   });
+}
+
+grpc::ServerUnaryReactor* DeformService::RotateTokens(grpc::CallbackServerContext* ctx,
+                                                      const v1::RotateTokensRequest* request,
+                                                      v1::Session* response) {
+  return finish_on_session(ctx, "RotateTokens", request->name(), Access::kEdit,
+                           [this, response](Session& s) {
+                             const IssuedTokens tokens = s.rotate_tokens();
+                             store_.save(s);
+                             *response = s.describe();
+                             response->set_edit_token(tokens.edit);
+                             response->set_view_token(tokens.view);
+                             spdlog::info("{}: tokens rotated", s.name());
+                           });
 }
 
 }  // namespace hdeform::service

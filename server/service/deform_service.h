@@ -14,6 +14,8 @@
 #include <atomic>
 #include <functional>
 #include <memory>
+#include <optional>
+#include <vector>
 
 namespace hdeform::service {
 
@@ -75,6 +77,19 @@ class DeformService final : public v1::Deformation::CallbackService {
   grpc::ServerUnaryReactor* ImportSession(grpc::CallbackServerContext* ctx,
                                           const v1::ImportSessionRequest* request,
                                           v1::Session* response) override;
+  grpc::ServerUnaryReactor* RotateTokens(grpc::CallbackServerContext* ctx,
+                                         const v1::RotateTokensRequest* request,
+                                         v1::Session* response) override;
+
+  // Capability check (access.h): throws ServiceError UNAUTHENTICATED (no token) or
+  // PERMISSION_DENIED unless the call's tokens grant `needed` on `session`.
+  void authorize(const grpc::ServerContextBase& ctx, const Session& session, Access needed,
+                 const char* op) const;
+  // The presented tokens include the operator token.
+  bool is_admin(const std::vector<TokenHash>& token_hashes) const;
+  // The named session (restored from durable state if needed), authorized for `needed`.
+  std::shared_ptr<Session> session_for(const grpc::ServerContextBase& ctx,
+                                       const std::string& name, Access needed, const char* op);
 
   // Blocking helpers used by the reactors (run on the pool).
   std::shared_ptr<const MeshRef> load_library_mesh(const std::string& name);
@@ -92,8 +107,12 @@ class DeformService final : public v1::Deformation::CallbackService {
   grpc::ServerUnaryReactor* finish_on_pool(grpc::CallbackServerContext* ctx, const char* op,
                                            Work fn);
   grpc::ServerUnaryReactor* finish_on_session(grpc::CallbackServerContext* ctx, const char* op,
-                                              const std::string& name,
+                                              const std::string& name, Access needed,
                                               std::function<void(Session&)> fn);
+  // Durable state from the options (none, SQLite folder, Redis); throws StateError.
+  void open_state();
+  std::shared_ptr<const MeshRef> load_stored_mesh(const v1::Snapshot& snapshot,
+                                                  const std::string& mesh_key);
 
   ServerOptions options_;
   std::unique_ptr<WorkerPool> pool_;
@@ -103,6 +122,8 @@ class DeformService final : public v1::Deformation::CallbackService {
   UploadBudget uploads_;
   std::atomic<std::size_t> running_sweeps_{0};
   std::atomic<bool> stopping_{false};
+  std::optional<TokenHash> admin_hash_;
+  std::shared_ptr<StateBackend> state_;
 };
 
 }  // namespace hdeform::service

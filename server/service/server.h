@@ -29,6 +29,12 @@ struct ServerOptions {
   // An upload that sends nothing for this long is ended with DEADLINE_EXCEEDED
   // (--upload-stall-timeout); its bytes are released.
   std::chrono::milliseconds upload_stall_timeout{30'000};
+  // Durable session state (docs/deployment.md "State"): a folder for SQLite + mesh files
+  // (--state-dir), or a Redis URL (--state-redis); both empty = sessions live in memory only.
+  std::string state_dir;
+  std::string state_redis;
+  // Operator token (--admin-token): opens every session, lists all. Empty = none. Never logged.
+  std::string admin_token;
   // TLS on the gRPC port (--tls-cert, --tls-key, --tls-client-ca): PEM files. Cert and key
   // together turn TLS on (both or neither); with a client CA, every client must present a
   // certificate signed by it. Checked at start-up (the constructor throws naming the file).

@@ -393,13 +393,14 @@ std::string Session::mesh_file(bool rest, pb::MeshFormat format) {
   return mesh_->layout->mesh_file(f, V);
 }
 
-pb::Snapshot Session::export_snapshot(bool include_mesh) const {
+pb::Snapshot Session::export_snapshot(bool include_mesh, std::int64_t* version) const {
   pb::Snapshot s;
   s.set_mesh_hash(mesh_->hash);
   s.set_library_mesh(mesh_->library_name);
   s.set_filename(mesh_->filename);
   if (include_mesh && mesh_->file_bytes) s.set_mesh_bytes(*mesh_->file_bytes);
   std::lock_guard lock(mutex_);
+  if (version) *version = version_;
   if (cs_) *s.mutable_constraints() = given_;
   beta_to_proto(beta_, s.mutable_beta());
   for (const auto& t : transforms_) to_proto(t, s.add_transforms());
@@ -435,6 +436,30 @@ void Session::restore(const pb::Snapshot& s) {
   transforms_ = std::move(transforms);
   ++version_;
   last_frame_.reset();
+}
+
+void Session::adopt(std::int64_t version, const SessionTokens& tokens, std::int64_t create_ms,
+                    std::int64_t update_ms) {
+  std::lock_guard lock(mutex_);
+  version_ = version;
+  tokens_ = tokens;
+  create_ms_ = create_ms;
+  update_ms_ = update_ms;
+}
+
+Access Session::grant(const std::vector<TokenHash>& token_hashes) const {
+  std::lock_guard lock(mutex_);
+  return tokens_.grant(token_hashes);
+}
+
+IssuedTokens Session::rotate_tokens() {
+  std::lock_guard lock(mutex_);
+  return tokens_.issue();
+}
+
+SessionTokens Session::tokens() const {
+  std::lock_guard lock(mutex_);
+  return tokens_;
 }
 
 void Session::changed_locked(pb::Session* out) {

@@ -4,6 +4,7 @@
 // thread.
 #pragma once
 
+#include "access.h"
 #include "cache.h"
 #include "deformer.h"
 #include "hdeform/v1/deform.pb.h"
@@ -88,12 +89,35 @@ class Session : public std::enable_shared_from_this<Session> {
   SweepPlan sweep_plan(const pb::SweepRequest& request) const;
   void sweep_row(const SweepPlan& plan, const Beta& beta, pb::SweepRow* row) const;
   std::string mesh_file(bool rest, pb::MeshFormat format);
-  pb::Snapshot export_snapshot(bool include_mesh) const;
+  // `version` (optional): the session version the snapshot shows (read under the same lock).
+  pb::Snapshot export_snapshot(bool include_mesh, std::int64_t* version = nullptr) const;
   // Re-applies a snapshot's constraints, β and transforms (a fresh session only).
   void restore(const pb::Snapshot& snapshot);
 
+  // A restored session (durable state): its stored version, tokens and times, after
+  // restore(). A fresh session only.
+  void adopt(std::int64_t version, const SessionTokens& tokens, std::int64_t create_ms,
+             std::int64_t update_ms);
+
   // ---- non-blocking ----
   pb::Session describe() const;
+  // Capability tokens (access.h): what the presented token hashes grant, and new tokens
+  // (the old ones stop working at once).
+  Access grant(const std::vector<TokenHash>& token_hashes) const;
+  IssuedTokens rotate_tokens();
+  SessionTokens tokens() const;
+
+  // Bookkeeping of the durable copy (SessionStore): guarded by its own mutex so that saves
+  // of one session are ordered and never write an older state over a newer one.
+  struct Persisted {
+    std::mutex mutex;
+    std::int64_t saved_version = -1;    // version of the last record written
+    std::int64_t saved_ms = 0;          // when it was written (unix ms)
+    std::atomic<bool> dirty{false};     // changed since (coalesced handle moves)
+    std::string mesh_key;               // blob key of an uploaded mesh ("" for library)
+    std::atomic<std::int64_t> checked_ms{0};  // last compared with the store (revalidate)
+  };
+  Persisted& persisted() { return persisted_; }
   void add_watcher(std::shared_ptr<EventSink> sink);  // also sends the current state
   void remove_watcher(const EventSink* sink);
   int observers() const;
@@ -140,10 +164,20 @@ class Session : public std::enable_shared_from_this<Session> {
   SessionBeta beta_;
   std::vector<HandleTransform> transforms_;
   std::int64_t version_ = 1;
+
+ public:
+  std::int64_t version() const {
+    std::lock_guard lock(mutex_);
+    return version_;
+  }
+
+ private:
   std::shared_ptr<const hdeform::Frame> last_frame_;  // engine frame at last_frame_version_
   std::int64_t last_frame_version_ = 0;
   std::int64_t create_ms_ = 0, update_ms_ = 0;
   std::vector<std::shared_ptr<EventSink>> watchers_;
+  SessionTokens tokens_;
+  Persisted persisted_;
 
   std::atomic<int> streams_{0};
   std::atomic<bool> closed_{false};

@@ -5,6 +5,7 @@
 #include "service/server.h"
 
 #include <grpcpp/grpcpp.h>
+#include <grpcpp/support/client_interceptor.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -33,21 +34,63 @@ inline std::string slurp(const std::string& path) {
   return ss.str();
 }
 
+// Adds `authorization: Bearer TOKEN` to every call of a channel.
+class BearerInterceptor final : public grpc::experimental::Interceptor {
+ public:
+  explicit BearerInterceptor(std::string token) : token_(std::move(token)) {}
+  void Intercept(grpc::experimental::InterceptorBatchMethods* methods) override {
+    if (methods->QueryInterceptionHookPoint(
+            grpc::experimental::InterceptionHookPoints::PRE_SEND_INITIAL_METADATA))
+      methods->GetSendInitialMetadata()->insert({"authorization", "Bearer " + token_});
+    methods->Proceed();
+  }
+
+ private:
+  std::string token_;
+};
+class BearerFactory final : public grpc::experimental::ClientInterceptorFactoryInterface {
+ public:
+  explicit BearerFactory(std::string token) : token_(std::move(token)) {}
+  grpc::experimental::Interceptor* CreateClientInterceptor(
+      grpc::experimental::ClientRpcInfo*) override {
+    return new BearerInterceptor(token_);
+  }
+
+ private:
+  std::string token_;
+};
+
+// The operator token of every TestServer: `stub` presents it on every call, so tests of
+// other behaviour need no session tokens; `bare_stub` presents none (access tests).
+inline const std::string kTestAdminToken = "test-operator-token-0123456789";
+
+inline std::shared_ptr<grpc::Channel> test_channel(int port, const std::string& token = "") {
+  grpc::ChannelArguments args;
+  args.SetMaxReceiveMessageSize(-1);
+  args.SetMaxSendMessageSize(-1);
+  const std::string target = "127.0.0.1:" + std::to_string(port);
+  if (token.empty())
+    return grpc::CreateCustomChannel(target, grpc::InsecureChannelCredentials(), args);
+  std::vector<std::unique_ptr<grpc::experimental::ClientInterceptorFactoryInterface>> f;
+  f.push_back(std::make_unique<BearerFactory>(token));
+  return grpc::experimental::CreateCustomChannelWithInterceptors(
+      target, grpc::InsecureChannelCredentials(), args, std::move(f));
+}
+
 struct TestServer {
   std::unique_ptr<service::Server> server;
   std::shared_ptr<grpc::Channel> channel;
   std::unique_ptr<pb::Deformation::Stub> stub;
+  std::unique_ptr<pb::Deformation::Stub> bare_stub;
 
   explicit TestServer(service::ServerOptions options = {}) {
     options.listen_address = "127.0.0.1:0";
     if (options.workers < 1) options.workers = 2;
+    if (options.admin_token.empty()) options.admin_token = kTestAdminToken;
     server = std::make_unique<service::Server>(options);
-    grpc::ChannelArguments args;
-    args.SetMaxReceiveMessageSize(-1);
-    args.SetMaxSendMessageSize(-1);
-    channel = grpc::CreateCustomChannel("127.0.0.1:" + std::to_string(server->port()),
-                                        grpc::InsecureChannelCredentials(), args);
+    channel = test_channel(server->port(), options.admin_token);
     stub = pb::Deformation::NewStub(channel);
+    bare_stub = pb::Deformation::NewStub(test_channel(server->port()));
   }
   ~TestServer() { server->shutdown(std::chrono::milliseconds(500)); }
 

@@ -1,0 +1,251 @@
+// Issue 9, durable sessions: a Server with --state-dir keeps every session's state in SQLite
+// and restores it (same id, tokens, version, pose) in the next Server on the same folder, on
+// first use. Real Servers over loopback, one after the other on one temp folder.
+#include "service_fixture.h"
+
+#include <sqlite3.h>
+
+#include <filesystem>
+#include <thread>
+
+using namespace hdeform::testing;
+using grpc::StatusCode;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct TempDir {
+  fs::path path;
+  TempDir() {
+    std::string tmpl = (fs::temp_directory_path() / "hdeform-durable-XXXXXX").string();
+    path = ::mkdtemp(tmpl.data());
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path, ec);
+  }
+};
+
+hdeform::service::ServerOptions durable(const fs::path& dir) {
+  hdeform::service::ServerOptions o;
+  o.state_dir = (dir / "state").string();
+  return o;
+}
+
+std::unique_ptr<grpc::ClientContext> as(const std::string& token) {
+  auto ctx = std::make_unique<grpc::ClientContext>();
+  ctx->AddMetadata("authorization", "Bearer " + token);
+  return ctx;
+}
+
+pb::Session get(TestServer& t, const std::string& name, const std::string& token,
+                grpc::Status* status = nullptr) {
+  pb::GetSessionRequest r;
+  r.set_name(name);
+  pb::Session out;
+  const auto st = t.bare_stub->GetSession(as(token).get(), r, &out);
+  if (status) *status = st;
+  else EXPECT_TRUE(st.ok()) << st.error_message();
+  return out;
+}
+
+std::size_t stored_records(const fs::path& dir) {
+  sqlite3* db = nullptr;
+  const auto file = (dir / "state" / "state.sqlite3").string();
+  EXPECT_EQ(sqlite3_open_v2(file.c_str(), &db, SQLITE_OPEN_READONLY, nullptr), SQLITE_OK);
+  sqlite3_stmt* st = nullptr;
+  sqlite3_prepare_v2(db, "SELECT count(*) FROM sessions", -1, &st, nullptr);
+  std::size_t n = 0;
+  if (sqlite3_step(st) == SQLITE_ROW) n = static_cast<std::size_t>(sqlite3_column_int64(st, 0));
+  sqlite3_finalize(st);
+  sqlite3_close(db);
+  return n;
+}
+
+// Positions of two frames agree (separate solves may round the last bits differently).
+void expect_same_positions(const pb::Frame& a, const pb::Frame& b) {
+  ASSERT_EQ(a.positions().size(), b.positions().size());
+  const auto* x = reinterpret_cast<const float*>(a.positions().data());
+  const auto* y = reinterpret_cast<const float*>(b.positions().data());
+  const std::size_t n = a.positions().size() / sizeof(float);
+  double worst = 0;
+  for (std::size_t i = 0; i < n; ++i) worst = std::max(worst, double(std::abs(x[i] - y[i])));
+  EXPECT_LT(worst, 1e-5);
+}
+
+}  // namespace
+
+TEST(Durable, ARestartKeepsIdTokensVersionPoseAndBeta) {
+  TempDir dir;
+  pb::Session created, before;
+  pb::Frame last;
+  {
+    TestServer a(durable(dir.path));
+    ASSERT_TRUE(a.create_library("cactus", &created, "meeting").ok());
+    ASSERT_TRUE(a.set_constraints(created.name(), cactus_constraints(), &before).ok());
+    pb::Beta beta;
+    beta.set_value(0.2);
+    auto* local = beta.add_local();
+    local->mutable_region()->add_selectors()->mutable_ids()->add_ids(5);
+    local->set_beta(0.5);
+    local->set_falloff_radius(0.1);
+    ASSERT_TRUE(a.set_beta(created.name(), beta, &before).ok());
+    for (int i = 1; i <= 5; ++i)
+      ASSERT_TRUE(a.update(created.name(), i, {translation(0.01 * i, 0, 0.02 * i)}, &last).ok());
+    before = get(a, created.name(), created.view_token());
+  }  // a clean stop flushes the coalesced handle moves
+  TestServer b(durable(dir.path));
+  const pb::Session after = get(b, "sessions/meeting", created.view_token());
+  EXPECT_EQ(after.name(), "sessions/meeting");
+  EXPECT_EQ(after.version(), before.version());
+  EXPECT_EQ(after.mesh_hash(), before.mesh_hash());
+  EXPECT_EQ(after.constraints().SerializeAsString(), before.constraints().SerializeAsString());
+  EXPECT_EQ(after.beta().SerializeAsString(), before.beta().SerializeAsString());
+  ASSERT_EQ(after.transforms_size(), 1);
+  EXPECT_DOUBLE_EQ(after.transforms(0).translation().x(), 0.05);
+  EXPECT_DOUBLE_EQ(after.transforms(0).translation().z(), 0.10);
+  EXPECT_EQ(after.create_time_unix_ms(), before.create_time_unix_ms());
+  // The edit token still edits; the deformation is the one before the restart.
+  pb::UpdateHandlesRequest r;
+  r.set_name(after.name());
+  r.set_sequence(6);
+  *r.add_transforms() = translation(0.05, 0, 0.10);
+  pb::Frame again;
+  const auto st = b.bare_stub->UpdateHandles(as(created.edit_token()).get(), r, &again);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  expect_same_positions(again, last);
+  grpc::Status denied;
+  get(b, after.name(), "not-a-token", &denied);
+  EXPECT_EQ(denied.error_code(), StatusCode::PERMISSION_DENIED);
+}
+
+TEST(Durable, UploadedMeshesAndRotatedTokensSurvive) {
+  TempDir dir;
+  pb::Session up;
+  std::string rest;
+  std::string edit, view;
+  {
+    TestServer a(durable(dir.path));
+    ASSERT_TRUE(a.upload(grid_off(20), "wavy.off", &up).ok());
+    ASSERT_TRUE(a.get_mesh(up.name(), true, pb::MESH_FORMAT_OFF, &rest).ok());
+    pb::RotateTokensRequest r;
+    r.set_name(up.name());
+    pb::Session rotated;
+    ASSERT_TRUE(a.bare_stub->RotateTokens(as(up.edit_token()).get(), r, &rotated).ok());
+    edit = rotated.edit_token();
+    view = rotated.view_token();
+  }
+  // One file per mesh, by content.
+  std::size_t files = 0;
+  for (const auto& e : fs::directory_iterator(dir.path / "state" / "meshes")) files += e.is_regular_file();
+  EXPECT_EQ(files, 1u);
+  TestServer b(durable(dir.path));
+  grpc::Status old;
+  get(b, up.name(), up.view_token(), &old);
+  EXPECT_EQ(old.error_code(), StatusCode::PERMISSION_DENIED) << "rotated tokens must stay revoked";
+  const pb::Session s = get(b, up.name(), view);
+  EXPECT_EQ(s.mesh_name(), "wavy.off");
+  std::string again;
+  ASSERT_TRUE(b.get_mesh(up.name(), true, pb::MESH_FORMAT_OFF, &again).ok());
+  EXPECT_EQ(again, rest);
+  (void)edit;
+}
+
+TEST(Durable, StoredSessionsAreListedAndTheirIdsStayTakenBeforeTheyAreRestored) {
+  TempDir dir;
+  pb::Session s;
+  {
+    TestServer a(durable(dir.path));
+    ASSERT_TRUE(a.create_library("bar", &s, "kept").ok());
+  }
+  TestServer b(durable(dir.path));
+  // Listed (from its record) for its token and for the operator, without a restore.
+  pb::ListSessionsResponse mine;
+  ASSERT_TRUE(b.bare_stub->ListSessions(as(s.view_token()).get(), {}, &mine).ok());
+  ASSERT_EQ(mine.sessions_size(), 1);
+  EXPECT_EQ(mine.sessions(0).name(), "sessions/kept");
+  EXPECT_EQ(mine.sessions(0).mesh_name(), "bar");
+  EXPECT_TRUE(mine.sessions(0).edit_token().empty());
+  pb::ListSessionsResponse none;
+  ASSERT_TRUE(b.bare_stub->ListSessions(as("other").get(), {}, &none).ok());
+  EXPECT_EQ(none.sessions_size(), 0);
+  // Its id cannot be taken by a new session.
+  pb::Session squat;
+  EXPECT_EQ(b.create_library("cactus", &squat, "kept").error_code(), StatusCode::ALREADY_EXISTS);
+}
+
+TEST(Durable, DeletedAndExpiredSessionsLeaveTheDisk) {
+  TempDir dir;
+  pb::Session gone, idle;
+  {
+    auto o = durable(dir.path);
+    o.session_ttl = std::chrono::seconds(2);
+    TestServer a(o);
+    ASSERT_TRUE(a.create_library("bar", &gone).ok());
+    ASSERT_TRUE(a.upload(grid_off(10), "idle.off", &idle).ok());
+    ASSERT_TRUE(a.delete_session(gone.name()).ok());
+  }
+  EXPECT_EQ(stored_records(dir.path), 1u);
+  std::this_thread::sleep_for(std::chrono::milliseconds(2500));
+  {
+    auto o = durable(dir.path);
+    o.session_ttl = std::chrono::seconds(2);
+    TestServer b(o);  // purges the expired record and its mesh at start
+    grpc::Status st;
+    get(b, gone.name(), gone.view_token(), &st);
+    EXPECT_EQ(st.error_code(), StatusCode::NOT_FOUND);
+    get(b, idle.name(), idle.view_token(), &st);
+    EXPECT_EQ(st.error_code(), StatusCode::NOT_FOUND);
+  }
+  EXPECT_EQ(stored_records(dir.path), 0u);
+  std::size_t files = 0;
+  for (const auto& e : fs::directory_iterator(dir.path / "state" / "meshes")) files += e.is_regular_file();
+  EXPECT_EQ(files, 0u);
+}
+
+TEST(Durable, AForeignStateFileIsRefusedAndLeftAsItIs) {
+  TempDir dir;
+  fs::create_directories(dir.path / "state");
+  const auto file = dir.path / "state" / "state.sqlite3";
+  {
+    std::ofstream out(file, std::ios::binary);
+    out << "these are someone's notes, not a database\n";
+  }
+  const std::string before = slurp(file.string());
+  try {
+    TestServer t(durable(dir.path));
+    FAIL() << "a server started on a foreign state file";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find(file.string()), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(slurp(file.string()), before);
+}
+
+TEST(Durable, ACorruptRecordIsReportedAndKept) {
+  TempDir dir;
+  pb::Session s;
+  {
+    TestServer a(durable(dir.path));
+    ASSERT_TRUE(a.create_library("bar", &s, "broken").ok());
+  }
+  {
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open((dir.path / "state" / "state.sqlite3").c_str(), &db), SQLITE_OK);
+    ASSERT_EQ(sqlite3_exec(db, "UPDATE sessions SET record = x'ffff0102' WHERE id = 'broken'",
+                           nullptr, nullptr, nullptr),
+              SQLITE_OK);
+    sqlite3_close(db);
+  }
+  {
+    TestServer b(durable(dir.path));
+    grpc::Status st;
+    get(b, s.name(), s.view_token(), &st);
+    EXPECT_EQ(st.error_code(), StatusCode::UNAVAILABLE) << st.error_message();
+    EXPECT_NE(st.error_message().find("broken"), std::string::npos) << st.error_message();
+    pb::Session other;
+    EXPECT_EQ(b.create_library("cactus", &other, "broken").error_code(),
+              StatusCode::ALREADY_EXISTS);  // never overwritten
+    EXPECT_TRUE(b.create_library("cactus", &other).ok());  // the server serves the others
+  }
+  EXPECT_EQ(stored_records(dir.path), 2u);
+}
