@@ -57,12 +57,19 @@ fail() {
 diff <(bash "$SRC/docker/render-nginx-conf.sh") "$SRC/docker/nginx.conf" >/dev/null \
   || fail "docker/nginx.conf is stale: run docker/render-nginx-conf.sh > docker/nginx.conf"
 
+# The replicas' operator token: every session call below presents it (routing_probe and the
+# CLI read HDEFORM_TOKEN; curl sends it as the gRPC-Web authorization header). Access control
+# itself is tested in tests/security; here it must simply not get in the way of routing.
+export HDEFORM_ADMIN_TOKEN=routing-test-operator-$RANDOM$RANDOM
+export HDEFORM_TOKEN=$HDEFORM_ADMIN_TOKEN
+AUTH=(-H "authorization: Bearer $HDEFORM_TOKEN")
+
 # --- two replicas, each with its HTTP gateway serving a tiny web root
 mkdir -p "$TMP/web"
 echo "hdeform routing test page" >"$TMP/web/index.html"
 start_replica() {  # INDEX → ADDR_INDEX, HTTP_INDEX
   local i=$1
-  "$SERVER" --port 0 --http-port 0 --web-root "$TMP/web" --bind 127.0.0.1 --workers 1 \
+  "$SERVER" --port 0 --http-port 0 --web-root "$TMP/web" --bind 127.0.0.1 --workers 1 --no-state \
     >"$TMP/server$i.out" 2>"$TMP/server$i.err" &
   PIDS+=($!)
   eval "SERVER${i}_PID=$!"
@@ -127,7 +134,7 @@ web_request() {  # NAME FILE [EXTRA EXTRA_LEN]
 web_call() {  # METHOD REQUEST_FILE KEY|-
   local method=$1 req=$2 key=$3 hdr=()
   [ "$key" != "-" ] && hdr=(-H "x-session-id: $key")
-  "$CURL" -sS -o "$TMP/web.body" -D "$TMP/web.headers" --max-time 30 "${hdr[@]}" \
+  "$CURL" -sS -o "$TMP/web.body" -D "$TMP/web.headers" --max-time 30 "${hdr[@]}" "${AUTH[@]}" \
     -H 'content-type: application/grpc-web+proto' -H 'x-grpc-web: 1' \
     --data-binary @"$req" "http://$WEB/hdeform.v1.Deformation/$method" 2>"$TMP/web.err" || return 0
   cat "$TMP/web.headers" "$TMP/web.body" | tr -d '\r' | grep -aoiE 'grpc-status: ?[0-9]+' \
@@ -225,7 +232,7 @@ for i in $(seq 1 $M); do
     args=(-X POST)
     q="library=knight"
   fi
-  status=$("$CURL" -sS -o "$TMP/upload.out" -w '%{http_code}' --max-time 60 "${args[@]}" \
+  status=$("$CURL" -sS -o "$TMP/upload.out" -w '%{http_code}' --max-time 60 "${args[@]}" "${AUTH[@]}" \
            -H "x-session-id: $key" "http://$WEB/upload?$q&session_id=$key") \
     || fail "POST /upload?$q through the http door"
   [ "$status" = 200 ] || fail "POST /upload?$q&session_id=$key: HTTP $status: $(head -c 300 "$TMP/upload.out")"
@@ -262,7 +269,7 @@ echo "   gRPC-Web without x-session-id: $found calls found their session, $misse
 wkey=$(printf '%s\n' "${!WNAME[@]}" | head -1)
 wname=${WNAME[$wkey]}
 web_request "$wname" "$TMP/watch.req"
-"$CURL" -sS -N --max-time 30 -o "$TMP/watch.out" -H "x-session-id: $wkey" \
+"$CURL" -sS -N --max-time 30 -o "$TMP/watch.out" -H "x-session-id: $wkey" "${AUTH[@]}" \
   -H 'content-type: application/grpc-web+proto' -H 'x-grpc-web: 1' \
   --data-binary @"$TMP/watch.req" "http://$WEB/hdeform.v1.Deformation/WatchSession" 2>/dev/null &
 WATCH_PID=$!
