@@ -83,20 +83,22 @@ Access SessionTokens::grant(const std::vector<TokenHash>& token_hashes) const {
   return best;
 }
 
+void parse_authorization(std::string_view value, std::vector<std::string>& out) {
+  while (!value.empty() && out.size() < kMaxTokens) {
+    const auto comma = value.find(',');
+    std::string part = trim(value.substr(0, comma));
+    value = comma == std::string_view::npos ? std::string_view{} : value.substr(comma + 1);
+    if (starts_with_bearer(part)) part = trim(std::string_view(part).substr(7));
+    if (!part.empty() && part.size() <= kMaxTokenChars) out.push_back(std::move(part));
+  }
+}
+
 std::vector<std::string> presented_tokens(const grpc::ServerContextBase& ctx) {
   std::vector<std::string> out;
   const auto& md = ctx.client_metadata();
   auto range = md.equal_range("authorization");
-  for (auto it = range.first; it != range.second && out.size() < kMaxTokens; ++it) {
-    std::string_view value(it->second.data(), it->second.size());
-    while (!value.empty() && out.size() < kMaxTokens) {
-      const auto comma = value.find(',');
-      std::string part = trim(value.substr(0, comma));
-      value = comma == std::string_view::npos ? std::string_view{} : value.substr(comma + 1);
-      if (starts_with_bearer(part)) part = trim(std::string_view(part).substr(7));
-      if (!part.empty() && part.size() <= kMaxTokenChars) out.push_back(std::move(part));
-    }
-  }
+  for (auto it = range.first; it != range.second && out.size() < kMaxTokens; ++it)
+    parse_authorization(std::string_view(it->second.data(), it->second.size()), out);
   return out;
 }
 

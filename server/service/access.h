@@ -9,6 +9,7 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace hdeform::service {
@@ -39,6 +40,8 @@ bool same_hash(const TokenHash& a, const TokenHash& b);  // constant time
 // value also split at commas (HTTP proxies may join repeated headers). At most 64 are
 // considered; each at most 256 characters.
 std::vector<std::string> presented_tokens(const grpc::ServerContextBase& ctx);
+// One `authorization` value's tokens, appended to `out` (the same rules and bounds).
+void parse_authorization(std::string_view value, std::vector<std::string>& out);
 std::vector<TokenHash> presented_token_hashes(const grpc::ServerContextBase& ctx);
 
 }  // namespace hdeform::service
