@@ -13,6 +13,18 @@
 // check the error banner; upload a glTF split at a seam and check that regions picked in its
 // base GLB are accepted and shown where they were picked (base_ids / base_constraints);
 // check the gateway's 413 for an oversized body.
+//
+// Access and durability (docs/viewer.md "Links and tokens", "Reconnecting"): the server runs
+// with a temporary --state-dir. Share links carry the edit token only in the URL fragment,
+// watch links only the view token; a watch page whose `watch` parameter is removed still
+// has no editing tools and its own API calls are refused (PERMISSION_DENIED); a page with
+// no token (or a wrong one) cannot open the session; no request the pages make carries a
+// token in its URL, and every session call carries `authorization`. A reload of the editor
+// keeps the session and can still edit. The server is killed (SIGKILL) and started again on
+// the same ports and state: the open pages reconnect by themselves, show the same version
+// and shape, and a further drag works; an edit whose call fails with UNAVAILABLE is sent
+// again after the reconnect (once: a second failure is reported). A session deleted for
+// real is reported as deleted.
 import { spawn } from "node:child_process";
 import { mkdirSync, mkdtempSync, rmSync, writeFileSync } from "node:fs";
 import http from "node:http";
@@ -96,22 +108,29 @@ function check(cond, what) {
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
 // ---- server ---------------------------------------------------------------------------------
-function startServer() {
+// Durable sessions go to a temporary --state-dir (never the user's ~/.local/share/hdeform);
+// the restart in step 10 reuses it, and the ports.
+const stateDir = mkdtempSync(join(tmpdir(), "hdeform-e2e-state-"));
+function startServer({ grpcPort = 0, httpPort = 0, tag = "server" } = {}) {
   const extra = process.env.HDEFORM_SERVER_ARGS ? process.env.HDEFORM_SERVER_ARGS.split(" ").filter(Boolean) : [];
-  const proc = spawn(serverBin, ["--port", "0", "--http-port", "0", ...extra], { stdio: ["ignore", "pipe", "pipe"] });
+  const proc = spawn(
+    serverBin,
+    ["--port", String(grpcPort), "--http-port", String(httpPort), "--state-dir", stateDir, ...extra],
+    { stdio: ["ignore", "pipe", "pipe"] },
+  );
   const output = [];
   const port = new Promise((resolvePort, reject) => {
     const timer = setTimeout(() => reject(new Error(`no HTTP port printed within 60 s:\n${output.join("")}`)), 60_000);
     const onData = (buf) => {
       const text = buf.toString();
       output.push(text);
-      process.stdout.write(`[server] ${text}`);
-      const m =
-        /hdeform-server http on \S+:(\d+)/.exec(output.join("")) ??
-        /hdeform-gateway listening on \S+:(\d+)/.exec(output.join(""));
+      process.stdout.write(`[${tag}] ${text}`);
+      const all = output.join("");
+      const m = /hdeform-server http on \S+:(\d+)/.exec(all) ?? /hdeform-gateway listening on \S+:(\d+)/.exec(all);
+      const g = /hdeform-server listening on \S+:(\d+)/.exec(all);
       if (m) {
         clearTimeout(timer);
-        resolvePort(Number(m[1]));
+        resolvePort({ http: Number(m[1]), grpc: g ? Number(g[1]) : 0 });
       }
     };
     proc.stdout.on("data", onData);
@@ -187,27 +206,39 @@ async function arrow(page, axis) {
   const len = Math.hypot(a.x - c.x, a.y - c.y);
   return { x: (a.x - c.x) / len, y: (a.y - c.y) / len, len };
 }
-async function dragGizmo(page, axis, dx, dy) {
+/** The URL's fragment as parameters (`#edit=…&view=…`). */
+const fragmentOf = (url) => new URLSearchParams(new URL(url).hash.replace(/^#/, ""));
+/** True when any of the tokens appears in the URL outside its fragment (what a server sees). */
+function tokenOutsideFragment(url, tokens) {
+  const u = new URL(url);
+  u.hash = "";
+  const sent = u.toString();
+  return tokens.some((t) => t && sent.includes(t));
+}
+async function dragGizmo(page, axis, dx, dy, steps = 12) {
   const p = await page.evaluate((a) => window.hdeform.gizmoScreenPoint(a), axis);
   if (!p) throw new Error("the gizmo is not attached");
   await page.mouse.move(p.x, p.y);
   await sleep(50);
   await page.mouse.down();
-  const steps = 12;
   for (let i = 1; i <= steps; i++) {
     await page.mouse.move(p.x + (dx * i) / steps, p.y + (dy * i) / steps);
     await sleep(40); // a few animation frames: updates are coalesced, one in flight
   }
   await page.mouse.up();
+  const t = Date.now();
   await waitIdle(page);
+  if (Date.now() - t > 2000) log(`(the page was busy for ${Date.now() - t} ms after the drag)`);
 }
 
 // ---- the test -----------------------------------------------------------------------------------
-const { proc: server, port: portPromise } = startServer();
+let { proc: server, port: portPromise } = startServer();
 const userDataDir = mkdtempSync(join(tmpdir(), "hdeform-chromium-"));
 let context;
+const t00 = Date.now();
 try {
-  const port = await portPromise;
+  const ports = await portPromise;
+  const port = ports.http;
   const base = `http://127.0.0.1:${port}/`;
   log(`server HTTP at ${base}`);
 
@@ -231,10 +262,28 @@ try {
     ],
   });
   const consoleLines = [];
+  const pageNames = new Map();
   const watchPage = (page, name) => {
+    pageNames.set(page, name);
     page.on("console", (m) => consoleLines.push(`[${name}] ${m.type()}: ${m.text()}`));
     page.on("pageerror", (e) => consoleLines.push(`[${name}] pageerror: ${e.message}`));
   };
+  // Every request the pages make: no token may travel in a URL (they live in fragments),
+  // and every call that names a session must carry `authorization`.
+  const requests = [];
+  context.on("request", (r) => {
+    let name = "?";
+    try {
+      name = pageNames.get(r.frame().page()) ?? "?";
+    } catch {
+      /* a worker's request */
+    }
+    requests.push({ page: name, url: r.url(), auth: r.headers()["authorization"] ?? "" });
+  });
+  context.on("requestfinished", (r) => {
+    const t = r.timing();
+    if (t.responseEnd > 1500 && !/WatchSession/.test(r.url())) log(`(slow request ${r.url().replace(/^.*\//, "")}: ${JSON.stringify(t)})`);
+  });
   const shot = (page, name) => page.screenshot({ path: join(artifacts, `${name}.png`) });
 
   // 1. Open the cactus from the library.
@@ -249,6 +298,14 @@ try {
   const filled = await nonBackgroundFraction(page1);
   check(filled > 0.02, `the canvas shows the mesh (${(filled * 100).toFixed(1)} % of pixels drawn)`);
   await shot(page1, "01-cactus-loaded");
+  const tok = await page1.evaluate(() => window.hdeform.tokens());
+  const cactusName = await page1.evaluate(() => window.hdeform.sessionName);
+  check(tok.edit.length >= 32 && tok.view.length >= 32 && tok.edit !== tok.view, "the new session came with an edit and a view token");
+  const addr1 = page1.url();
+  check(
+    fragmentOf(addr1).get("edit") === tok.edit && fragmentOf(addr1).get("view") === tok.view && !tokenOutsideFragment(addr1, [tok.edit, tok.view]),
+    "the editor's address holds its tokens in the fragment only (so a reload can reopen it)",
+  );
 
   // 2. Regions: fixed at the bottom, handle at the top (test hook → the UI's assign()).
   const [bmin, bmax] = await page1.evaluate(() => window.hdeform.bbox());
@@ -356,35 +413,84 @@ try {
 
   // 4. The share link opens the same session with the same positions.
   const share = await page1.evaluate(() => window.hdeform.shareLink(false));
+  log(`share link: ${share.replace(/[0-9a-f]{16,}/g, (t) => `${t.slice(0, 6)}…`)}`);
+  check(
+    new URL(share).searchParams.get("session") === cactusName && fragmentOf(share).get("edit") === tok.edit && !tokenOutsideFragment(share, [tok.edit, tok.view]),
+    "the share link names the session in its query and carries the edit token only in its fragment",
+  );
   const page2 = await context.newPage();
   watchPage(page2, "share");
   await page2.goto(share);
   await waitLoaded(page2, "share link");
   await waitSame(page2, p1, "the share link shows the same positions");
   await shot(page2, "04-share-link");
+  check(!(await page2.evaluate(() => window.hdeform.watchOnly)) && (await page2.isVisible("#tools")), "the share link opens an editor (tools shown)");
+
+  // 4b. Reload the editor: the address's fragment reopens the same session, still editable
+  // (the next step drags on the reloaded page).
+  const vBeforeReload = await page1.evaluate(() => window.hdeform.version);
+  await page1.reload();
+  await waitLoaded(page1, "editor after reload");
+  check(
+    (await page1.evaluate(() => window.hdeform.sessionName)) === cactusName &&
+      !(await page1.evaluate(() => window.hdeform.watchOnly)) &&
+      (await page1.evaluate(() => window.hdeform.version)) >= vBeforeReload,
+    "reload keeps the session, as an editor",
+  );
+  await waitIdle(page1);
+  await waitSame(page1, p1, "the reloaded editor shows the same shape");
 
   // 5. Live: another drag on page 1 reaches page 2 through WatchSession.
   await page1.bringToFront();
   const ay = await arrow(page1, "y"); // the up arrow
   await dragGizmo(page1, "y", 70 * ay.x, 70 * ay.y);
   const p2 = await positions(page1);
-  check(maxDiff(p1, p2) > 1e-3, "second drag moved the mesh again");
+  check(maxDiff(p1, p2) > 1e-3 && (await page1.evaluate(() => window.hdeform.lastError)) === "", "the reloaded editor's drag moved the mesh again");
   await waitSame(page2, p2, "the second viewer followed the edit live");
   await shot(page2, "05-live-follow");
 
   // 6. Watch-only link: no editing tools, same shape.
+  const watchLink = await page1.evaluate(() => window.hdeform.shareLink(true));
+  check(
+    new URL(watchLink).searchParams.get("watch") === "1" &&
+      fragmentOf(watchLink).get("view") === tok.view &&
+      [...fragmentOf(watchLink).keys()].join() === "view" &&
+      !watchLink.includes(tok.edit) &&
+      !tokenOutsideFragment(watchLink, [tok.view]),
+    "the watch link carries only the view token, in its fragment",
+  );
   const page3 = await context.newPage();
   watchPage(page3, "watch");
-  await page3.goto(await page1.evaluate(() => window.hdeform.shareLink(true)));
+  await page3.goto(watchLink);
   await waitLoaded(page3, "watch link");
   check(!(await page3.isVisible("#tools")), "watch-only page hides the editing tools");
   check(!(await page3.isVisible("#upload-input + progress")) && !(await page3.isVisible("#open-library")), "watch-only page hides open/upload");
   await waitSame(page3, p2, "the watch-only page shows the same positions");
-  await page3.waitForFunction(() => window.hdeform.measures() !== null, null, { timeout: 15_000 }).catch(() => {});
-  const m3 = await page3.evaluate(() => window.hdeform.measures());
-  const m2 = await page1.evaluate(() => window.hdeform.measures());
-  check(m3 && Math.abs(m3.e - m2.e) <= 1e-9 * Math.max(1, Math.abs(m2.e)), `the watch-only page shows the same measures (E ${m3?.e} vs ${m2?.e})`);
   await shot(page3, "06-watch-only");
+
+  // 6b. The watch link without `watch=1`: the view token alone still gives a watch-only page,
+  // and an edit sent from that page's own API (its headers: the view token) is refused.
+  const page4 = await context.newPage();
+  watchPage(page4, "no-watch-param");
+  const noWatch = new URL(watchLink);
+  noWatch.searchParams.delete("watch");
+  await page4.goto(noWatch.toString());
+  await waitLoaded(page4, "watch link without watch=1");
+  const noTools =
+    (await page4.evaluate(() => window.hdeform.watchOnly)) &&
+    !(await page4.isVisible("#tools")) &&
+    !(await page4.isVisible("#sweep")) &&
+    !(await page4.isVisible("#copy-share")) &&
+    (await page4.evaluate(() => window.hdeform.gizmoScreenPoint())) === null;
+  check(noTools, "a view-token page without watch=1 still has no editing tools");
+  const transforms = await page1.evaluate(() => window.hdeform.handleTransforms());
+  const deniedMove = await page4.evaluate(([name, t]) => window.hdeform.call("updateHandles", { name, transforms: t }), [cactusName, transforms]);
+  const deniedBeta = await page4.evaluate((name) => window.hdeform.call("setBeta", { name, beta: { value: 0.3 } }), cactusName);
+  const read = await page4.evaluate((name) => window.hdeform.call("getSession", { name }), cactusName);
+  check(
+    deniedMove.code === "PermissionDenied" && deniedBeta.code === "PermissionDenied" && read.code === "OK",
+    `edits from the view-token page are refused (UpdateHandles ${deniedMove.code}, SetBeta ${deniedBeta.code}: "${deniedMove.message}"); GetSession ${read.code}`,
+  );
 
   // 7. Energy colour map and sweep chart render (no errors).
   await page1.bringToFront();
@@ -397,6 +503,14 @@ try {
   check((await page1.evaluate(() => window.hdeform.lastError)) === "", "sweep and energies without errors");
   check((await page1.evaluate(() => window.hdeform.sweepRows)) >= 5, "sweep returned rows for the chart");
   await shot(page1, "07-energy-sweep");
+  // The watch page measures from frames (a measuring Sweep needs the edit token): the energy
+  // map's frame reached it.
+  const m2 = await page1.evaluate(() => window.hdeform.measures());
+  await page3
+    .waitForFunction((e) => window.hdeform.measures() !== null && window.hdeform.measures().e === e, m2?.e, { timeout: 15_000 })
+    .catch(() => {});
+  const m3 = await page3.evaluate(() => window.hdeform.measures());
+  check(m3 && m2 && Math.abs(m3.e - m2.e) <= 1e-9 * Math.max(1, Math.abs(m2.e)), `the watch-only page shows the same measures (E ${m3?.e} vs ${m2?.e})`);
   await page1.locator("#chart").scrollIntoViewIfNeeded();
   await page1.locator("#chart").screenshot({ path: join(artifacts, "07b-sweep-chart.png") });
 
@@ -447,22 +561,124 @@ try {
   check(labelsOk, "seam glTF: the regions adopted from the server (base_constraints) sit on the selected base vertices");
   await shot(page1, "08c-seam-gltf");
 
-  // 9. An unknown session in the link: a plain error, not a blank page.
-  const page4 = await context.newPage();
-  watchPage(page4, "missing");
-  await page4.goto(`${base}?session=sessions/does-not-exist`);
-  await page4.waitForSelector("#banner:not(.hidden)", { timeout: 30_000 });
-  check(/does-not-exist|not found|NotFound/i.test((await page4.textContent("#banner-text")) ?? ""), "unknown session link shows an error");
+  // 9. Links that cannot open the session: a plain error, not a blank page.
+  const bannerOf = async (url) => {
+    await page4.goto("about:blank");
+    await page4.goto(url);
+    await page4.waitForSelector("#banner:not(.hidden)", { timeout: 30_000 });
+    return (await page4.textContent("#banner-text")) ?? "";
+  };
+  const noToken = await bannerOf(`${base}?session=${encodeURIComponent(cactusName)}`);
+  check(/no access token/i.test(noToken) && !(await page4.evaluate(() => window.hdeform.loaded)), `a link without a token cannot open the session: "${noToken}"`);
+  const wrongToken = await bannerOf(`${base}?session=${encodeURIComponent(cactusName)}#edit=${"0".repeat(64)}`);
+  check(/does not open/i.test(wrongToken) && !(await page4.evaluate(() => window.hdeform.loaded)), `a link with a wrong token cannot open the session: "${wrongToken}"`);
+  const missing = await bannerOf(`${base}?session=sessions/does-not-exist#view=${"0".repeat(64)}`);
+  check(/does-not-exist|not found|NotFound/i.test(missing), `unknown session link shows an error: "${missing}"`);
   await shot(page4, "09-missing-session");
+  await page4.close();
 
-  // 10. Lost server: stop the server; the editor shows a banner.
+  // 9b. A real deletion (from the editor's own API, with its edit token) ends the page's
+  // session: the `deleted` event, then NOT_FOUND on the re-read.
+  const seamName = await page1.evaluate(() => window.hdeform.sessionName);
+  const del = await page1.evaluate((name) => window.hdeform.call("deleteSession", { name }), seamName);
+  const gone = await page1
+    .waitForFunction(() => window.hdeform.connection === "gone" && /was deleted/.test(window.hdeform.lastError), null, { timeout: 15_000 })
+    .then(() => true, () => false);
+  check(del.code === "OK" && gone, `a deleted session shows "${await page1.evaluate(() => window.hdeform.lastError)}"`);
+
+  // 10. Durable restart: the share-link editor (page 2, constrained and moved) and the watch
+  // page stay open while the server is killed and started again on the same ports and state.
+  await page2.bringToFront();
+  await waitIdle(page2);
+  await sleep(500); // moves are saved within 100 ms
+  const vKill = await page2.evaluate(() => window.hdeform.version);
+  const pKill = await positions(page2);
+  const tKill = Date.now();
+  server.kill("SIGKILL");
+  await new Promise((r) => (server.exitCode !== null || server.signalCode !== null ? r() : server.once("exit", r)));
+  const sawReconnecting = await page2
+    .waitForFunction(() => /reconnecting/.test(window.hdeform.status) && window.hdeform.connection === "reconnecting", null, { timeout: 10_000 })
+    .then(() => true, () => false);
+  check(sawReconnecting, `after kill -9 the editor's status line says "${await page2.evaluate(() => window.hdeform.status)}"`);
+  await shot(page2, "10-reconnecting");
+  ({ proc: server, port: portPromise } = startServer({ grpcPort: ports.grpc, httpPort: ports.http, tag: "server#2" }));
+  const ports2 = await portPromise;
+  const tUp = Date.now();
+  check(ports2.http === port, `server started again on the same ports (${ports2.grpc}, ${ports2.http}) ${tUp - tKill} ms after the kill`);
+  const back = (page) =>
+    page
+      .waitForFunction(() => window.hdeform.connection === "connected" && window.hdeform.reconnects >= 1, null, { timeout: 30_000 })
+      .then(() => true, () => false);
+  const back2 = await back(page2);
+  check(back2, `the editor reconnected by itself ${Date.now() - tUp} ms after the restart (no reload)`);
+  const err10 = await page2.evaluate(() => window.hdeform.lastError);
+  check(err10 === "", `no banner after the reconnect${err10 ? ` (${err10})` : ""}`);
+  const v10 = await page2.evaluate(() => window.hdeform.version);
+  check(v10 === vKill, `the session came back with the same version (${v10}, was ${vKill})`);
+  await waitSame(page2, pKill, "the editor shows the same pose after the restart");
+  check(await back(page3), "the watch page reconnected too");
+  await waitSame(page3, pKill, "the watch page shows the same pose after the restart");
+  // A horizontal arrow (the up arrow's tip may be under the top bar after step 5's lift).
+  const ax2 = await arrow(page2, "x");
+  const az2 = await arrow(page2, "z");
+  const [axis2, dir2] = ax2.len >= az2.len ? ["x", ax2] : ["z", az2];
+  await dragGizmo(page2, axis2, -80 * dir2.x, -80 * dir2.y, 5);
+  const p10 = await positions(page2);
+  const v10b = await page2.evaluate(() => window.hdeform.version);
+  check(maxDiff(p10, pKill) > 1e-3 && v10b > vKill && (await page2.evaluate(() => window.hdeform.lastError)) === "", `a drag after the restart works (version ${vKill} → ${v10b})`);
+  await waitSame(page3, p10, "the watch page follows the drag after the restart");
+  await shot(page2, "10b-after-restart");
+
+  // 11. Retry policy: an UpdateHandles answered with HTTP 503 (UNAVAILABLE) makes the page
+  // reconnect and send the edit once more; a SetBeta that fails twice is reported.
+  let failUpdates = 1;
+  await page2.route("**/hdeform.v1.Deformation/UpdateHandles", (route) =>
+    failUpdates-- > 0 ? route.fulfill({ status: 503, contentType: "text/plain", body: "unavailable (test)" }) : route.continue(),
+  );
+  const r11 = await page2.evaluate(() => window.hdeform.reconnects);
+  await dragGizmo(page2, axis2, 50 * dir2.x, 50 * dir2.y, 5);
+  const p11 = await positions(page2);
+  const r11b = await page2.evaluate(() => window.hdeform.reconnects);
+  const err11 = await page2.evaluate(() => window.hdeform.lastError);
+  check(failUpdates < 0 && r11b === r11 + 1 && err11 === "" && maxDiff(p11, p10) > 1e-3, `a handle update refused with 503 was sent again after a reconnect (reconnects ${r11} → ${r11b}${err11 ? `, banner ${err11}` : ""})`);
+  await waitSame(page3, p11, "the retried edit reached the server (the watch page follows)");
+  await page2.unroute("**/hdeform.v1.Deformation/UpdateHandles");
+  let failBeta = 2;
+  await page2.route("**/hdeform.v1.Deformation/SetBeta", (route) =>
+    failBeta-- > 0 ? route.fulfill({ status: 503, contentType: "text/plain", body: "unavailable (test)" }) : route.continue(),
+  );
+  await page2.evaluate(() => {
+    const b = document.querySelector("#beta");
+    b.value = "0.4";
+    b.dispatchEvent(new Event("change"));
+  });
+  const betaErr = await page2
+    .waitForFunction(() => /β rejected/.test(window.hdeform.lastError) && window.hdeform.connection === "connected", null, { timeout: 15_000 })
+    .then(() => page2.evaluate(() => window.hdeform.lastError), () => "");
+  check(failBeta <= 0 && betaErr !== "", `an edit failing again after the reconnect is reported, not retried again ("${betaErr}")`);
+  await page2.unroute("**/hdeform.v1.Deformation/SetBeta");
+
+  // 12. No token ever left a page in a URL; every session call carried one.
+  const tokensSeen = await Promise.all([page1, page2, page3].map((p) => p.evaluate(() => window.hdeform.tokens())));
+  const allTokens = [tok.edit, tok.view, ...tokensSeen.flatMap((t) => [t.edit, t.view])];
+  const leaked = requests.filter((r) => tokenOutsideFragment(r.url, allTokens));
+  check(leaked.length === 0, `no request URL carries a token (${requests.length} requests${leaked.length ? `; e.g. ${leaked[0].url}` : ""})`);
+  const calls = requests.filter((r) => /\/hdeform\.v1\.Deformation\/(?!ListMeshes)/.test(r.url) && r.page !== "no-watch-param");
+  const bare = calls.filter((r) => !/^Bearer \S+$/.test(r.auth));
+  check(calls.length > 20 && bare.length === 0, `every session call of the pages carried authorization: Bearer (${calls.length} calls${bare.length ? `; without: ${bare[0].url}` : ""})`);
+
+  // 13. Lost server for good: the status line says reconnecting at once, the banner follows.
   server.kill("SIGTERM");
-  await page1.evaluate(() => document.querySelector("#banner-close").click());
+  await page2.evaluate(() => document.querySelector("#banner-close").click());
+  await page2.waitForFunction(() => /reconnecting/.test(window.hdeform.status), null, { timeout: 10_000 }).then(
+    () => check(true, "stopped server: the status line says reconnecting"),
+    () => check(false, "stopped server: the status line says reconnecting"),
+  );
   await page2.waitForFunction(() => /lost|connection|reconnect/i.test(window.hdeform.lastError), null, { timeout: 30_000 }).then(
     () => check(true, "lost server shows an error banner"),
     () => check(false, "lost server shows an error banner"),
   );
-  await shot(page2, "10-lost-server");
+  await shot(page2, "13-lost-server");
 
   writeFileSync(join(artifacts, "console.log"), consoleLines.join("\n") + "\n");
 } catch (err) {
@@ -471,11 +687,12 @@ try {
 } finally {
   if (context) await context.close().catch(() => {});
   rmSync(userDataDir, { recursive: true, force: true });
-  if (server.exitCode === null) {
+  if (server.exitCode === null && server.signalCode === null) {
     server.kill("SIGTERM");
     await Promise.race([new Promise((r) => server.once("exit", r)), sleep(5000)]);
-    if (server.exitCode === null) server.kill("SIGKILL");
+    if (server.exitCode === null && server.signalCode === null) server.kill("SIGKILL");
   }
+  rmSync(stateDir, { recursive: true, force: true });
 }
-log(failures === 0 ? "PASSED" : `${failures} check(s) FAILED; screenshots in ${artifacts}`);
+log(`${failures === 0 ? "PASSED" : `${failures} check(s) FAILED; screenshots in ${artifacts}`} (${((Date.now() - t00) / 1000).toFixed(1)} s)`);
 process.exit(failures === 0 ? 0 : 1);

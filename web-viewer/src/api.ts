@@ -12,10 +12,27 @@ import {
 export type DeformationClient = Client<typeof Deformation>;
 
 // Every call carries x-session-id (the {id} of sessions/{id}) so that a load balancer in
-// front of several replicas can hash it to the replica that owns the session.
+// front of several replicas can hash it to the replica that owns the session, and the
+// session's capability token as `authorization: Bearer TOKEN` (docs/api.md "Access"): the
+// edit token when this page has it, else the view token (enough for GetSession, GetMesh,
+// WatchSession).
 let routingId = "";
+let editToken = "";
+let viewToken = "";
 export function setRoutingSession(name: string): void {
   routingId = name.startsWith("sessions/") ? name.slice("sessions/".length) : name;
+}
+/** The tokens this page holds for the current session ("" = not known). */
+export function setTokens(edit: string, view: string): void {
+  editToken = edit;
+  viewToken = view;
+}
+export function tokens(): { edit: string; view: string } {
+  return { edit: editToken, view: viewToken };
+}
+function bearer(): string {
+  const t = editToken || viewToken;
+  return t ? `Bearer ${t}` : "";
 }
 /** A fresh client-chosen session id (CreateSessionHeader.session_id). */
 export function newSessionId(): string {
@@ -30,11 +47,25 @@ export function makeClient(baseUrl: string = window.location.origin): Deformatio
     interceptors: [
       (next) => async (req) => {
         if (routingId) req.header.set("x-session-id", routingId);
+        const auth = bearer();
+        if (auth) req.header.set("authorization", auth);
         return next(req);
       },
     ],
   });
   return createClient(Deformation, transport);
+}
+
+/**
+ * A failure of the connection rather than an answer from the server: UNAVAILABLE (the
+ * gateway's "shutting down", HTTP 502/503/504), a deadline, or a fetch that failed or was cut
+ * (connect-web reports those as UNKNOWN without any grpc-status from the server).
+ */
+export function isTransient(err: unknown): boolean {
+  if (!(err instanceof ConnectError)) return err instanceof TypeError; // fetch: network error
+  if (err.code === Code.Unavailable || err.code === Code.DeadlineExceeded) return true;
+  if (err.code === Code.Unknown || err.code === Code.Internal) return !err.metadata.has("grpc-status");
+  return false;
 }
 
 /** A readable one-line message for any error thrown by a call. */
@@ -100,6 +131,10 @@ export function createSessionViaUpload(
         : `filename=${encodeURIComponent(query.filename)}`) + `&session_id=${id}`;
     xhr.open("POST", `upload?${q}`);
     xhr.setRequestHeader("x-session-id", id);
+    // The new session needs no token; sending the page's current one is harmless and keeps
+    // every request of the page alike.
+    const auth = bearer();
+    if (auth) xhr.setRequestHeader("authorization", auth);
     xhr.responseType = "arraybuffer";
     if (onProgress) {
       xhr.upload.onprogress = (e) => onProgress(e.loaded, e.lengthComputable ? e.total : 0);

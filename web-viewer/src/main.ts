@@ -23,9 +23,12 @@ import {
   fetchMesh,
   floats,
   isAbort,
+  isTransient,
   makeClient,
   newSessionId,
   setRoutingSession,
+  setTokens,
+  tokens,
 } from "./api";
 import { drawChart, type SweepPoint } from "./chart";
 import { drawLegend, fmt, ramp, scaleTop, type EnergyMapping } from "./colormap";
@@ -35,8 +38,37 @@ import { drawLegend, fmt, ramp, scaleTop, type EnergyMapping } from "./colormap"
 
 const $ = <T extends HTMLElement = HTMLElement>(id: string) => document.getElementById(id) as T;
 const viewport = $("viewport");
+// Links: `?session=sessions/ID#edit=EDIT&view=VIEW` (editor) and
+// `?session=sessions/ID&watch=1#view=VIEW` (watch only). The tokens live in the fragment,
+// which browsers never send to a server (nor do proxies log it); docs/viewer.md "Links".
 const params = new URLSearchParams(window.location.search);
-const watchOnly = params.get("watch") === "1";
+const fragment = new URLSearchParams(window.location.hash.replace(/^#/, ""));
+const linkTokens = { edit: fragment.get("edit") ?? "", view: fragment.get("view") ?? "" };
+if (params.has("edit") || params.has("view")) {
+  // A hand-made link with a token in the query: use it, but move it out of the address bar's
+  // query (it has been sent to the server once already; it goes no further from here).
+  linkTokens.edit ||= params.get("edit") ?? "";
+  linkTokens.view ||= params.get("view") ?? "";
+  params.delete("edit");
+  params.delete("view");
+  const url = new URL(window.location.href);
+  url.search = params.toString();
+  url.hash = tokenFragment(linkTokens.edit, linkTokens.view);
+  history.replaceState(null, "", url);
+}
+const initialSession = params.get("session") ?? "";
+// A page opened on a session without its edit token is watch-only whatever else its URL
+// says (the server would refuse every edit anyway); `watch=1` also makes an editor's page so.
+const watchOnly = initialSession !== "" && (params.get("watch") === "1" || linkTokens.edit === "");
+function tokenFragment(edit: string, view: string): string {
+  const f = new URLSearchParams();
+  if (edit) f.set("edit", edit);
+  if (view) f.set("view", view);
+  return f.toString();
+}
+// Another link pasted over this one's fragment (same page, same query) must not leave the
+// page on the old tokens: open it afresh.
+window.addEventListener("hashchange", () => window.location.reload());
 if (watchOnly) {
   document.body.classList.add("watch");
   $("watch-badge").classList.remove("hidden");
@@ -64,8 +96,17 @@ window.addEventListener("unhandledrejection", (e) => {
   if (!isAbort(e.reason)) showError(describeError(e.reason));
 });
 
+// The status line: what the page is doing, or "reconnecting…" while the server is away.
+let statusText = "";
+let reconnectText = "";
 function setStatus(text: string): void {
-  $("status").textContent = text;
+  statusText = text;
+  renderStatus();
+}
+function renderStatus(): void {
+  const el = $("status");
+  el.textContent = reconnectText || statusText;
+  el.classList.toggle("warn", reconnectText !== "");
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -330,9 +371,89 @@ let betaValue = 0;
 let betaUnits = BetaUnits.AREA;
 let lastMeasures: Measures | null = null;
 let lastFrameKey = "";
+let frameVersion = 0n; // version of the newest frame applied
+function shownVersion(): number {
+  const v = session ? session.version : 0n;
+  return Number(frameVersion > v ? frameVersion : v);
+}
 let framesApplied = 0;
 let sweepPoints: SweepPoint[] = [];
 let sweepRows: { beta: number; measures: Measures }[] = [];
+
+// ---------------------------------------------------------------------------------------------
+// Connection: the WatchSession loop owns it. When the stream fails for a transient reason
+// (server restarting, network) the page goes "reconnecting": it retries with back-off
+// (RECONNECT_FIRST_MS doubling to RECONNECT_MAX_MS), re-reads the session (GetSession) and
+// its current shape, then watches again. Only NOT_FOUND after a reconnect means the session
+// is gone. An edit that fails for a transient reason waits for the reconnect and is sent
+// once more (edits carry absolute state, so a repeat cannot apply twice).
+
+type Link = "connected" | "reconnecting" | "gone";
+const RECONNECT_FIRST_MS = 250;
+const RECONNECT_MAX_MS = 2000;
+const LOST_BANNER_AFTER_MS = 5000; // a longer outage also gets the red banner
+const EDIT_RETRY_WAIT_MS = 30_000; // how long a failed edit waits for the reconnect
+let link: Link = "connected";
+let reconnects = 0; // completed reconnects (test hook)
+let outageSince = 0;
+let linkWaiters: ((ok: boolean) => void)[] = [];
+let streamAbort: AbortController | null = null; // the current WatchSession stream
+
+function setLink(next: Link, why = ""): void {
+  if (next === "reconnecting" && link !== "reconnecting") outageSince = Date.now();
+  link = next;
+  if (next === "reconnecting") {
+    reconnectText = `reconnecting…${why ? ` (${why})` : ""}`;
+  } else {
+    reconnectText = "";
+    const waiters = linkWaiters;
+    linkWaiters = [];
+    for (const w of waiters) w(next === "connected");
+  }
+  renderStatus();
+}
+
+/** Resolves true once the page is connected (at once if it is), false on timeout or loss. */
+function waitConnected(timeoutMs: number): Promise<boolean> {
+  if (link === "connected") return Promise.resolve(true);
+  if (link === "gone") return Promise.resolve(false);
+  return new Promise((resolve) => {
+    const timer = setTimeout(() => {
+      linkWaiters = linkWaiters.filter((w) => w !== done);
+      resolve(false);
+    }, timeoutMs);
+    const done = (ok: boolean) => {
+      clearTimeout(timer);
+      resolve(ok);
+    };
+    linkWaiters.push(done);
+  });
+}
+
+/** An edit call failed for a transient reason: reconnect now (the stream may not know yet). */
+function kickReconnect(why: string): void {
+  if (link !== "connected") return;
+  setLink("reconnecting", why);
+  streamAbort?.abort(); // the watch loop then re-reads the session
+}
+
+/**
+ * An edit (SetConstraints, SetBeta, UpdateHandles): waits while the page reconnects, and when
+ * the call fails for a transient reason (UNAVAILABLE, a cut connection) it is made once more
+ * after the reconnect. `call` builds its request each time, so the retry sends the newest
+ * state (the newest pose of a drag).
+ */
+async function edit<T>(call: () => Promise<T>): Promise<T> {
+  if (link !== "connected") await waitConnected(EDIT_RETRY_WAIT_MS);
+  try {
+    return await call();
+  } catch (err) {
+    if (!isTransient(err) || link === "gone") throw err;
+    kickReconnect("an edit failed");
+    if (!(await waitConnected(EDIT_RETRY_WAIT_MS))) throw err;
+    return await call();
+  }
+}
 
 // Coalesced handle updates: at most one UpdateHandles in flight; the newest state wins.
 let pending = false;
@@ -459,6 +580,10 @@ function applyFrame(frame: Frame, source: "reply" | "watch"): void {
   }
   lastFrameKey = key;
   framesApplied++;
+  if (frame.version > frameVersion) {
+    frameVersion = frame.version;
+    updateSessionUi();
+  }
   if (frame.measures) showMeasures(frame.measures, frame.solveMs);
   if (frame.beta && (frame.beta.value !== betaValue || frame.beta.units !== betaUnits)) {
     betaValue = frame.beta.value;
@@ -504,19 +629,23 @@ function requestFrame(): void {
 }
 
 function pump(): void {
-  if (!pending || inFlight || !sessionName) return;
+  if (!pending || inFlight || !sessionName || link !== "connected") return;
   pending = false;
   inFlight = true;
-  const seq = ++sequence;
-  client
-    .updateHandles({
-      name: sessionName,
+  const name = sessionName;
+  let seq = 0;
+  edit(() => {
+    seq = ++sequence;
+    return client.updateHandles({
+      name,
       sequence: BigInt(seq),
       transforms: toProtoTransforms(),
       energies: energyMapping !== "off",
-    })
+    });
+  })
     .then((frame) => {
-      if (BigInt(seq) === BigInt(sequence)) clearError("rejected");
+      if (name !== sessionName) return; // another session was opened meanwhile
+      if (seq === sequence) clearError("rejected");
       applyFrame(frame, "reply");
     })
     .catch((err) => {
@@ -533,10 +662,15 @@ function pump(): void {
 
 async function loadSession(s: Session): Promise<void> {
   watchAbort?.abort();
+  setLink("connected");
   loaded = false;
   lastMeasures = null;
   sessionName = s.name;
+  frameVersion = 0n;
   setRoutingSession(s.name);
+  // Tokens come with CreateSession / ImportSession answers; a session opened from a link
+  // keeps the link's (GetSession never returns them).
+  if (s.editToken || s.viewToken) setTokens(s.editToken, s.viewToken);
   labelsDirty = false;
   lastFrameKey = "";
   setStatus(`loading ${s.meshName || s.name}…`);
@@ -559,14 +693,18 @@ async function loadSession(s: Session): Promise<void> {
     }
   }
   if (!watchOnly) {
+    // The address bar becomes this session's editor link, so a reload opens it again.
     const url = new URL(window.location.href);
     url.searchParams.set("session", s.name);
     url.searchParams.delete("watch");
+    url.hash = tokenFragment(tokens().edit, tokens().view);
     history.replaceState(null, "", url);
   }
   setMode(watchOnly ? "orbit" : constraintsApplied ? "move" : "box");
+  // An editor solves the current pose at once (measures, energies); a watch-only page shows
+  // measures from the next frame (a measuring Sweep needs the edit token).
   if (constraintsApplied && !watchOnly) requestFrame();
-  else if (constraintsApplied) void currentMeasures(s);
+  else if (constraintsApplied && tokens().edit) void currentMeasures(s);
   watchAbort = new AbortController();
   void watchLoop(s.name, watchAbort.signal);
   loaded = true;
@@ -633,15 +771,35 @@ async function parseGlb(bytes: Uint8Array): Promise<{
   return { positions, normals, index };
 }
 
-async function openSessionByName(name: string): Promise<void> {
+async function openSessionByName(name: string, edit: string, view: string): Promise<void> {
   try {
     setRoutingSession(name);
+    setTokens(edit, view);
     const s = await client.getSession({ name });
     await loadSession(s);
   } catch (err) {
-    showError(`Could not open ${name}: ${describeError(err)}`);
-    $("placeholder").textContent = `Could not open ${name}.`;
+    showError(`Could not open ${name}: ${accessError(err, name)}`, "open");
+    const placeholder = $("placeholder");
+    placeholder.textContent = `Could not open ${name}.`;
+    const a = document.createElement("a");
+    a.href = window.location.pathname;
+    a.textContent = "Start a new session";
+    a.style.pointerEvents = "auto";
+    a.style.marginLeft = "0.5em";
+    placeholder.append(a);
   }
+}
+
+/** What an error says about the page's access to `name`, in words a link's user can act on. */
+function accessError(err: unknown, name: string): string {
+  if (err instanceof ConnectError) {
+    if (err.code === Code.Unauthenticated)
+      return `this link carries no access token. Open the session with its share link (…#edit=…) or watch link (…#view=…).`;
+    if (err.code === Code.PermissionDenied)
+      return `the link's token does not open ${name} (a wrong or old link: the session's tokens may have been renewed). [PermissionDenied]`;
+    if (err.code === Code.NotFound) return `${name} does not exist on this server. [NotFound]`;
+  }
+  return describeError(err);
 }
 
 async function openLibrary(name: string): Promise<void> {
@@ -682,43 +840,99 @@ async function uploadFile(file: File): Promise<void> {
 // WatchSession: every viewer sees every edit
 
 async function watchLoop(name: string, signal: AbortSignal): Promise<void> {
-  let backoff = 1000;
-  let reconnecting = false;
+  let delay = RECONNECT_FIRST_MS;
+  let resync = false; // re-read the session before watching again
+  let attempt = 0;
+  let sawDeleted = false;
   while (!signal.aborted) {
+    const stream = new AbortController();
+    streamAbort = stream;
+    const abortStream = () => stream.abort();
+    signal.addEventListener("abort", abortStream);
     try {
-      if (reconnecting) {
-        const s = await client.getSession({ name }, { signal });
+      if (resync) {
+        // GetSession also restores a durable session on a restarted server; NOT_FOUND here is
+        // the only proof that the session is gone.
+        const s = await client.getSession({ name }, { signal: stream.signal, timeoutMs: 10_000 });
+        if (signal.aborted) return;
+        frameVersion = 0n; // the server's version is the truth now (a restart may have lost a move)
+        adoptSession(s, { labels: true, transforms: !dragging && !inFlight && !pending });
+        await refreshShape(name, s, stream.signal);
+        resync = false;
+        sawDeleted = false;
+        attempt = 0;
+        delay = RECONNECT_FIRST_MS;
+        reconnects++;
+        setLink("connected");
         clearError("lost");
-        adoptSession(s);
-        if (s.transforms.some((t) => !isIdentity(t)) && mesh) {
-          const current = await parseGlb(await fetchMesh(client, name, false, MeshFormat.GLB, signal));
-          if (current.positions.length === mesh.cur.length) {
-            mesh.cur.set(current.positions);
-            computeNormals();
-            expandPositions();
-          }
-        }
-        reconnecting = false;
-        backoff = 1000;
       }
-      for await (const ev of client.watchSession({ name }, { signal })) {
+      for await (const ev of client.watchSession({ name }, { signal: stream.signal })) {
+        if (ev.event.case === "deleted") {
+          // Deleted, expired — or the server is stopping: the re-read below tells which.
+          sawDeleted = true;
+          break;
+        }
         handleEvent(ev);
       }
       if (signal.aborted) return;
-      showError("Lost connection to the server (the live stream ended); reconnecting…", "lost");
     } catch (err) {
-      if (signal.aborted || isAbort(err)) return;
+      if (signal.aborted) return;
       if (err instanceof ConnectError && err.code === Code.NotFound) {
-        showError(`Session ${name} no longer exists on the server`, "lost");
+        setLink("gone");
+        // Right after a `deleted` event: deleted (or expired). After an outage: it did not
+        // survive (a server without durable state, or deleted meanwhile).
+        showError(
+          sawDeleted && attempt <= 1 ? `Session ${name} was deleted` : `Session ${name} no longer exists on the server`,
+          "lost",
+        );
         return;
       }
-      const why = describeError(err);
-      showError(`${/^Lost connection/.test(why) ? why : `Lost connection to the server: ${why}`} — reconnecting…`, "lost");
+      if (err instanceof ConnectError && (err.code === Code.PermissionDenied || err.code === Code.Unauthenticated)) {
+        setLink("gone");
+        showError(`Lost access to ${name}: ${accessError(err, name)}`, "lost");
+        return;
+      }
+      if (!isAbort(err) && !isTransient(err)) {
+        // An answer, not an outage (e.g. too many watchers): say so, and keep trying.
+        showError(`Live updates failed: ${describeError(err)}; retrying…`, "lost");
+      }
+    } finally {
+      signal.removeEventListener("abort", abortStream);
+      stream.abort(); // ends a stream left by `break`
     }
-    reconnecting = true;
-    await new Promise((r) => setTimeout(r, backoff));
-    backoff = Math.min(backoff * 2, 8000);
+    // The stream ended or failed (or an edit found the server away): reconnect with back-off.
+    resync = true;
+    attempt++;
+    setLink("reconnecting", attempt > 1 ? `attempt ${attempt}` : "");
+    if (Date.now() - outageSince >= LOST_BANNER_AFTER_MS) {
+      showError("Lost connection to the server; reconnecting…", "lost");
+    }
+    await new Promise<void>((resolve) => {
+      const timer = setTimeout(done, delay);
+      function done(): void {
+        clearTimeout(timer);
+        signal.removeEventListener("abort", done);
+        resolve();
+      }
+      signal.addEventListener("abort", done);
+    });
+    delay = Math.min(delay * 2, RECONNECT_MAX_MS);
   }
+}
+
+/** After a reconnect: the session's current shape (frames may have been missed). */
+async function refreshShape(name: string, s: Session, signal: AbortSignal): Promise<void> {
+  if (!mesh || dragging || inFlight || pending) return; // our own edit brings a newer frame
+  const deformed = s.transforms.some((t) => !isIdentity(t));
+  const current = deformed
+    ? await parseGlb(await fetchMesh(client, name, false, MeshFormat.GLB, signal))
+    : { positions: mesh.rest, normals: null };
+  if (!mesh || current.positions.length !== mesh.cur.length || dragging || inFlight || pending) return;
+  mesh.cur.set(current.positions);
+  if (current.normals) mesh.normals.set(current.normals);
+  else computeNormals();
+  expandPositions();
+  lastFrameKey = "";
 }
 
 function handleEvent(ev: SessionEvent): void {
@@ -729,10 +943,6 @@ function handleEvent(ev: SessionEvent): void {
     case "state":
       if (session && ev.event.value.version < session.version) break;
       adoptSession(ev.event.value, { labels: true, transforms: !dragging && !inFlight && !pending });
-      break;
-    case "deleted":
-      showError(`Session ${ev.event.value} was deleted`, "lost");
-      watchAbort?.abort();
       break;
   }
   watchEvents++;
@@ -973,10 +1183,11 @@ async function applyConstraints(): Promise<void> {
   const region = (ids: number[]) => ({ selectors: ids.length ? [{ kind: { case: "baseIds" as const, value: { ids } } }] : [] });
   try {
     setStatus("factorizing…");
-    const s = await client.setConstraints({
-      name: sessionName,
-      constraints: { fixed: region(fixed), handles: handleIds.map(region) },
-    });
+    const name = sessionName;
+    const s = await edit(() =>
+      client.setConstraints({ name, constraints: { fixed: region(fixed), handles: handleIds.map(region) } }),
+    );
+    if (name !== sessionName) return;
     labelsDirty = false;
     clearError("rejected");
     handles = [];
@@ -1081,7 +1292,9 @@ async function sendBeta(): Promise<void> {
   const units = betaRaw.checked ? BetaUnits.RAW : BetaUnits.AREA;
   try {
     setStatus("refactorizing for β…");
-    const s = await client.setBeta({ name: sessionName, beta: { value, units } });
+    const name = sessionName;
+    const s = await edit(() => client.setBeta({ name, beta: { value, units } }));
+    if (name !== sessionName) return;
     adoptSession(s, { labels: false, transforms: false });
     requestFrame();
   } catch (err) {
@@ -1137,7 +1350,7 @@ $("sweep").addEventListener("click", async () => {
       name: sessionName,
       betas,
       units: betaRaw.checked ? BetaUnits.RAW : BetaUnits.AREA,
-      transforms: watchOnly ? [] : toProtoTransforms(),
+      transforms: toProtoTransforms(),
     });
     sweepRows = res.rows.filter((r) => r.measures).map((r) => ({ beta: r.beta, measures: r.measures! }));
     drawSweep();
@@ -1201,20 +1414,26 @@ $<HTMLInputElement>("import-input").addEventListener("change", async (e) => {
     await loadSession(s);
     clearError();
   } catch (err) {
-    if (sessionName) setRoutingSession(sessionName);  // still showing the previous session
+    if (sessionName) setRoutingSession(sessionName); // still showing the previous session
     showError(`Import failed: ${describeError(err)}`);
   }
 });
 
-// Share links
+// Share links: the session in the query, the token only in the fragment. The editor link
+// carries the edit token (and the view token, so that its users can hand out watch links
+// too); the watch link only the view token. "" when this page lacks the token.
 function shareLink(watch: boolean): string {
+  const { edit, view } = tokens();
+  if (!sessionName || (watch ? !view : !edit)) return "";
   const url = new URL(window.location.pathname, window.location.origin);
   url.searchParams.set("session", sessionName);
   if (watch) url.searchParams.set("watch", "1");
+  url.hash = watch ? tokenFragment("", view) : tokenFragment(edit, view);
   return url.toString();
 }
 async function copyLink(watch: boolean): Promise<void> {
   const link = shareLink(watch);
+  if (!link) return;
   try {
     await navigator.clipboard.writeText(link);
     setStatus(`copied ${link}`);
@@ -1227,10 +1446,12 @@ $("copy-watch").addEventListener("click", () => void copyLink(true));
 
 function updateSessionUi(): void {
   const has = !!sessionName;
-  for (const id of ["copy-share", "copy-watch", "dl-glb", "dl-obj", "dl-json", "dl-bin"]) $<HTMLButtonElement>(id).disabled = !has;
+  for (const id of ["dl-glb", "dl-obj", "dl-json", "dl-bin"]) $<HTMLButtonElement>(id).disabled = !has;
+  $<HTMLButtonElement>("copy-share").disabled = shareLink(false) === "";
+  $<HTMLButtonElement>("copy-watch").disabled = shareLink(true) === "";
   $("session-label").textContent = has ? `${session?.meshName ?? ""} · ${sessionName}` : "no session";
   if (mesh && session) {
-    setStatus(`${mesh.n} vertices · ${mesh.m} triangles · version ${session.version} · ${session.observers} watching`);
+    setStatus(`${mesh.n} vertices · ${mesh.m} triangles · version ${shownVersion()} · ${session.observers} watching`);
   }
 }
 
@@ -1273,8 +1494,7 @@ refreshLabelUi();
 setMode("orbit");
 drawSweep();
 void listLibrary();
-const initial = params.get("session");
-if (initial) void openSessionByName(initial);
+if (initialSession) void openSessionByName(initialSession, linkTokens.edit, linkTokens.view);
 
 // ---------------------------------------------------------------------------------------------
 // Test hook (tests/browser): state and the same code paths the UI uses.
@@ -1291,8 +1511,9 @@ window.hdeform = {
   get sessionName() {
     return sessionName;
   },
+  /** The newest version seen: of the session, or of a frame (handle moves bump it too). */
   get version() {
-    return session ? Number(session.version) : 0;
+    return shownVersion();
   },
   get framesApplied() {
     return framesApplied;
@@ -1373,4 +1594,33 @@ window.hdeform = {
     return session?.meshName ?? "";
   },
   shareLink,
+  get watchOnly() {
+    return watchOnly;
+  },
+  /** "connected" | "reconnecting" | "gone" */
+  get connection() {
+    return link;
+  },
+  get reconnects() {
+    return reconnects;
+  },
+  get status() {
+    return $("status").textContent ?? "";
+  },
+  /** The tokens this page holds (it sends them with every call anyway). */
+  tokens: () => tokens(),
+  /**
+   * Any Deformation call with the page's own headers (x-session-id, authorization):
+   * resolves to { code: "OK" } or the error's code name and message.
+   */
+  async call(method: string, request: object): Promise<{ code: string; message: string }> {
+    try {
+      const fn = (client as unknown as Record<string, (r: object) => Promise<unknown>>)[method];
+      await fn.call(client, request);
+      return { code: "OK", message: "" };
+    } catch (err) {
+      const e = err instanceof ConnectError ? err : ConnectError.from(err);
+      return { code: Code[e.code] ?? String(e.code), message: e.rawMessage };
+    }
+  },
 };
