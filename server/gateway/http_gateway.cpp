@@ -390,10 +390,14 @@ class GenericCall {
  public:
   // `request` is the HTTP request header (its Authorization is forwarded); `tls`: the socket
   // carries TLS, so a peer that went away is seen by its FIN even with unread bytes queued.
+  // `deadline`: from the request's grpc-timeout; like the metadata it must be set before the
+  // call is prepared (gRPC reads both there).
   GenericCall(grpc::GenericStub& stub, const std::string& method, int socket_fd, bool tls,
-              const http::request_header<>& request)
+              const http::request_header<>& request,
+              std::optional<std::chrono::system_clock::time_point> deadline = std::nullopt)
       : socket_fd_(socket_fd), tls_(tls) {
-    forward_authorization(request, context_);  // metadata before the call is prepared
+    forward_authorization(request, context_);
+    if (deadline) context_.set_deadline(*deadline);
     stream_ = stub.PrepareCall(&context_, method, &cq_);
   }
   ~GenericCall() {
@@ -1086,12 +1090,13 @@ struct HttpGateway::Impl {
       return sent ? next : After::close;
     }
 
-    GenericCall call(stub, path, c.stream.socket().native_handle(), c.stream.is_tls(), req);
+    std::optional<std::chrono::system_clock::time_point> deadline;
     const auto timeout_header = req["grpc-timeout"];
     if (const auto timeout = grpc_web::parse_timeout(
-            std::string_view(timeout_header.data(), timeout_header.size()))) {
-      call.context().set_deadline(std::chrono::system_clock::now() + *timeout);
-    }
+            std::string_view(timeout_header.data(), timeout_header.size())))
+      deadline = std::chrono::system_clock::now() + *timeout;
+    GenericCall call(stub, path, c.stream.socket().native_handle(), c.stream.is_tls(), req,
+                     deadline);
     set_call(c, &call.context());
     const CallRegistration unset{this, c};
 

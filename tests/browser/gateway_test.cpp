@@ -235,7 +235,8 @@ class GatewayTest : public ::testing::Test {
   // Starts a streaming WatchSession call and reads the response header; the frames follow
   // through `parser` (read_frames).
   tcp::socket watch(const std::string& session, beast::flat_buffer& buffer,
-                    http::response_parser<http::buffer_body>& parser) {
+                    http::response_parser<http::buffer_body>& parser,
+                    const std::string& grpc_timeout = "") {
     auto s = connect();
     WatchSessionRequest req;
     req.set_name(session);
@@ -244,6 +245,7 @@ class GatewayTest : public ::testing::Test {
     r.set(http::field::host, "127.0.0.1:" + std::to_string(gateway_->port()));
     r.set(http::field::origin, "http://127.0.0.1:" + std::to_string(gateway_->port()));
     r.set(http::field::content_type, "application/grpc-web+proto");
+    if (!grpc_timeout.empty()) r.set("grpc-timeout", grpc_timeout);
     r.body() = grpc_web_body(req);
     r.prepare_payload();
     http::write(s, r);
@@ -616,6 +618,22 @@ TEST_F(GatewayTest, QuietStreamOutlivesTheTimeouts) {
   const auto frames = frames_of(read_frames(s, buffer, parser, 3));
   ASSERT_EQ(frames.size(), 3u);
   EXPECT_EQ(frames[2].flag, 0x00);
+}
+
+// grpc-timeout becomes the call's deadline (set before the call is prepared: gRPC ignores a
+// deadline set later).
+TEST_F(GatewayTest, GrpcTimeoutEndsTheCallAtItsDeadline) {
+  beast::flat_buffer buffer;
+  http::response_parser<http::buffer_body> parser;
+  const auto t0 = std::chrono::steady_clock::now();
+  auto s = watch("sessions/slow", buffer, parser, "1000m");  // a frame every 700 ms
+  const auto frames = frames_of(read_frames(s, buffer, parser, 10));
+  const auto took = std::chrono::steady_clock::now() - t0;
+  ASSERT_FALSE(frames.empty());
+  EXPECT_EQ(frames.back().flag, 0x80);  // the trailers
+  EXPECT_NE(frames.back().bytes.find("grpc-status:4"), std::string::npos) << frames.back().bytes;
+  EXPECT_LT(took, 5s);
+  EXPECT_GE(took, 900ms);
 }
 
 TEST_F(GatewayTest, RequestsAboveTheCapGet503) {
