@@ -1,6 +1,7 @@
 #include "solver.h"
 
 #include "mesh.h"
+#include "supernodal_solve.h"
 
 #include <stdexcept>
 #include <string>
@@ -84,6 +85,21 @@ void Factorization::check(const char* what) const {
 }
 
 Eigen::MatrixXd Factorization::solve(const Eigen::MatrixXd& B) const {
+  if (size_ == 0 || B.rows() == 0) return Eigen::MatrixXd(B.rows(), B.cols());
+  const cholmod_factor* L = llt_.factor();
+  if (B.cols() == 3 && B.rows() == size_ && supernodal_solvable(L)) {
+    // One workspace per thread: solve() runs concurrently on one factor from several
+    // threads, and the workspace grows to the largest K_FF the thread has solved, so
+    // repeated moves allocate nothing in the kernel (the returned matrix is the caller's).
+    thread_local SupernodalWorkspace ws;
+    Eigen::MatrixXd X(B.rows(), 3);
+    supernodal_solve3(*L, B.data(), B.rows(), X.data(), X.rows(), ws);
+    return X;
+  }
+  return llt_.solve_concurrently(B);
+}
+
+Eigen::MatrixXd Factorization::solve_cholmod(const Eigen::MatrixXd& B) const {
   if (size_ == 0 || B.rows() == 0) return Eigen::MatrixXd(B.rows(), B.cols());
   return llt_.solve_concurrently(B);
 }

@@ -27,6 +27,8 @@ class CholmodLLT : public Eigen::CholmodBase<SparseMatrix, Eigen::Lower, Cholmod
   // several threads may solve with one factorization at once (Eigen's solve() shares the
   // object's workspace).
   Eigen::MatrixXd solve_concurrently(const Eigen::MatrixXd& B) const;
+  // CHOLMOD's factor (null before analysis), for solve kernels that read it directly.
+  const cholmod_factor* factor() const { return m_cholmodFactor; }
 
  private:
   using Base::m_cholmod;
@@ -43,8 +45,14 @@ class Factorization {
   // Numeric factorization of K_FF reusing `analysis`'s symbolic factor (same pattern).
   Factorization(const Factorization& analysis, const SparseMatrix& K_FF);
 
-  // X = K_FF⁻¹ B, all columns in one supernodal solve.
+  // X = K_FF⁻¹ B, all columns in one supernodal solve. Three columns on a supernodal LLᵀ
+  // factor (always, with this CholmodLLT) go through supernodal_solve3 with a thread_local
+  // workspace; anything else through cholmod_solve.
   Eigen::MatrixXd solve(const Eigen::MatrixXd& B) const;
+  // X = K_FF⁻¹ B through cholmod_solve always (the reference and the fallback).
+  Eigen::MatrixXd solve_cholmod(const Eigen::MatrixXd& B) const;
+  // CHOLMOD's factor of K_FF (null when size() == 0).
+  const cholmod_factor* factor() const { return size_ == 0 ? nullptr : llt_.factor(); }
   int size() const { return size_; }
   std::size_t memory_bytes() const;
 
