@@ -640,19 +640,21 @@ void BM_Bandwidth(benchmark::State& state) {
 // solve_cholmod: CHOLMOD common, result copied to an Eigen matrix); fused =
 // supernodal_solve3 into a preallocated X with a reused workspace. Counters: factor value
 // MB, the floor (ms) and x_floor = measured time per solve / floor.
-void BM_Solve(benchmark::State& state, std::string key, double beta, bool fused) {
+void BM_Solve(benchmark::State& state, std::string key, double beta, bool fused,
+              int blas_min_cols = 0) {
   Case& c = get(key);
   System& s = system(c, beta);
   const Factorization& f = cholmod(s);
   const Eigen::MatrixXd B = random_rhs(s.K_FF.rows());
   Eigen::MatrixXd X(B.rows(), 3);
   SupernodalWorkspace ws;
-  ws.reserve(static_cast<std::size_t>(B.rows()));
+  ws.blas_min_cols = blas_min_cols;
   const cholmod_factor* L = f.factor();
   if (fused && !supernodal_solvable(L)) {
     state.SkipWithError("factor is not supernodal LL'");
     return;
   }
+  ws.reserve(static_cast<std::size_t>(B.rows()), L->maxesize);
   const double bw = bandwidth_Bps();
   const auto t0 = std::chrono::steady_clock::now();
   for (auto _ : state) {
@@ -722,7 +724,12 @@ void register_size(int n) {
     for (double beta : kBetas)
       for (bool fused : {false, true})
         reg("Solve" + N + "/" + beta_tag(beta) + (fused ? "/fused" : "/cholmod"), fast, BM_Solve,
-            key, beta, fused);
+            key, beta, fused, 0);
+  if (!big)  // the BLAS cutoff: supernodes with ≥ C columns through dtrsm/dgemm
+    for (double beta : kBetas)
+      for (int cut : {32, 64, 128, 256})
+        reg("Solve" + N + "/" + beta_tag(beta) + "/fused_blas:" + std::to_string(cut), fast,
+            BM_Solve, key, beta, true, cut);
   reg("Phase" + N + "/guidance", fast, BM_Phase, key, Phase::guidance, 0.0);
   reg("Phase" + N + "/measures", fast, BM_Phase, key, Phase::measures, 0.0);
   reg("Phase" + N + "/measures+ef2", fast, BM_Phase, key, Phase::measures_ef2, 0.0);

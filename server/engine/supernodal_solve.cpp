@@ -1,5 +1,7 @@
 #include "supernodal_solve.h"
 
+#include <cblas.h>
+
 namespace hdeform {
 
 namespace {
@@ -107,8 +109,13 @@ inline void backward_panel(const Super& S, int j0, double* y) {
 // panels of 8 were both slower than this scalar three-wide code with panels of 4 (β = 0.5:
 // 5.0–5.3 ms vs 3.0–4.1 ms; β = 0: 1.4–1.7 vs 1.1–1.3 ms): the sweep is bound by the
 // scattered y updates and the factor stream, and padding grows the work array by a third.
-// No BLAS either: every supernode goes through these loops. A BLAS path for the largest
-// supernodes (up to 1120 columns at 100K, β = 0.5) has not been measured yet (issue 10).
+// BLAS cutoff (SupernodalWorkspace::blas_min_cols, default 0 = never): sending supernodes
+// with ≥ C columns through OpenBLAS dtrsm + dgemm did not win at any C measured
+// (Solve/N/beta:b/fused_blas:C, one interleaved run per size, 5 repetitions, medians, CI
+// load present): 10K β = 0: in-house 0.95 ms vs 1.06–1.19 ms for C = 32…256; 10K β = 0.5:
+// 4.30 vs 4.55–6.22 ms; 100K β = 0.5: 75.8 vs 84–138 ms; 100K β = 0: 46.0 vs 41.9–51.0 ms
+// (C = 128 the only one below, within that run's noise). The path stays, tested, for a
+// re-measurement on a quiet machine.
 constexpr int kPanel = 4;
 
 void forward(const Super& S, double* y) {
@@ -134,6 +141,41 @@ void backward(const Super& S, double* y) {
   for (int j = full - kPanel; j >= 0; j -= kPanel) backward_panel<kPanel>(S, j, y);
 }
 
+// BLAS path for one supernode. The nc rows of y at k1 are a column-major 3 × nc matrix
+// (ld 3) = X_dᵀ, so the triangular solves are right-sided on Xᵀ.
+void forward_blas(const Super& S, double* y, double* w) {
+  double* yd = y + 3 * static_cast<std::ptrdiff_t>(S.k1);
+  const int noff = S.nsrow - S.nc;
+  cblas_dtrsm(CblasColMajor, CblasRight, CblasLower, CblasTrans, CblasNonUnit, 3, S.nc, 1.0,
+              S.x, S.nsrow, yd, 3);
+  if (noff == 0) return;
+  cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, 3, noff, S.nc, 1.0, yd, 3, S.x + S.nc,
+              S.nsrow, 0.0, w, 3);
+  for (int i = 0; i < noff; ++i) {
+    double* yr = y + 3 * static_cast<std::ptrdiff_t>(S.rows[S.nc + i]);
+    yr[0] -= w[3 * i];
+    yr[1] -= w[3 * i + 1];
+    yr[2] -= w[3 * i + 2];
+  }
+}
+
+void backward_blas(const Super& S, double* y, double* w) {
+  double* yd = y + 3 * static_cast<std::ptrdiff_t>(S.k1);
+  const int noff = S.nsrow - S.nc;
+  if (noff > 0) {
+    for (int i = 0; i < noff; ++i) {
+      const double* xr = y + 3 * static_cast<std::ptrdiff_t>(S.rows[S.nc + i]);
+      w[3 * i] = xr[0];
+      w[3 * i + 1] = xr[1];
+      w[3 * i + 2] = xr[2];
+    }
+    cblas_dgemm(CblasColMajor, CblasNoTrans, CblasNoTrans, 3, S.nc, noff, -1.0, w, 3,
+                S.x + S.nc, S.nsrow, 1.0, yd, 3);
+  }
+  cblas_dtrsm(CblasColMajor, CblasRight, CblasLower, CblasNoTrans, CblasNonUnit, 3, S.nc, 1.0,
+              S.x, S.nsrow, yd, 3);
+}
+
 }  // namespace
 
 bool supernodal_solvable(const cholmod_factor* L) {
@@ -146,8 +188,10 @@ void supernodal_solve3(const cholmod_factor& L, const double* B, std::ptrdiff_t 
                        std::ptrdiff_t ldx, SupernodalWorkspace& ws) {
   const auto n = static_cast<std::ptrdiff_t>(L.n);
   if (n == 0) return;
-  ws.reserve(static_cast<std::size_t>(n));
+  const int cut = ws.blas_min_cols;
+  ws.reserve(static_cast<std::size_t>(n), cut > 0 ? L.maxesize : 0);
   double* y = ws.data();
+  double* w = ws.below();
   const int* perm = static_cast<const int*>(L.Perm);
   const int* super = static_cast<const int*>(L.super);
   const int* pi = static_cast<const int*>(L.pi);
@@ -163,8 +207,20 @@ void supernodal_solve3(const cholmod_factor& L, const double* B, std::ptrdiff_t 
     y[3 * k + 1] = B[r + ldb];
     y[3 * k + 2] = B[r + 2 * ldb];
   }
-  for (int s = 0; s < nsuper; ++s) forward(super_at(super, pi, px, Ls, Lx, s), y);
-  for (int s = nsuper - 1; s >= 0; --s) backward(super_at(super, pi, px, Ls, Lx, s), y);
+  for (int s = 0; s < nsuper; ++s) {
+    const Super S = super_at(super, pi, px, Ls, Lx, s);
+    if (cut > 0 && S.nc >= cut)
+      forward_blas(S, y, w);
+    else
+      forward(S, y);
+  }
+  for (int s = nsuper - 1; s >= 0; --s) {
+    const Super S = super_at(super, pi, px, Ls, Lx, s);
+    if (cut > 0 && S.nc >= cut)
+      backward_blas(S, y, w);
+    else
+      backward(S, y);
+  }
   // x = Pᵀ y (reads y only: X may alias B).
   for (std::ptrdiff_t k = 0; k < n; ++k) {
     const std::ptrdiff_t r = perm[k];

@@ -27,14 +27,21 @@ namespace hdeform {
 // the first allocation-free (across factors of any size up to that n).
 class SupernodalWorkspace {
  public:
-  void reserve(std::size_t n) {
+  void reserve(std::size_t n, std::size_t below_rows = 0) {
     if (y_.size() < 3 * n) y_.resize(3 * n);
+    if (w_.size() < 3 * below_rows) w_.resize(3 * below_rows);
   }
   double* data() { return y_.data(); }
+  double* below() { return w_.data(); }
+  // Supernodes with at least this many columns go through BLAS (dtrsm + dgemm); the
+  // others through the in-house loops. 0 = never BLAS, the default: no cutoff measured
+  // faster (supernodal_solve.cpp cites the numbers).
+  int blas_min_cols = 0;
   std::size_t capacity_rows() const { return y_.size() / 3; }
 
  private:
   std::vector<double> y_;
+  std::vector<double> w_;  // 3 × (rows below a supernode's diagonal block), BLAS path only
 };
 
 // True when L satisfies the preconditions above (a null L is not solvable).

@@ -53,6 +53,12 @@ void check_model(const PreparedMesh& pm, const Constraints& c, SupernodalWorkspa
   const Eigen::MatrixXd B0 = Eigen::MatrixXd::Random(f0.size(), 3);
   EXPECT_LT(rel_max_diff(fused(f0, B0, ws), f0.solve_cholmod(B0)), 1e-12) << "beta 0";
   EXPECT_LT(rel_max_diff(f0.solve(B0), f0.solve_cholmod(B0)), 1e-12) << "beta 0, solve()";
+  // The BLAS path (dtrsm + dgemm) for supernodes of ≥ cut columns, alone and mixed.
+  for (int cut : {1, 4, 16}) {
+    SupernodalWorkspace wb;
+    wb.blas_min_cols = cut;
+    EXPECT_LT(rel_max_diff(fused(f0, B0, wb), f0.solve_cholmod(B0)), 1e-12) << "blas " << cut;
+  }
 
   const SparseMatrix K1 = k_ff(pm, c, 0.3);
   const Factorization wide(K1);  // own analysis of the wide pattern
@@ -62,6 +68,11 @@ void check_model(const PreparedMesh& pm, const Constraints& c, SupernodalWorkspa
   ASSERT_TRUE(supernodal_solvable(shared.factor()));
   EXPECT_LT(rel_max_diff(fused(shared, B1, ws), shared.solve_cholmod(B1)), 1e-12) << "beta 0.7";
   EXPECT_LT(rel_max_diff(shared.solve(B1), shared.solve_cholmod(B1)), 1e-12);
+  for (int cut : {1, 8}) {
+    SupernodalWorkspace wb;
+    wb.blas_min_cols = cut;
+    EXPECT_LT(rel_max_diff(fused(shared, B1, wb), shared.solve_cholmod(B1)), 1e-12) << cut;
+  }
   // The residual too, not only agreement with CHOLMOD.
   const Eigen::MatrixXd X1 = fused(wide, B1, ws);
   EXPECT_LT((K1 * X1 - B1).cwiseAbs().maxCoeff(), 1e-9 * (K1 * X1).cwiseAbs().maxCoeff());
