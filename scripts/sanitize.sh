@@ -13,6 +13,7 @@ cmake -S "$ROOT" -B "$BUILD" -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPI
 cmake --build "$BUILD" -j "$JOBS" --target engine_tests service_tests security_tests fuzz_all
 bash "$ROOT/scripts/check-suites.sh" "$BUILD" fuzz
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+export LSAN_OPTIONS="suppressions=$ROOT/tests/lsan.supp"  # each entry justified there
 "$BUILD/tests/engine_tests" --gtest_brief=1
 "$BUILD/tests/service/service_tests" --gtest_brief=1
 "$BUILD/tests/security/security_tests" --gtest_brief=1

@@ -1,7 +1,7 @@
-// libFuzzer target for stored session records (server/service/session_record.h): a state
+// libFuzzer target for stored session records (server/service/stored_record.h): a state
 // database or a Redis that someone else can write to is input too. parse_record either
 // returns a record it has checked or throws StateError; tokens_of never reads out of bounds.
-#include "session_record.h"
+#include "stored_record.h"
 #include "state_backend.h"
 
 #include <cstddef>
