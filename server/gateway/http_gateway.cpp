@@ -76,6 +76,7 @@
 #include <vector>
 
 #include "grpc_web.h"
+#include "tls_files.h"
 #include "hdeform/v1/deform.pb.h"
 
 namespace hdeform::gateway {
@@ -219,91 +220,35 @@ class Stream {
   std::optional<beast::ssl_stream<beast::tcp_stream>> tls_;
 };
 
-// Every TLS start-up error names the file it is about.
-[[noreturn]] void tls_error(const std::string& what, const std::string& path,
-                            const std::string& why) {
-  ERR_clear_error();
-  throw std::runtime_error("hdeform-gateway: " + what + " '" + path + "': " + why);
-}
-
-// The whole PEM file (at most 16 MiB is read).
-std::string read_tls_file(const std::string& what, const std::string& path) {
-  constexpr std::size_t kMaxBytes = 16u << 20;
-  std::FILE* f = std::fopen(path.c_str(), "rb");
-  if (!f) tls_error(what, path, std::string("cannot open: ") + std::strerror(errno));
-  std::string bytes;
-  char buffer[8192];
-  std::size_t n = 0;
-  while (bytes.size() <= kMaxBytes && (n = std::fread(buffer, 1, sizeof buffer, f)) > 0) {
-    bytes.append(buffer, n);
-  }
-  const int error = std::ferror(f) ? errno : 0;
-  std::fclose(f);
-  if (error != 0) tls_error(what, path, std::string("cannot read: ") + std::strerror(error));
-  if (bytes.size() > kMaxBytes) tls_error(what, path, "larger than 16 MiB; not a PEM file");
-  return bytes;
-}
-
-// The server's TLS context (TLS 1.2 at least); throws naming the file at fault.
+// The server's TLS context (TLS 1.2 at least) from files load_tls_files has checked.
 std::unique_ptr<asio::ssl::context> make_tls_context(const GatewayOptions& o) {
-  if (o.tls_cert_file.empty() && o.tls_key_file.empty()) {
-    if (!o.tls_client_ca_file.empty()) {
-      throw std::runtime_error("hdeform-gateway: --tls-client-ca needs --tls-cert and --tls-key");
-    }
-    return nullptr;
-  }
-  if (o.tls_cert_file.empty() || o.tls_key_file.empty()) {
-    throw std::runtime_error(std::string("hdeform-gateway: TLS needs both --tls-cert and --tls-key (") +
-                             (o.tls_cert_file.empty() ? "--tls-cert" : "--tls-key") + " is missing)");
-  }
-  const std::string cert_what = "TLS certificate (--tls-cert)";
-  const std::string key_what = "TLS private key (--tls-key)";
-  const std::string ca_what = "TLS client CA (--tls-client-ca)";
-  const std::string cert = read_tls_file(cert_what, o.tls_cert_file);
-  const std::string key = read_tls_file(key_what, o.tls_key_file);
+  const auto files = service::load_tls_files("hdeform-gateway", o.tls_cert_file, o.tls_key_file,
+                                             o.tls_client_ca_file);
+  if (!files) return nullptr;
   auto ctx = std::make_unique<asio::ssl::context>(asio::ssl::context::tls_server);
   ctx->set_options(asio::ssl::context::default_workarounds | asio::ssl::context::single_dh_use);
-  if (SSL_CTX_set_min_proto_version(ctx->native_handle(), TLS1_2_VERSION) != 1) {
-    throw std::runtime_error("hdeform-gateway: cannot require TLS 1.2");
-  }
-  // Never ask for a pass phrase (OpenSSL's default would prompt on the terminal).
-  ctx->set_password_callback([](std::size_t, asio::ssl::context::password_purpose) {
-    return std::string();
-  });
+  const auto fail = [](const std::string& why) {
+    ERR_clear_error();
+    throw std::runtime_error("hdeform-gateway: " + why);
+  };
+  if (SSL_CTX_set_min_proto_version(ctx->native_handle(), TLS1_2_VERSION) != 1)
+    fail("cannot require TLS 1.2");
   beast::error_code ec;
-  ctx->use_certificate_chain(asio::buffer(cert), ec);
-  if (ec) tls_error(cert_what, o.tls_cert_file, "no usable PEM certificate (" + ec.message() + ")");
-  ctx->use_private_key(asio::buffer(key), asio::ssl::context::pem, ec);
-  if (ec) {  // a key OpenSSL cannot read, or one for another certificate?
-    std::unique_ptr<BIO, decltype(&BIO_free)> bio(
-        BIO_new_mem_buf(key.data(), static_cast<int>(key.size())), BIO_free);
-    std::unique_ptr<EVP_PKEY, decltype(&EVP_PKEY_free)> parsed(
-        PEM_read_bio_PrivateKey(bio.get(), nullptr, [](char*, int, int, void*) { return 0; },
-                                nullptr),
-        EVP_PKEY_free);
-    if (!parsed) {
-      tls_error(key_what, o.tls_key_file,
-                "no PEM private key in it (or it is encrypted: pass phrases are not supported)");
-    }
-  }
-  if (ec || SSL_CTX_check_private_key(ctx->native_handle()) != 1) {
-    tls_error(key_what, o.tls_key_file,
-              "does not match the certificate in '" + o.tls_cert_file + "'");
-  }
-  if (!o.tls_client_ca_file.empty()) {
+  ctx->use_certificate_chain(asio::buffer(files->cert_chain), ec);
+  if (ec) fail("cannot use the certificate in '" + o.tls_cert_file + "': " + ec.message());
+  ctx->use_private_key(asio::buffer(files->private_key), asio::ssl::context::pem, ec);
+  if (ec) fail("cannot use the private key in '" + o.tls_key_file + "': " + ec.message());
+  if (!files->client_ca.empty()) {
     // Trust every certificate in the file for client certificates, and name them to clients.
-    const std::string ca = read_tls_file(ca_what, o.tls_client_ca_file);
     std::unique_ptr<BIO, decltype(&BIO_free)> bio(
-        BIO_new_mem_buf(ca.data(), static_cast<int>(ca.size())), BIO_free);
-    int count = 0;
+        BIO_new_mem_buf(files->client_ca.data(), static_cast<int>(files->client_ca.size())),
+        BIO_free);
     while (X509* x = PEM_read_bio_X509(bio.get(), nullptr, nullptr, nullptr)) {
       const bool ok = X509_STORE_add_cert(SSL_CTX_get_cert_store(ctx->native_handle()), x) == 1 &&
                       SSL_CTX_add_client_CA(ctx->native_handle(), x) == 1;
       X509_free(x);
-      if (!ok) tls_error(ca_what, o.tls_client_ca_file, "cannot use a certificate in it");
-      ++count;
+      if (!ok) fail("cannot use a certificate in '" + o.tls_client_ca_file + "'");
     }
-    if (count == 0) tls_error(ca_what, o.tls_client_ca_file, "no PEM certificate in it");
     ctx->set_verify_mode(asio::ssl::verify_peer | asio::ssl::verify_fail_if_no_peer_cert);
   }
   ERR_clear_error();

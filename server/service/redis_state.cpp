@@ -1,5 +1,6 @@
 // StateBackend on Redis (hiredis, one blocking connection): shared by replicas.
 #include "state_backend.h"
+#include "state_keys.h"
 
 #include "cache.h"  // Sha256
 
@@ -33,22 +34,6 @@ constexpr std::string_view kPutScript =
     "redis.call('SET', KEYS[1], ARGV[1]) redis.call('SADD', KEYS[2], ARGV[2]) return 1";
 constexpr std::string_view kDeleteScript =
     "redis.call('DEL', KEYS[1]) redis.call('SREM', KEYS[2], ARGV[1]) return 1";
-
-bool is_mesh_key(std::string_view key) {
-  if (key.size() != 64) return false;
-  for (char c : key)
-    if (!((c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'))) return false;
-  return true;
-}
-
-bool is_session_id(std::string_view id) {
-  if (id.empty() || id.size() > 64) return false;
-  for (char c : id)
-    if (!((c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') ||
-          c == '_' || c == '-'))
-      return false;
-  return true;
-}
 
 struct RedisUrl {
   std::string host;

@@ -1,19 +1,14 @@
 #include "server.h"
 
 #include "deform_service.h"
+#include "tls_files.h"
 
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/health_check_service_interface.h>
-#include <openssl/err.h>
-#include <openssl/pem.h>
-#include <openssl/x509.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
-#include <cerrno>
 #include <climits>
-#include <cstdio>
-#include <cstring>
 #include <mutex>
 #include <stdexcept>
 
@@ -24,88 +19,17 @@ int clamp_int(std::size_t bytes) {
   return static_cast<int>(std::min<std::size_t>(bytes, static_cast<std::size_t>(INT_MAX)));
 }
 
-// ---- TLS files ---------------------------------------------------------------------------
-// gRPC reports a bad certificate or key only as "cannot bind" (its log says a little more),
-// so the files are read and checked here first, and every error names the file.
-
-[[noreturn]] void tls_error(const std::string& what, const std::string& path,
-                            const std::string& why) {
-  ERR_clear_error();
-  throw std::runtime_error("hdeform-server: " + what + " '" + path + "': " + why);
-}
-
-// The whole file (PEM files are small: at most 16 MiB is read).
-std::string read_tls_file(const std::string& what, const std::string& path) {
-  constexpr std::size_t kMaxBytes = 16u << 20;
-  std::FILE* f = std::fopen(path.c_str(), "rb");
-  if (!f) tls_error(what, path, std::string("cannot open: ") + std::strerror(errno));
-  std::string bytes;
-  char buffer[8192];
-  std::size_t n = 0;
-  while (bytes.size() <= kMaxBytes && (n = std::fread(buffer, 1, sizeof buffer, f)) > 0) {
-    bytes.append(buffer, n);
-  }
-  const int error = std::ferror(f) ? errno : 0;
-  std::fclose(f);
-  if (error != 0) tls_error(what, path, std::string("cannot read: ") + std::strerror(error));
-  if (bytes.size() > kMaxBytes) tls_error(what, path, "larger than 16 MiB; not a PEM file");
-  return bytes;
-}
-
-// Never ask for a pass phrase (OpenSSL's default would prompt on the terminal).
-int no_pass_phrase(char*, int, int, void*) { return 0; }
-
-struct Bio {
-  explicit Bio(const std::string& bytes)
-      : bio(BIO_new_mem_buf(bytes.data(), static_cast<int>(bytes.size()))) {}
-  ~Bio() { BIO_free(bio); }
-  BIO* bio;
-};
-
 // Reads and checks the TLS files; returns the gRPC server credentials (insecure without TLS).
 std::shared_ptr<grpc::ServerCredentials> server_credentials(const ServerOptions& o) {
-  if (o.tls_cert_file.empty() && o.tls_key_file.empty()) {
-    if (!o.tls_client_ca_file.empty()) {
-      throw std::runtime_error("hdeform-server: --tls-client-ca needs --tls-cert and --tls-key");
-    }
-    return grpc::InsecureServerCredentials();
-  }
-  if (o.tls_cert_file.empty() || o.tls_key_file.empty()) {
-    throw std::runtime_error(std::string("hdeform-server: TLS needs both --tls-cert and --tls-key (") +
-                             (o.tls_cert_file.empty() ? "--tls-cert" : "--tls-key") + " is missing)");
-  }
-  const std::string cert_what = "TLS certificate (--tls-cert)";
-  const std::string key_what = "TLS private key (--tls-key)";
-  const std::string ca_what = "TLS client CA (--tls-client-ca)";
+  const auto files =
+      load_tls_files("hdeform-server", o.tls_cert_file, o.tls_key_file, o.tls_client_ca_file);
+  if (!files) return grpc::InsecureServerCredentials();
   grpc::SslServerCredentialsOptions ssl(GRPC_SSL_DONT_REQUEST_CLIENT_CERTIFICATE);
-  grpc::SslServerCredentialsOptions::PemKeyCertPair pair;
-  pair.cert_chain = read_tls_file(cert_what, o.tls_cert_file);
-  pair.private_key = read_tls_file(key_what, o.tls_key_file);
-
-  Bio cert_bio(pair.cert_chain), key_bio(pair.private_key);
-  std::unique_ptr<X509, decltype(&X509_free)> cert(
-      PEM_read_bio_X509(cert_bio.bio, nullptr, no_pass_phrase, nullptr), X509_free);
-  if (!cert) tls_error(cert_what, o.tls_cert_file, "no PEM certificate in it");
-  std::unique_ptr<EVP_PKEY, decltype(&EVP_PKEY_free)> key(
-      PEM_read_bio_PrivateKey(key_bio.bio, nullptr, no_pass_phrase, nullptr), EVP_PKEY_free);
-  if (!key) {
-    tls_error(key_what, o.tls_key_file,
-              "no PEM private key in it (or it is encrypted: pass phrases are not supported)");
-  }
-  if (X509_check_private_key(cert.get(), key.get()) != 1) {
-    tls_error(key_what, o.tls_key_file,
-              "does not match the certificate in '" + o.tls_cert_file + "'");
-  }
-  if (!o.tls_client_ca_file.empty()) {
-    ssl.pem_root_certs = read_tls_file(ca_what, o.tls_client_ca_file);
-    Bio ca_bio(ssl.pem_root_certs);
-    std::unique_ptr<X509, decltype(&X509_free)> ca(
-        PEM_read_bio_X509(ca_bio.bio, nullptr, no_pass_phrase, nullptr), X509_free);
-    if (!ca) tls_error(ca_what, o.tls_client_ca_file, "no PEM certificate in it");
+  ssl.pem_key_cert_pairs.push_back({files->private_key, files->cert_chain});
+  if (!files->client_ca.empty()) {
+    ssl.pem_root_certs = files->client_ca;
     ssl.client_certificate_request = GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY;
   }
-  ERR_clear_error();
-  ssl.pem_key_cert_pairs.push_back(pair);  // a copy: the BIOs above still point into `pair`
   return grpc::SslServerCredentials(ssl);
 }
 }  // namespace

@@ -2,6 +2,7 @@
 
 #include "errors.h"
 #include "session_record.h"
+#include "state_keys.h"
 
 #include <spdlog/spdlog.h>
 
@@ -37,8 +38,7 @@ void check_id_format(const std::string& id) {
          "session_id must be 1 to 64 characters of [A-Za-z0-9_-], got " +
              std::to_string(id.size()) + " characters");
   for (char c : id)
-    if (!((c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') ||
-          c == '_' || c == '-'))
+    if (!is_session_id_char(c))
       fail(grpc::StatusCode::INVALID_ARGUMENT,
            "session_id '" + id + "' may only contain [A-Za-z0-9_-] (at most 64 characters)");
 }

@@ -1,5 +1,6 @@
 // StateBackend on SQLite (sessions) plus one file per mesh, in a local folder.
 #include "state_backend.h"
+#include "state_keys.h"
 
 #include "cache.h"  // Sha256
 
@@ -30,23 +31,6 @@ constexpr int kSchemaVersion = 1;
 constexpr int kBusyTimeoutMs = 5000;
 
 std::string errno_text(int err) { return std::strerror(err); }
-
-// Keys become file names: only exact SHA-256 hex passes, so no path tricks are possible.
-bool is_mesh_key(std::string_view key) {
-  if (key.size() != 64) return false;
-  for (char c : key)
-    if (!((c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'))) return false;
-  return true;
-}
-
-bool is_session_id(std::string_view id) {
-  if (id.empty() || id.size() > 64) return false;
-  for (char c : id)
-    if (!((c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') ||
-          c == '_' || c == '-'))
-      return false;
-  return true;
-}
 
 // Closes a POSIX fd on scope exit.
 class Fd {

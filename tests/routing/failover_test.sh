@@ -18,40 +18,9 @@ PROBE=$3
 SRC=$4
 REDIS=$5
 
-TMP=$(mktemp -d "${TMPDIR:-/tmp}/hdeform-failover.XXXXXX")
-PIDS=()
-NGINX_PID=""
-cleanup() {
-  if [ -n "$NGINX_PID" ]; then
-    kill -QUIT "$NGINX_PID" 2>/dev/null
-    wait "$NGINX_PID" 2>/dev/null
-  fi
-  for p in "${PIDS[@]}"; do kill "$p" 2>/dev/null; done
-  for p in "${PIDS[@]}"; do wait "$p" 2>/dev/null; done
-  rm -rf "$TMP"
-}
-trap cleanup EXIT
-
-fail() {
-  echo "FAIL: $*" >&2
-  for f in "$TMP"/server*.out "$TMP/error.log" "$TMP/drag.err"; do
-    [ -f "$f" ] && { echo "--- $f" >&2; tail -15 "$f" >&2; }
-  done
-  exit 1
-}
-
-free_port() {
-  python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])' 2>/dev/null \
-    || echo $((20000 + RANDOM % 20000))
-}
-wait_port() {  # PORT PID NAME
-  for _ in $(seq 1 100); do
-    (exec 3<>"/dev/tcp/127.0.0.1/$1") 2>/dev/null && return 0
-    kill -0 "$2" 2>/dev/null || fail "$3 exited"
-    sleep 0.1
-  done
-  fail "$3 does not listen on $1"
-}
+TEST_NAME=failover
+source "$(dirname "$0")/lib.sh"
+LOG_FILES=("server*.out" error.log drag.err)
 
 # --- Redis (no persistence: the test is about replicas, not Redis restarts)
 REDIS_PORT=$(free_port)

@@ -15,25 +15,12 @@ set -uo pipefail
 SERVER=$1
 PROBE=$2
 
-TMP=$(mktemp -d "${TMPDIR:-/tmp}/hdeform-restart.XXXXXX")
-PIDS=()
-cleanup() {
-  for p in "${PIDS[@]}"; do kill "$p" 2>/dev/null; done
-  for p in "${PIDS[@]}"; do wait "$p" 2>/dev/null; done
-  rm -rf "$TMP"
-}
-trap cleanup EXIT
-
-fail() {
-  echo "FAIL: $*" >&2
-  for f in "$TMP"/server*.out "$TMP/probe.err"; do
-    [ -f "$f" ] && { echo "--- $f" >&2; tail -15 "$f" >&2; }
-  done
-  exit 1
-}
+TEST_NAME=restart
+source "$(dirname "$0")/lib.sh"
+LOG_FILES=("server*.out" probe.err)
 now_ms() { date +%s%3N; }
 
-PORT=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+PORT=$(free_port)
 export HDEFORM_ADMIN_TOKEN=restart-test-operator-$RANDOM$RANDOM
 RUN=0
 start_server() {  # → SERVER_PID; waits until it listens

@@ -33,25 +33,9 @@ SRC=$4
 CURL=$5
 CLI=${6:-}
 
-TMP=$(mktemp -d "${TMPDIR:-/tmp}/hdeform-routing.XXXXXX")
-PIDS=()
-NGINX_PID=""
-cleanup() {
-  if [ -n "$NGINX_PID" ]; then
-    kill -QUIT "$NGINX_PID" 2>/dev/null
-    wait "$NGINX_PID" 2>/dev/null
-  fi
-  for p in "${PIDS[@]}"; do kill "$p" 2>/dev/null; done
-  for p in "${PIDS[@]}"; do wait "$p" 2>/dev/null; done
-  rm -rf "$TMP"
-}
-trap cleanup EXIT
-
-fail() {
-  echo "FAIL: $*" >&2
-  if [ -f "$TMP/error.log" ]; then echo "--- nginx error.log" >&2; tail -20 "$TMP/error.log" >&2; fi
-  exit 1
-}
+TEST_NAME=routing
+source "$(dirname "$0")/lib.sh"
+LOG_FILES=(error.log nginx.stderr)
 
 # docker/nginx.conf must be the template's rendering with the compose defaults.
 diff <(bash "$SRC/docker/render-nginx-conf.sh") "$SRC/docker/nginx.conf" >/dev/null \
@@ -92,10 +76,6 @@ start_replica 2
 echo "replicas: gRPC $ADDR1 $ADDR2, http $HTTP1 $HTTP2"
 
 # --- nginx on two free loopback ports
-free_port() {
-  python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])' 2>/dev/null \
-    || echo $((20000 + RANDOM % 20000))
-}
 PORT=$(free_port)
 HTTP_PORT=$(free_port)
 while [ "$HTTP_PORT" = "$PORT" ]; do HTTP_PORT=$(free_port); done
@@ -112,13 +92,8 @@ NGINX_LISTEN=$LB NGINX_UPSTREAMS="$ADDR1 $ADDR2" \
   || { cat "$TMP/nginx-t.err" >&2; fail "nginx -t rejected the rendered config"; }
 "$NGINX" -p "$TMP" -c "$TMP/nginx.conf" -g 'daemon off;' 2>"$TMP/nginx.stderr" &
 NGINX_PID=$!
-for p in "$PORT" "$HTTP_PORT"; do
-  for _ in $(seq 1 100); do
-    (exec 3<>"/dev/tcp/127.0.0.1/$p") 2>/dev/null && break
-    kill -0 "$NGINX_PID" 2>/dev/null || { cat "$TMP/nginx.stderr" >&2; fail "nginx exited"; }
-    sleep 0.1
-  done
-done
+wait_port "$PORT" "$NGINX_PID" nginx
+wait_port "$HTTP_PORT" "$NGINX_PID" nginx
 echo "nginx: gRPC $LB, http $WEB"
 
 # --- gRPC-Web over curl, as the viewer's transport does it (binary protobuf frames)
