@@ -335,18 +335,37 @@ void BM_BetaRefactor(benchmark::State& state, std::string key) {
   state.counters["cached"] = static_cast<double>(c.cs->num_cached_factorizations());
 }
 
-// Handle move with the factorization cached: guidance + RHS + solve + measures (+ normals,
-// energies unless `light`). Target at 100K: ≤ 10 ms.
-void BM_Update(benchmark::State& state, std::string key, double beta, bool light) {
+// Handle move with the factorization cached, as the service does it (one UpdateWorkspace and
+// one Frame reused across moves):
+//   full   exact solve + measures + energies + normals
+//   exact  exact solve + measures + normals (issue 10's "whole exact frame"; ≤ 10 ms at 100K)
+//   drag   drag path (float32 factor + refinement) + normals, no measures (the "drag frame")
+//   light  exact solve + measures only
+//   alloc  `full` through the allocating update() (fresh buffers every move: the page faults)
+enum class Move { full, exact, drag, light, alloc };
+
+void BM_Update(benchmark::State& state, std::string key, double beta, Move mode) {
   Case& c = get(key);
   c.cs->prepare(Beta{beta});
   UpdateOptions opt;
-  if (light) opt.energies = opt.normals = false;
+  if (mode == Move::light) opt.energies = opt.normals = false;
+  if (mode == Move::exact || mode == Move::drag) opt.energies = false;
+  if (mode == Move::drag) {
+    opt.measures = false;
+    opt.precision = FramePrecision::drag;
+  }
+  UpdateWorkspace ws;
+  Frame f;
   int i = 0;
   for (auto _ : state) {
     const HandleTransform t = move(c, i++);
-    Frame f = c.cs->update(std::span(&t, 1), Beta{beta}, opt);
-    benchmark::DoNotOptimize(f.positions.data());
+    if (mode == Move::alloc) {
+      Frame fresh = c.cs->update(std::span(&t, 1), Beta{beta}, opt);
+      benchmark::DoNotOptimize(fresh.positions.data());
+    } else {
+      c.cs->update(std::span(&t, 1), Beta{beta}, opt, ws, f);
+      benchmark::DoNotOptimize(f.positions.data());
+    }
   }
   size_counters(state, c);
 }
@@ -711,8 +730,9 @@ void register_size(int n) {
   reg("BetaFirst" + N, slow, BM_BetaFirst, key);
   reg("BetaRefactor" + N, slow, BM_BetaRefactor, key);
   for (double beta : kBetas) {
-    reg("Update" + N + "/" + beta_tag(beta) + "/full", fast, BM_Update, key, beta, false);
-    reg("Update" + N + "/" + beta_tag(beta) + "/light", fast, BM_Update, key, beta, true);
+    for (auto [mode, tag] : {std::pair{Move::full, "full"}, {Move::exact, "exact"},
+                             {Move::drag, "drag"}, {Move::light, "light"}, {Move::alloc, "alloc"}})
+      reg("Update" + N + "/" + beta_tag(beta) + "/" + tag, fast, BM_Update, key, beta, mode);
   }
   if (!big) {
     auto* b = benchmark::RegisterBenchmark(("UpdateConcurrent" + N + "/" + beta_tag(0.0)).c_str(),
@@ -767,7 +787,7 @@ void register_botsch_sorkine(const std::string& model) {
   reg(P + "open", Cost::fast, BM_SessionOpen, key);
   reg(P + "refactor", Cost::fast, BM_BetaRefactor, key);
   for (double beta : kBetas) {
-    reg(P + "update/" + beta_tag(beta), Cost::fast, BM_Update, key, beta, false);
+    reg(P + "update/" + beta_tag(beta), Cost::fast, BM_Update, key, beta, Move::full);
     reg(P + "cholmod/" + beta_tag(beta) + "/factor", Cost::fast, BM_Cholmod, key, beta,
         Op::factor);
     reg(P + "simplicial/" + beta_tag(beta) + "/factor", Cost::fast, BM_Simplicial, key, beta,

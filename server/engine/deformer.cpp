@@ -170,10 +170,11 @@ std::size_t PreparedMesh::memory_bytes() const {
 // ---------------------------------------------------------------------------------------
 struct BetaSystem {
   std::shared_ptr<const Factorization> factor;
+  SparseMatrix K_FF;  // full symmetric: the drag path's residual (K_FFᵀ x = K_FF x, row-wise)
   SparseMatrix K_FC;
   SparseMatrixR GtW_F;
   std::size_t memory_bytes() const {
-    return factor->memory_bytes() + sparse_bytes(K_FC) + sparse_bytes(GtW_F);
+    return factor->memory_bytes() + sparse_bytes(K_FF) + sparse_bytes(K_FC) + sparse_bytes(GtW_F);
   }
 };
 
@@ -277,6 +278,7 @@ std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_
     // The Laplacian's own narrow pattern (SPEC: factoring β = 0 on the wide one is slower).
     Blocks b = split(mesh_->L(), mesh_->GtA(), region_of_, block_index_, nF, nC);
     sys->factor = std::make_shared<Factorization>(b.FF);
+    sys->K_FF = std::move(b.FF);
     sys->K_FC = std::move(b.FC);
     sys->GtW_F = std::move(b.GtW_F);
   } else {
@@ -292,7 +294,8 @@ std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_
       std::lock_guard lock(mutex_);  // memory_bytes() reads wide_ under mutex_ alone
       wide_ = std::move(w);
     }
-    sys->factor = factor_wide(combine(1.0 - raw_beta, wide_->area.FF, raw_beta, wide_->reg.FF));
+    sys->K_FF = combine(1.0 - raw_beta, wide_->area.FF, raw_beta, wide_->reg.FF);
+    sys->factor = factor_wide(sys->K_FF);
     sys->K_FC = combine(1.0 - raw_beta, wide_->area.FC, raw_beta, wide_->reg.FC);
     sys->GtW_F = combine(1.0 - raw_beta, wide_->area.GtW_F, raw_beta, wide_->reg.GtW_F);
   }
@@ -362,6 +365,7 @@ std::shared_ptr<const BetaSystem> ConstraintSet::local_system(const LocalBeta& f
   Blocks b = split(K, GtW, region_of_, block_index_, nF, nC);
   auto sys = std::make_shared<BetaSystem>();
   sys->factor = factor_wide(b.FF);
+  sys->K_FF = std::move(b.FF);
   sys->K_FC = std::move(b.FC);
   sys->GtW_F = std::move(b.GtW_F);
   std::lock_guard lock(mutex_);
@@ -394,68 +398,134 @@ void ConstraintSet::check(std::span<const HandleTransform> transforms) const {
 Frame ConstraintSet::update(std::span<const HandleTransform> transforms, Beta beta,
                             const UpdateOptions& options) const {
   check(transforms);
-  return solve(*system(mesh_->raw_beta(beta)), transforms, options);
+  return solve(system(mesh_->raw_beta(beta)), transforms, options);
+}
+
+void ConstraintSet::update(std::span<const HandleTransform> transforms, Beta beta,
+                           const UpdateOptions& options, UpdateWorkspace& ws, Frame& out) const {
+  check(transforms);
+  solve(system(mesh_->raw_beta(beta)), transforms, options, ws, out);
 }
 
 Frame ConstraintSet::update_transient(std::span<const HandleTransform> transforms, Beta beta,
                                       const UpdateOptions& options) const {
   check(transforms);
   const double raw = mesh_->raw_beta(beta);
-  {
-    std::lock_guard lock(mutex_);
-    if (auto it = by_beta_.find(raw); it != by_beta_.end()) {
-      const auto sys = it->second;
-      return solve(*sys, transforms, options);
-    }
-  }
   std::shared_ptr<const BetaSystem> sys;
   {
+    std::lock_guard lock(mutex_);
+    if (auto it = by_beta_.find(raw); it != by_beta_.end()) sys = it->second;
+  }
+  if (!sys) {
     std::lock_guard build(build_mutex_);
     sys = build_system_locked(raw);
   }
-  return solve(*sys, transforms, options);  // sys is freed on return
+  return solve(sys, transforms, options);  // a transient sys is freed on return
 }
 
 Frame ConstraintSet::update_local(std::span<const HandleTransform> transforms,
                                   const LocalBeta& beta, const UpdateOptions& options) const {
   check(transforms);
-  return solve(*local_system(beta), transforms, options);
+  return solve(local_system(beta), transforms, options);
 }
 
-Frame ConstraintSet::solve(const BetaSystem& sys, std::span<const HandleTransform> transforms,
+void ConstraintSet::update_local(std::span<const HandleTransform> transforms,
+                                 const LocalBeta& beta, const UpdateOptions& options,
+                                 UpdateWorkspace& ws, Frame& out) const {
+  check(transforms);
+  solve(local_system(beta), transforms, options, ws, out);
+}
+
+Frame ConstraintSet::solve(const std::shared_ptr<const BetaSystem>& sys,
+                           std::span<const HandleTransform> transforms,
                            const UpdateOptions& options) const {
-  Eigen::MatrixX3d g;
-  std::vector<Eigen::Quaterniond> R_l;
-  guidance(transforms, g, R_l);
+  UpdateWorkspace ws;
+  Frame frame;
+  solve(sys, transforms, options, ws, frame);
+  return frame;
+}
+
+namespace {
+
+// X = K_FF⁻¹ B (n×3, column-major, ld = n) at the given precision.
+enum class SolvePrecision { float64, float32 };  // TEMP until the kernel lands
+void solve3(const Factorization& factor, const Eigen::MatrixXd& B, Eigen::MatrixXd& X,
+            SolvePrecision) {
+  X = factor.solve(B);
+}
+
+}  // namespace
+
+void ConstraintSet::solve(const std::shared_ptr<const BetaSystem>& system,
+                          std::span<const HandleTransform> transforms,
+                          const UpdateOptions& options, UpdateWorkspace& ws, Frame& out) const {
+  const BetaSystem& sys = *system;
+  guidance(transforms, ws.g, ws.R_l);
 
   const Vertices& X = mesh_->mesh().V;
-  Eigen::MatrixX3d x_C(static_cast<Eigen::Index>(constrained_.size()), 3);
+  const auto nF = static_cast<Eigen::Index>(free_.size());
+  ws.x_C.resize(static_cast<Eigen::Index>(constrained_.size()), 3);
   for (std::size_t i = 0; i < constrained_.size(); ++i) {
     const int v = constrained_[i], j = region_of_[v] - 1;
     const Eigen::Vector3d x = X.row(v).transpose();
     if (j < 0) {
-      x_C.row(i) = x.transpose();
+      ws.x_C.row(i) = x.transpose();
     } else {
       const HandleTransform& t = transforms[j];
-      x_C.row(i) = t.apply(x, t.pivot.value_or(centroids_[j])).transpose();
+      ws.x_C.row(i) = t.apply(x, t.pivot.value_or(centroids_[j])).transpose();
     }
   }
 
-  Frame frame;
-  frame.positions.resize(X.rows(), 3);
-  if (!free_.empty()) {
-    const Eigen::MatrixXd rhs = sys.GtW_F * g - sys.K_FC * x_C;
-    const Eigen::MatrixXd x_F = sys.factor->solve(rhs);
-    for (std::size_t i = 0; i < free_.size(); ++i) frame.positions.row(free_[i]) = x_F.row(i);
+  out.positions.resize(X.rows(), 3);
+  if (nF > 0) {
+    ws.rhs.resize(nF, 3);
+    ws.rhs.noalias() = sys.GtW_F * ws.g;
+    ws.rhs.noalias() -= sys.K_FC * ws.x_C;
+    const bool warm = ws.warm && ws.x_F.rows() == nF && ws.warm_system.lock() == system;
+    if (options.precision == FramePrecision::exact) {
+      solve3(*sys.factor, ws.rhs, ws.x_F, SolvePrecision::float64);
+    } else {
+      // float32 factor values, refined with the residual in double (SPEC §Drag frames):
+      // from the previous solution of this system when there is one (consecutive drag frames
+      // are close, so one correction suffices), else from a float32 solve plus one
+      // correction.
+      if (!warm) solve3(*sys.factor, ws.rhs, ws.x_F, SolvePrecision::float32);
+      ws.residual.resize(nF, 3);
+      ws.residual.noalias() = ws.rhs;
+      ws.residual.noalias() -= sys.K_FF.transpose() * ws.x_F;
+      solve3(*sys.factor, ws.residual, ws.correction, SolvePrecision::float32);
+      ws.x_F += ws.correction;
+    }
+    ws.warm = true;
+    ws.warm_system = system;
+    for (Eigen::Index i = 0; i < nF; ++i) out.positions.row(free_[i]) = ws.x_F.row(i);
   }
   for (std::size_t i = 0; i < constrained_.size(); ++i)
-    frame.positions.row(constrained_[i]) = x_C.row(i);
+    out.positions.row(constrained_[i]) = ws.x_C.row(i);
 
-  check_result(frame.positions, transforms);
-  frame.measures = measure(*mesh_, frame.positions, g, R_l,
-                           options.energies ? &frame.energies : nullptr);
-  if (options.normals) frame.normals = vertex_normals(frame.positions, mesh_->mesh().F);
-  return frame;
+  try {
+    check_result(out.positions, transforms);
+  } catch (...) {
+    ws.warm = false;  // never start the next drag frame from a rejected solution
+    throw;
+  }
+  out.exact = options.precision == FramePrecision::exact;
+  out.has_measures = options.measures || options.energies;
+  if (out.has_measures) {
+    out.measures = measure(*mesh_, out.positions, ws.g, ws.R_l,
+                           options.energies ? &out.energies : nullptr);
+  } else {
+    out.measures = Measures{};
+  }
+  if (!options.energies) out.energies.resize(0);
+  if (options.normals) vertex_normals(out.positions, mesh_->mesh().F, out.normals);
+  else out.normals.resize(0, 3);
+}
+
+std::size_t UpdateWorkspace::memory_bytes() const {
+  const auto doubles = g.size() + x_C.size() + rhs.size() + x_F.size() + residual.size() +
+                       correction.size();
+  return static_cast<std::size_t>(doubles) * sizeof(double) + R_l.capacity() * sizeof(R_l[0]);
 }
 
 void ConstraintSet::check_result(const Vertices& X, std::span<const HandleTransform> transforms) const {

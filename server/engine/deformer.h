@@ -85,20 +85,53 @@ struct LocalBeta {
   BetaUnits units = BetaUnits::area;
 };
 
+// How the K_FF solve of a frame is done (SPEC.md §Drag frames).
+//   exact:  the double solve (every result that is kept or reported: CLI, Sweep, GetMesh,
+//           the frame that ends a drag).
+//   drag:   factor values read as float32 (half the bytes) with accumulation in double,
+//           corrected by iterative refinement with K_FF in double; the positions stay within
+//           kDragTolerance × bbox diagonal of the exact solve (tests/engine/test_drag_path).
+enum class FramePrecision { exact, drag };
+
+// The drag path's bound on max_i ‖x_i − x_i^exact‖∞, as a fraction of the rest bbox diagonal.
+inline constexpr double kDragTolerance = 1e-6;
+
 struct UpdateOptions {
-  bool energies = true;  // fill Frame::energies
+  bool energies = true;  // fill Frame::energies (implies the measures' pass)
   bool normals = true;   // fill Frame::normals
+  bool measures = true;  // fill Frame::measures (a pass over the triangles)
+  FramePrecision precision = FramePrecision::exact;
 };
 
 struct Frame {
   Vertices positions;        // X' (n×3), model units
   Vertices normals;          // area-weighted vertex normals of X' (unit), if requested
   Eigen::VectorXf energies;  // per-triangle ‖r_l‖²_F (e_f²), if requested
-  Measures measures;
+  Measures measures;         // valid when has_measures
+  bool has_measures = false;
+  bool exact = true;  // false: a drag-path frame (FramePrecision::drag)
+};
+
+struct BetaSystem;  // deformer.cpp: K_FF factorization, K_FC, (Gᵀ W_β)_F for one β
+
+// The buffers of one caller's moves (a session or a worker owns one; not thread-safe):
+// update() reuses them, so once their sizes are reached a move allocates no memory and
+// touches no fresh page (issue 10, item 4). Also remembers the last drag solution, the
+// warm start of the next drag frame on the same system.
+class UpdateWorkspace {
+ public:
+  std::size_t memory_bytes() const;
+
+ private:
+  friend class ConstraintSet;
+  Eigen::MatrixX3d g;
+  std::vector<Eigen::Quaterniond> R_l;
+  Eigen::MatrixXd x_C, rhs, x_F, residual, correction;
+  std::weak_ptr<const BetaSystem> warm_system;  // x_F solves this system (drag path)
+  bool warm = false;
 };
 
 class Factorization;  // solver.h
-struct BetaSystem;    // deformer.cpp: K_FF factorization, K_FC, (Gᵀ W_β)_F for one β
 
 // Results are checked against this bound (model units): beyond it float32 outputs (frames,
 // GLB) overflow and the measures' squares are no longer finite.
@@ -132,6 +165,10 @@ class ConstraintSet {
   // the message names the handle).
   Frame update(std::span<const HandleTransform> transforms, Beta beta,
                const UpdateOptions& options = {}) const;
+  // The same into `out` with `ws`'s buffers: with both reused from the previous move of the
+  // same set, nothing is allocated. On a throw `out` holds no valid frame.
+  void update(std::span<const HandleTransform> transforms, Beta beta,
+              const UpdateOptions& options, UpdateWorkspace& ws, Frame& out) const;
 
   // update() for a one-off β (sweeps, automatic β): a factorization that is not cached
   // already is built for this call only and freed when it returns, so callers never grow
@@ -143,6 +180,8 @@ class ConstraintSet {
   // at most kMaxCachedFields fields are kept, the oldest dropped first).
   Frame update_local(std::span<const HandleTransform> transforms, const LocalBeta& beta,
                      const UpdateOptions& options = {}) const;
+  void update_local(std::span<const HandleTransform> transforms, const LocalBeta& beta,
+                    const UpdateOptions& options, UpdateWorkspace& ws, Frame& out) const;
   static constexpr std::size_t kMaxCachedFields = 4;
 
   // Guidance per triangle (SPEC §Harmonic guidance field): g (3m×3) and R_l.
@@ -166,8 +205,11 @@ class ConstraintSet {
   void check(std::span<const HandleTransform> transforms) const;  // count, validity
   // Throws InvalidInput naming a handle when X is non-finite or beyond kMaxCoordinate.
   void check_result(const Vertices& X, std::span<const HandleTransform> transforms) const;
-  Frame solve(const BetaSystem& sys, std::span<const HandleTransform> transforms,
-              const UpdateOptions& options) const;
+  void solve(const std::shared_ptr<const BetaSystem>& sys,
+             std::span<const HandleTransform> transforms, const UpdateOptions& options,
+             UpdateWorkspace& ws, Frame& out) const;
+  Frame solve(const std::shared_ptr<const BetaSystem>& sys,
+              std::span<const HandleTransform> transforms, const UpdateOptions& options) const;
   struct WideBlocks;  // the β > 0 pattern, split into its (1 − β) and β parts
 
   std::shared_ptr<const PreparedMesh> mesh_;

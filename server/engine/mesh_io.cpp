@@ -141,8 +141,9 @@ void write_mesh(const std::string& path, const Vertices& V, const Triangles& F, 
   if (!out) throw std::runtime_error(path + ": write failed");
 }
 
-Vertices vertex_normals(const Vertices& V, const Triangles& F) {
-  Vertices N = Vertices::Zero(V.rows(), 3);
+void vertex_normals(const Vertices& V, const Triangles& F, Vertices& N) {
+  N.resize(V.rows(), 3);  // a no-op when N already has the size: no allocation on a move
+  N.setZero();
   for (Eigen::Index t = 0; t < F.rows(); ++t) {
     const Eigen::RowVector3d a = V.row(F(t, 0)), b = V.row(F(t, 1)), c = V.row(F(t, 2));
     const Eigen::RowVector3d w = (b - a).cross(c - a);  // |w| = 2 · area: area weighting
@@ -152,6 +153,11 @@ Vertices vertex_normals(const Vertices& V, const Triangles& F) {
     const double len = N.row(i).norm();
     if (len > 0) N.row(i) /= len;
   }
+}
+
+Vertices vertex_normals(const Vertices& V, const Triangles& F) {
+  Vertices N;
+  vertex_normals(V, F, N);
   return N;
 }
 

@@ -84,5 +84,7 @@ void write_mesh(const std::string& path, const Vertices& V, const Triangles& F,
 
 // Area-weighted unit vertex normals (n×3); vertices without triangles get zero.
 Vertices vertex_normals(const Vertices& V, const Triangles& F);
+// The same into N (resized to V's rows; reusing N of that size allocates nothing).
+void vertex_normals(const Vertices& V, const Triangles& F, Vertices& N);
 
 }  // namespace hdeform

@@ -453,6 +453,7 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
             u.transforms = &request->transforms();
             u.keep_transforms_if_empty = true;
             u.energies = request->energies();
+            u.dragging = request->dragging();
             u.beta = request->has_beta() ? &request->beta() : nullptr;
             frame = session_->update(u);
             // Handle moves are saved as SessionStore::moved() says; a β change is an
@@ -764,6 +765,7 @@ grpc::ServerUnaryReactor* DeformService::UpdateHandles(grpc::CallbackServerConte
                              u.sequence = request->sequence();
                              u.transforms = &request->transforms();
                              u.energies = request->energies();
+                             u.dragging = request->dragging();
                              u.expected_version = request->expected_version();
                              auto frame = s.update(u);
                              store_.moved(s);  // a drag: saved coalesced (SQLite) or at once (Redis)

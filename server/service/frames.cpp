@@ -79,6 +79,11 @@ void FrameLayout::fill(const hdeform::Frame& frame, v1::Frame* out) const {
     out->set_energies(pack_triangles(frame.energies));
   else
     out->clear_energies();
+  out->set_exact(frame.exact);
+  if (!frame.has_measures) {
+    out->clear_measures();
+    return;
+  }
   auto* m = out->mutable_measures();
   m->set_e(frame.measures.E);
   m->set_e_iso_n(frame.measures.E_iso_N);

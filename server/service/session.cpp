@@ -178,6 +178,27 @@ void Session::prepare_beta(const ConstraintSet& cs, const SessionBeta& beta) {
   }
 }
 
+std::shared_ptr<hdeform::Frame> Session::solve_move(const ConstraintSet& cs,
+                                                    const std::vector<HandleTransform>& transforms,
+                                                    const SessionBeta& beta, const Update& u) {
+  std::lock_guard lock(move_mutex_);
+  std::shared_ptr<hdeform::Frame> frame;
+  if (spare_frame_ && spare_frame_.use_count() == 1) frame = std::move(spare_frame_);
+  else frame = std::make_shared<hdeform::Frame>();
+  const auto now = std::chrono::steady_clock::now();
+  UpdateOptions options;
+  options.energies = u.energies;
+  options.normals = true;
+  // While dragging, measures are a side panel's figures: at most every 100 ms (and always on
+  // the frame that ends the drag, which is exact).
+  options.measures = !u.dragging || now - last_measured_ >= kDragMeasuresPeriod;
+  options.precision = u.dragging ? FramePrecision::drag : FramePrecision::exact;
+  if (beta.field) cs.update_local(transforms, *beta.field, options, workspace_, *frame);
+  else cs.update(transforms, beta.uniform, options, workspace_, *frame);
+  if (frame->has_measures) last_measured_ = now;
+  return frame;
+}
+
 hdeform::Frame Session::solve(const ConstraintSet& cs,
                               const std::vector<HandleTransform>& transforms,
                               const SessionBeta& beta, const UpdateOptions& options) const {
@@ -279,10 +300,7 @@ std::shared_ptr<pb::Frame> Session::update(const Update& u) {
     beta_changed = !b.same_as(beta);
     beta = std::move(b);
   }
-  UpdateOptions options;
-  options.energies = u.energies;
-  options.normals = true;
-  auto frame = std::make_shared<const hdeform::Frame>(solve(*cs, transforms, beta, options));
+  std::shared_ptr<hdeform::Frame> frame = solve_move(*cs, transforms, beta, u);
   if (beta_changed) cache_.update_size(key, cs->memory_bytes());
 
   auto out = std::make_shared<pb::Frame>();
@@ -299,6 +317,11 @@ std::shared_ptr<pb::Frame> Session::update(const Update& u) {
     transforms_ = std::move(transforms);
     beta_ = beta;
     ++version_;
+    {
+      std::lock_guard moves(move_mutex_);  // the old frame's buffers serve a later move
+      if (last_frame_ && last_frame_.use_count() == 1)
+        spare_frame_ = std::const_pointer_cast<hdeform::Frame>(std::move(last_frame_));
+    }
     last_frame_ = frame;
     last_frame_version_ = version_;
     update_ms_ = unix_ms_now();
@@ -367,7 +390,9 @@ Vertices Session::deformed_positions() {
   {
     std::lock_guard lock(mutex_);
     if (!cs_) return mesh_->prepared->mesh().V;
-    if (last_frame_ && last_frame_version_ == version_) return last_frame_->positions;
+    // Only an exact frame answers GetMesh (a drag frame is within kDragTolerance only).
+    if (last_frame_ && last_frame_version_ == version_ && last_frame_->exact)
+      return last_frame_->positions;
     cs = cs_;
     transforms = transforms_;
     beta = beta_;

@@ -26,6 +26,9 @@ namespace hdeform::service {
 
 namespace pb = ::hdeform::v1;
 
+// While a drag goes on, a frame carries measures only if the last measured one is this old.
+inline constexpr std::chrono::milliseconds kDragMeasuresPeriod{100};
+
 // A WatchSession stream as the session sees it. push() never blocks.
 class EventSink {
  public:
@@ -71,6 +74,9 @@ class Session : public std::enable_shared_from_this<Session> {
     const google::protobuf::RepeatedPtrField<pb::HandleTransform>* transforms = nullptr;
     bool keep_transforms_if_empty = false;  // Deform: a β-only message
     bool energies = false;
+    // More moves follow (DeformRequest.dragging): a drag-path frame (float32 factor, within
+    // kDragTolerance of the exact solve), with measures at most every kDragMeasuresPeriod.
+    bool dragging = false;
     const pb::Beta* beta = nullptr;  // also change β
     std::int64_t expected_version = 0;
   };
@@ -149,6 +155,10 @@ class Session : public std::enable_shared_from_this<Session> {
   void prepare_beta(const ConstraintSet& cs, const SessionBeta& beta);
   hdeform::Frame solve(const ConstraintSet& cs, const std::vector<HandleTransform>& transforms,
                        const SessionBeta& beta, const UpdateOptions& options) const;
+  // A move's frame, into a frame and buffers the session reuses (no allocation per move).
+  std::shared_ptr<hdeform::Frame> solve_move(const ConstraintSet& cs,
+                                             const std::vector<HandleTransform>& transforms,
+                                             const SessionBeta& beta, const Update& u);
   Vertices deformed_positions();  // current deformation (solves if needed), engine order
 
   const std::string id_, name_;
@@ -174,6 +184,13 @@ class Session : public std::enable_shared_from_this<Session> {
  private:
   std::shared_ptr<const hdeform::Frame> last_frame_;  // engine frame at last_frame_version_
   std::int64_t last_frame_version_ = 0;
+
+  // The buffers of this session's moves (guarded by move_mutex_; never take mutex_ under it): a
+  // move reuses the workspace and the frame before the last one once nobody holds it.
+  std::mutex move_mutex_;
+  hdeform::UpdateWorkspace workspace_;
+  std::shared_ptr<hdeform::Frame> spare_frame_;
+  std::chrono::steady_clock::time_point last_measured_{};
   std::int64_t create_ms_ = 0, update_ms_ = 0;
   std::vector<std::shared_ptr<EventSink>> watchers_;
   SessionTokens tokens_;

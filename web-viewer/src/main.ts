@@ -641,6 +641,9 @@ function pump(): void {
       sequence: BigInt(seq),
       transforms: toProtoTransforms(),
       energies: energyMapping !== "off",
+      // While the gizmo is held the server may answer with a drag frame (float32 factor);
+      // the release sends one more request without it, whose frame is exact.
+      dragging,
     });
   })
     .then((frame) => {
