@@ -1,6 +1,9 @@
 #include "supernodal_solve.h"
 
 #include <cblas.h>
+#include <omp.h>
+
+#include <algorithm>
 
 namespace hdeform {
 
@@ -10,15 +13,17 @@ namespace {
 // k1 = super[s] … k2 = super[s+1]−1; its row indices are Ls[pi[s] … pi[s+1]), the first
 // k2−k1 of them k1 … k2−1 (the dense diagonal block), the rest the off-diagonal rows; its
 // values are the column-major nsrow × ncols block at Lx + px[s] (leading dimension nsrow).
+template <class T>
 struct Super {
   int k1, nc, nsrow;
   const int* rows;
-  const double* x;  // column j at x + j·nsrow
+  const T* x;  // column j at x + j·nsrow
 };
 
-inline Super super_at(const int* super, const int* pi, const int* px, const int* Ls,
-                      const double* Lx, int s) {
-  Super S;
+template <class T>
+inline Super<T> super_at(const int* super, const int* pi, const int* px, const int* Ls,
+                         const T* Lx, int s) {
+  Super<T> S;
   S.k1 = super[s];
   S.nc = super[s + 1] - S.k1;
   S.nsrow = pi[s + 1] - pi[s];
@@ -34,9 +39,9 @@ inline Super super_at(const int* super, const int* pi, const int* px, const int*
 // Forward: solve the panel's W×W lower triangle, then y[rows[i]] −= L(i, panel) · x_panel
 // for every row below it in the supernode (the diagonal block's rows and the off-diagonal
 // ones alike: both are addressed through rows[]).
-template <int W>
-inline void forward_panel(const Super& S, int j0, double* y) {
-  const double* c[W];
+template <int W, class T>
+inline void forward_panel(const Super<T>& S, int j0, double* y) {
+  const T* c[W];
   for (int t = 0; t < W; ++t) c[t] = S.x + static_cast<std::ptrdiff_t>(j0 + t) * S.nsrow;
   double x0[W], x1[W], x2[W];
   double* yd = y + 3 * static_cast<std::ptrdiff_t>(S.k1 + j0);
@@ -73,9 +78,9 @@ inline void forward_panel(const Super& S, int j0, double* y) {
 // Backward (Lᵀ): x_j = (y_j − Σ_{i>j} L(i,j) x_{rows[i]}) / L(j,j). The rows below the
 // panel are already final (later panels and later supernodes go first): dot products
 // down the W contiguous factor columns, then the panel's own triangle from the bottom up.
-template <int W>
-inline void backward_panel(const Super& S, int j0, double* y) {
-  const double* c[W];
+template <int W, class T>
+inline void backward_panel(const Super<T>& S, int j0, double* y) {
+  const T* c[W];
   for (int t = 0; t < W; ++t) c[t] = S.x + static_cast<std::ptrdiff_t>(j0 + t) * S.nsrow;
   double a0[W] = {}, a1[W] = {}, a2[W] = {};
   for (int i = j0 + W; i < S.nsrow; ++i) {
@@ -118,7 +123,8 @@ inline void backward_panel(const Super& S, int j0, double* y) {
 // re-measurement on a quiet machine.
 constexpr int kPanel = 4;
 
-void forward(const Super& S, double* y) {
+template <class T>
+void forward(const Super<T>& S, double* y) {
   int j = 0;
   for (; j + kPanel <= S.nc; j += kPanel) forward_panel<kPanel>(S, j, y);
   switch (S.nc - j) {
@@ -129,7 +135,8 @@ void forward(const Super& S, double* y) {
   }
 }
 
-void backward(const Super& S, double* y) {
+template <class T>
+void backward(const Super<T>& S, double* y) {
   // The panels of forward() in reverse: the ragged one (at the end) first.
   const int full = S.nc / kPanel * kPanel;
   switch (S.nc - full) {
@@ -143,7 +150,7 @@ void backward(const Super& S, double* y) {
 
 // BLAS path for one supernode. The nc rows of y at k1 are a column-major 3 × nc matrix
 // (ld 3) = X_dᵀ, so the triangular solves are right-sided on Xᵀ.
-void forward_blas(const Super& S, double* y, double* w) {
+void forward_blas(const Super<double>& S, double* y, double* w) {
   double* yd = y + 3 * static_cast<std::ptrdiff_t>(S.k1);
   const int noff = S.nsrow - S.nc;
   cblas_dtrsm(CblasColMajor, CblasRight, CblasLower, CblasTrans, CblasNonUnit, 3, S.nc, 1.0,
@@ -159,7 +166,7 @@ void forward_blas(const Super& S, double* y, double* w) {
   }
 }
 
-void backward_blas(const Super& S, double* y, double* w) {
+void backward_blas(const Super<double>& S, double* y, double* w) {
   double* yd = y + 3 * static_cast<std::ptrdiff_t>(S.k1);
   const int noff = S.nsrow - S.nc;
   if (noff > 0) {
@@ -208,14 +215,14 @@ void supernodal_solve3(const cholmod_factor& L, const double* B, std::ptrdiff_t 
     y[3 * k + 2] = B[r + 2 * ldb];
   }
   for (int s = 0; s < nsuper; ++s) {
-    const Super S = super_at(super, pi, px, Ls, Lx, s);
+    const Super<double> S = super_at(super, pi, px, Ls, Lx, s);
     if (cut > 0 && S.nc >= cut)
       forward_blas(S, y, w);
     else
       forward(S, y);
   }
   for (int s = nsuper - 1; s >= 0; --s) {
-    const Super S = super_at(super, pi, px, Ls, Lx, s);
+    const Super<double> S = super_at(super, pi, px, Ls, Lx, s);
     if (cut > 0 && S.nc >= cut)
       backward_blas(S, y, w);
     else
@@ -228,6 +235,234 @@ void supernodal_solve3(const cholmod_factor& L, const double* B, std::ptrdiff_t 
     X[r + ldx] = y[3 * k + 1];
     X[r + 2 * ldx] = y[3 * k + 2];
   }
+}
+
+SupernodalSchedule::SupernodalSchedule(const cholmod_factor& L, std::size_t min_rows) {
+  const int n = static_cast<int>(L.n);
+  const int nsuper = static_cast<int>(L.nsuper);
+  if (L.n < min_rows || nsuper < 2) return;
+  const int* super = static_cast<const int*>(L.super);
+  const int* pi = static_cast<const int*>(L.pi);
+  const int* px = static_cast<const int*>(L.px);
+  const int* Ls = static_cast<const int*>(L.s);
+
+  std::vector<int> super_of(static_cast<std::size_t>(n));
+  for (int s = 0; s < nsuper; ++s)
+    for (int k = super[s]; k < super[s + 1]; ++k) super_of[k] = s;
+  // Children lists (parent > child always: a row below s's columns) and subtree work.
+  std::vector<int> head(nsuper, -1), next(nsuper, -1), roots;
+  std::vector<double> work(nsuper), subtree(nsuper);
+  for (int s = 0; s < nsuper; ++s) {
+    work[s] = static_cast<double>(px[s + 1] - px[s]);
+    subtree[s] += work[s];
+    const int nc = super[s + 1] - super[s];
+    if (pi[s + 1] - pi[s] > nc) {
+      const int parent = super_of[Ls[pi[s] + nc]];
+      next[s] = head[parent];
+      head[parent] = s;
+      subtree[parent] += subtree[s];
+    } else {
+      roots.push_back(s);
+    }
+  }
+  double total = 0;
+  for (int r : roots) total += subtree[r];
+
+  // Greedy: repeatedly move the heaviest candidate subtree's root to the top and its
+  // children to the candidates; after each step, bin the candidates two ways (largest
+  // first into the lighter bin) and keep the step whose critical path
+  // max(bin) + top is shortest.
+  std::vector<int> cand = roots, best_bin[2];
+  double top_work = 0, best_cost = total, best_bins[2] = {0, 0}, best_top = 0;
+  for (int step = 0; step < 512 && !cand.empty(); ++step) {
+    std::sort(cand.begin(), cand.end(), [&](int a, int b) {
+      return subtree[a] != subtree[b] ? subtree[a] > subtree[b] : a < b;
+    });
+    double bins[2] = {0, 0};
+    std::vector<int> bin[2];
+    for (int c : cand) {
+      const int b = bins[1] < bins[0] ? 1 : 0;
+      bins[b] += subtree[c];
+      bin[b].push_back(c);
+    }
+    const double cost = std::max(bins[0], bins[1]) + top_work;
+    if (cost < best_cost && !bin[0].empty() && !bin[1].empty()) {
+      best_cost = cost;
+      best_bin[0] = std::move(bin[0]);
+      best_bin[1] = std::move(bin[1]);
+      best_bins[0] = bins[0];
+      best_bins[1] = bins[1];
+      best_top = top_work;
+    }
+    const int h = cand.front();
+    if (head[h] < 0) break;  // the heaviest is a leaf: no finer split
+    cand.erase(cand.begin());
+    top_work += work[h];
+    for (int c = head[h]; c >= 0; c = next[c]) cand.push_back(c);
+  }
+  if (best_bin[0].empty() || best_cost > 0.8 * total) return;
+
+  std::vector<char> in_part(nsuper, 0);
+  std::vector<int> stack;
+  for (int p = 0; p < 2; ++p) {
+    for (int r : best_bin[p]) {
+      stack.push_back(r);
+      while (!stack.empty()) {
+        const int s = stack.back();
+        stack.pop_back();
+        part_[p].push_back(s);
+        in_part[s] = static_cast<char>(p + 1);
+        for (int c = head[s]; c >= 0; c = next[c]) stack.push_back(c);
+      }
+    }
+    std::sort(part_[p].begin(), part_[p].end());
+  }
+  std::vector<int> top_index(static_cast<std::size_t>(n), -1);
+  for (int s = 0; s < nsuper; ++s) {
+    if (in_part[s]) continue;
+    top_.push_back(s);
+    for (int k = super[s]; k < super[s + 1]; ++k) {
+      top_index[k] = static_cast<int>(top_cols_.size());
+      top_cols_.push_back(k);
+    }
+  }
+  const int ntop = static_cast<int>(top_cols_.size());
+  rows_.assign(Ls, Ls + L.ssize);
+  for (int p = 0; p < 2; ++p)
+    for (int s : part_[p])
+      for (int i = pi[s] + (super[s + 1] - super[s]); i < pi[s + 1]; ++i)
+        if (top_index[Ls[i]] >= 0) rows_[i] = n + p * ntop + top_index[Ls[i]];
+  work_[0] = best_bins[0];
+  work_[1] = best_bins[1];
+  work_[2] = best_top;
+}
+
+std::size_t SupernodalSchedule::memory_bytes() const {
+  return (part_[0].capacity() + part_[1].capacity() + top_.capacity() + rows_.capacity() +
+          top_cols_.capacity()) *
+         sizeof(int);
+}
+
+namespace {
+
+template <class T>
+struct Sweep {
+  const int *super, *pi, *px, *rows;
+  const T* Lx;
+  double* y;
+  void forward_list(const std::vector<int>& list) const {
+    for (int s : list) forward(super_at(super, pi, px, rows, Lx, s), y);
+  }
+  void backward_list(const std::vector<int>& list) const {
+    for (auto it = list.rbegin(); it != list.rend(); ++it)
+      backward(super_at(super, pi, px, rows, Lx, *it), y);
+  }
+  void forward_all(int nsuper) const {
+    for (int s = 0; s < nsuper; ++s) forward(super_at(super, pi, px, rows, Lx, s), y);
+  }
+  void backward_all(int nsuper) const {
+    for (int s = nsuper - 1; s >= 0; --s) backward(super_at(super, pi, px, rows, Lx, s), y);
+  }
+};
+
+}  // namespace
+
+template <class T>
+void supernodal_solve3(const cholmod_factor& L, const T* Lx, const SupernodalSchedule& sched,
+                       const double* B, std::ptrdiff_t ldb, double* X, std::ptrdiff_t ldx,
+                       SupernodalWorkspace& ws, int threads) {
+  const auto n = static_cast<std::ptrdiff_t>(L.n);
+  if (n == 0) return;
+  const bool split = sched.split();
+  const std::ptrdiff_t ntop = split ? sched.top_rows() : 0;
+  ws.reserve(static_cast<std::size_t>(n + 2 * ntop));
+  double* y = ws.data();
+  const int* perm = static_cast<const int*>(L.Perm);
+  const int nsuper = static_cast<int>(L.nsuper);
+  const Sweep<T> sw{static_cast<const int*>(L.super), static_cast<const int*>(L.pi),
+                    static_cast<const int*>(L.px),
+                    split ? sched.rows_.data() : static_cast<const int*>(L.s), Lx, y};
+  const int* top_cols = sched.top_cols_.data();
+
+  // Thread `tid` of a team of `team` (1 or 2) does its share; with one, everything in the
+  // same order, so the arithmetic (and the bits) are those of two.
+  auto body = [&](int tid, int team) {
+    auto barrier = [team] {
+      if (team > 1) {
+#pragma omp barrier
+      }
+    };
+    const std::ptrdiff_t k0 = n * tid / team, k1 = n * (tid + 1) / team;
+    // y = P b, interleaved: y[3k + c] = B(Perm[k], c).
+    for (std::ptrdiff_t k = k0; k < k1; ++k) {
+      const std::ptrdiff_t r = perm[k];
+      y[3 * k] = B[r];
+      y[3 * k + 1] = B[r + ldb];
+      y[3 * k + 2] = B[r + 2 * ldb];
+    }
+    if (!split) {
+      sw.forward_all(nsuper);
+      sw.backward_all(nsuper);
+    } else {
+      barrier();  // B is read (X may alias it) and y is complete
+      for (int p = tid; p < 2; p += team) {
+        double* buf = y + 3 * (n + p * ntop);
+        std::fill(buf, buf + 3 * ntop, 0.0);
+        sw.forward_list(sched.part_[p]);
+      }
+      barrier();
+      if (tid == 0) {
+        for (int p = 0; p < 2; ++p) {  // fixed order: the bits do not depend on the team
+          const double* buf = y + 3 * (n + p * ntop);
+          for (std::ptrdiff_t k = 0; k < ntop; ++k) {
+            double* yr = y + 3 * static_cast<std::ptrdiff_t>(top_cols[k]);
+            yr[0] += buf[3 * k];
+            yr[1] += buf[3 * k + 1];
+            yr[2] += buf[3 * k + 2];
+          }
+        }
+        sw.forward_list(sched.top_);
+        sw.backward_list(sched.top_);
+      }
+      barrier();
+      for (int p = tid; p < 2; p += team) {
+        double* buf = y + 3 * (n + p * ntop);  // the parts read the top's x from here
+        for (std::ptrdiff_t k = 0; k < ntop; ++k) {
+          const double* yr = y + 3 * static_cast<std::ptrdiff_t>(top_cols[k]);
+          buf[3 * k] = yr[0];
+          buf[3 * k + 1] = yr[1];
+          buf[3 * k + 2] = yr[2];
+        }
+        sw.backward_list(sched.part_[p]);
+      }
+      barrier();
+    }
+    // x = Pᵀ y (reads y only: X may alias B).
+    for (std::ptrdiff_t k = k0; k < k1; ++k) {
+      const std::ptrdiff_t r = perm[k];
+      X[r] = y[3 * k];
+      X[r + ldx] = y[3 * k + 1];
+      X[r + 2 * ldx] = y[3 * k + 2];
+    }
+  };
+  if (split && threads >= 2) {
+#pragma omp parallel num_threads(2)
+    body(omp_get_thread_num(), omp_get_num_threads());
+  } else {
+    body(0, 1);
+  }
+}
+
+template void supernodal_solve3<double>(const cholmod_factor&, const double*,
+                                        const SupernodalSchedule&, const double*, std::ptrdiff_t,
+                                        double*, std::ptrdiff_t, SupernodalWorkspace&, int);
+template void supernodal_solve3<float>(const cholmod_factor&, const float*,
+                                       const SupernodalSchedule&, const double*, std::ptrdiff_t,
+                                       double*, std::ptrdiff_t, SupernodalWorkspace&, int);
+
+std::vector<float> factor_values_float(const cholmod_factor& L) {
+  const double* x = static_cast<const double*>(L.x);
+  return std::vector<float>(x, x + L.xsize);
 }
 
 }  // namespace hdeform
