@@ -171,11 +171,12 @@ void BM_Solve(benchmark::State& state, int nominal, double beta, Variant variant
   state.counters["floor_ms"] = floor_s * 1e3;
   state.counters["x_floor"] = per_solve / floor_s;
   const SupernodalSchedule& s = f.schedule();
-  const double total = s.work(0) + s.work(1) + s.work(2);
-  if (total > 0) {  // the split: shares of the factor entries
-    state.counters["part0"] = s.work(0) / total;
-    state.counters["part1"] = s.work(1) / total;
-    state.counters["top"] = s.work(2) / total;
+  double total = 0;
+  for (int i = 0; i <= s.parts(); ++i) total += s.work(i);
+  if (s.split()) {  // the split: shares of the factor entries
+    state.counters["parts"] = s.parts();
+    state.counters["top"] = s.work(s.parts()) / total;
+    state.counters["crit_path"] = s.critical_path() / total;
   }
 }
 

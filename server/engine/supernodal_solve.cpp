@@ -4,6 +4,8 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <atomic>
+#include <numeric>
 
 namespace hdeform {
 
@@ -269,30 +271,43 @@ SupernodalSchedule::SupernodalSchedule(const cholmod_factor& L, std::size_t min_
   for (int r : roots) total += subtree[r];
 
   // Greedy: repeatedly move the heaviest candidate subtree's root to the top and its
-  // children to the candidates; after each step, bin the candidates two ways (largest
-  // first into the lighter bin) and keep the step whose critical path
-  // max(bin) + top is shortest.
-  std::vector<int> cand = roots, best_bin[2];
-  double top_work = 0, best_cost = total, best_bins[2] = {0, 0}, best_top = 0;
-  for (int step = 0; step < 512 && !cand.empty(); ++step) {
+  // children to the candidates; after each step, pack the candidates into at most
+  // kMaxParts parts (largest first into the lightest), and keep the step whose two-thread
+  // critical path (parts list-scheduled heaviest first, as claimed at run time, then the
+  // top) is shortest.
+  std::vector<int> cand = roots;
+  std::vector<std::vector<int>> best;
+  std::vector<double> best_work;
+  double top_work = 0, best_cost = total, best_top = 0;
+  for (int step = 0; step < 1024 && !cand.empty(); ++step) {
     std::sort(cand.begin(), cand.end(), [&](int a, int b) {
       return subtree[a] != subtree[b] ? subtree[a] > subtree[b] : a < b;
     });
-    double bins[2] = {0, 0};
-    std::vector<int> bin[2];
-    for (int c : cand) {
-      const int b = bins[1] < bins[0] ? 1 : 0;
-      bins[b] += subtree[c];
-      bin[b].push_back(c);
-    }
-    const double cost = std::max(bins[0], bins[1]) + top_work;
-    if (cost < best_cost && !bin[0].empty() && !bin[1].empty()) {
-      best_cost = cost;
-      best_bin[0] = std::move(bin[0]);
-      best_bin[1] = std::move(bin[1]);
-      best_bins[0] = bins[0];
-      best_bins[1] = bins[1];
-      best_top = top_work;
+    const int K = std::min<int>(kMaxParts, static_cast<int>(cand.size()));
+    if (K >= 2) {
+      std::vector<std::vector<int>> bins(K);
+      std::vector<double> w(K, 0.0);
+      for (int c : cand) {
+        const int b = static_cast<int>(std::min_element(w.begin(), w.end()) - w.begin());
+        w[b] += subtree[c];
+        bins[b].push_back(c);
+      }
+      std::vector<int> order(K);
+      std::iota(order.begin(), order.end(), 0);
+      std::sort(order.begin(), order.end(), [&](int a, int b) { return w[a] > w[b]; });
+      double t[2] = {0, 0};
+      for (int b : order) t[t[1] < t[0] ? 1 : 0] += w[b];
+      const double cost = std::max(t[0], t[1]) + top_work;
+      if (cost < best_cost) {
+        best_cost = cost;
+        best.clear();
+        best_work.clear();
+        for (int b : order) {
+          best.push_back(std::move(bins[b]));
+          best_work.push_back(w[b]);
+        }
+        best_top = top_work;
+      }
     }
     const int h = cand.front();
     if (head[h] < 0) break;  // the heaviest is a leaf: no finer split
@@ -300,22 +315,24 @@ SupernodalSchedule::SupernodalSchedule(const cholmod_factor& L, std::size_t min_
     top_work += work[h];
     for (int c = head[h]; c >= 0; c = next[c]) cand.push_back(c);
   }
-  if (best_bin[0].empty() || best_cost > 0.8 * total) return;
+  if (best.empty() || best_cost > 0.8 * total) return;
 
+  const int K = static_cast<int>(best.size());
+  parts_.resize(K);
   std::vector<char> in_part(nsuper, 0);
   std::vector<int> stack;
-  for (int p = 0; p < 2; ++p) {
-    for (int r : best_bin[p]) {
+  for (int p = 0; p < K; ++p) {
+    for (int r : best[p]) {
       stack.push_back(r);
       while (!stack.empty()) {
         const int s = stack.back();
         stack.pop_back();
-        part_[p].push_back(s);
-        in_part[s] = static_cast<char>(p + 1);
+        parts_[p].push_back(s);
+        in_part[s] = 1;
         for (int c = head[s]; c >= 0; c = next[c]) stack.push_back(c);
       }
     }
-    std::sort(part_[p].begin(), part_[p].end());
+    std::sort(parts_[p].begin(), parts_[p].end());
   }
   std::vector<int> top_index(static_cast<std::size_t>(n), -1);
   for (int s = 0; s < nsuper; ++s) {
@@ -328,19 +345,19 @@ SupernodalSchedule::SupernodalSchedule(const cholmod_factor& L, std::size_t min_
   }
   const int ntop = static_cast<int>(top_cols_.size());
   rows_.assign(Ls, Ls + L.ssize);
-  for (int p = 0; p < 2; ++p)
-    for (int s : part_[p])
+  for (int p = 0; p < K; ++p)
+    for (int s : parts_[p])
       for (int i = pi[s] + (super[s + 1] - super[s]); i < pi[s + 1]; ++i)
         if (top_index[Ls[i]] >= 0) rows_[i] = n + p * ntop + top_index[Ls[i]];
-  work_[0] = best_bins[0];
-  work_[1] = best_bins[1];
-  work_[2] = best_top;
+  work_ = best_work;
+  work_.push_back(best_top);
+  critical_ = best_cost;
 }
 
 std::size_t SupernodalSchedule::memory_bytes() const {
-  return (part_[0].capacity() + part_[1].capacity() + top_.capacity() + rows_.capacity() +
-          top_cols_.capacity()) *
-         sizeof(int);
+  std::size_t ints = top_.capacity() + rows_.capacity() + top_cols_.capacity();
+  for (const auto& p : parts_) ints += p.capacity();
+  return ints * sizeof(int) + work_.capacity() * sizeof(double);
 }
 
 namespace {
@@ -374,8 +391,9 @@ void supernodal_solve3(const cholmod_factor& L, const T* Lx, const SupernodalSch
   const auto n = static_cast<std::ptrdiff_t>(L.n);
   if (n == 0) return;
   const bool split = sched.split();
+  const int K = sched.parts();
   const std::ptrdiff_t ntop = split ? sched.top_rows() : 0;
-  ws.reserve(static_cast<std::size_t>(n + 2 * ntop));
+  ws.reserve(static_cast<std::size_t>(n + K * ntop));
   double* y = ws.data();
   const int* perm = static_cast<const int*>(L.Perm);
   const int nsuper = static_cast<int>(L.nsuper);
@@ -383,69 +401,82 @@ void supernodal_solve3(const cholmod_factor& L, const T* Lx, const SupernodalSch
                     static_cast<const int*>(L.px),
                     split ? sched.rows_.data() : static_cast<const int*>(L.s), Lx, y};
   const int* top_cols = sched.top_cols_.data();
+  // Work is claimed, not assigned: parts and blocks of rows go to whichever thread asks.
+  constexpr std::ptrdiff_t kBlock = 8192;
+  std::atomic<std::ptrdiff_t> next_in{0}, next_out{0};
+  std::atomic<int> next_fwd{0}, next_bwd{0};
 
-  // Thread `tid` of a team of `team` (1 or 2) does its share; with one, everything in the
-  // same order, so the arithmetic (and the bits) are those of two.
+  // y = P b, interleaved: y[3k + c] = B(Perm[k], c).
+  auto permute_in = [&] {
+    for (std::ptrdiff_t k0; (k0 = next_in.fetch_add(kBlock)) < n;)
+      for (std::ptrdiff_t k = k0, k1 = std::min(n, k0 + kBlock); k < k1; ++k) {
+        const std::ptrdiff_t r = perm[k];
+        y[3 * k] = B[r];
+        y[3 * k + 1] = B[r + ldb];
+        y[3 * k + 2] = B[r + 2 * ldb];
+      }
+  };
+  // x = Pᵀ y (reads y only: X may alias B).
+  auto permute_out = [&] {
+    for (std::ptrdiff_t k0; (k0 = next_out.fetch_add(kBlock)) < n;)
+      for (std::ptrdiff_t k = k0, k1 = std::min(n, k0 + kBlock); k < k1; ++k) {
+        const std::ptrdiff_t r = perm[k];
+        X[r] = y[3 * k];
+        X[r + ldx] = y[3 * k + 1];
+        X[r + 2 * ldx] = y[3 * k + 2];
+      }
+  };
+  if (!split) {
+    permute_in();
+    sw.forward_all(nsuper);
+    sw.backward_all(nsuper);
+    permute_out();
+    return;
+  }
+  // Each thread of the team (1 or 2) runs this; every part's arithmetic is the same
+  // whichever thread runs it, and only thread 0 touches the top.
   auto body = [&](int tid, int team) {
     auto barrier = [team] {
       if (team > 1) {
 #pragma omp barrier
       }
     };
-    const std::ptrdiff_t k0 = n * tid / team, k1 = n * (tid + 1) / team;
-    // y = P b, interleaved: y[3k + c] = B(Perm[k], c).
-    for (std::ptrdiff_t k = k0; k < k1; ++k) {
-      const std::ptrdiff_t r = perm[k];
-      y[3 * k] = B[r];
-      y[3 * k + 1] = B[r + ldb];
-      y[3 * k + 2] = B[r + 2 * ldb];
+    permute_in();
+    barrier();  // B is read (X may alias it) and y is complete
+    for (int p; (p = next_fwd.fetch_add(1)) < K;) {
+      double* buf = y + 3 * (n + p * ntop);
+      std::fill(buf, buf + 3 * ntop, 0.0);
+      sw.forward_list(sched.parts_[p]);
     }
-    if (!split) {
-      sw.forward_all(nsuper);
-      sw.backward_all(nsuper);
-    } else {
-      barrier();  // B is read (X may alias it) and y is complete
-      for (int p = tid; p < 2; p += team) {
-        double* buf = y + 3 * (n + p * ntop);
-        std::fill(buf, buf + 3 * ntop, 0.0);
-        sw.forward_list(sched.part_[p]);
-      }
-      barrier();
-      if (tid == 0) {
-        for (int p = 0; p < 2; ++p) {  // fixed order: the bits do not depend on the team
-          const double* buf = y + 3 * (n + p * ntop);
-          for (std::ptrdiff_t k = 0; k < ntop; ++k) {
-            double* yr = y + 3 * static_cast<std::ptrdiff_t>(top_cols[k]);
-            yr[0] += buf[3 * k];
-            yr[1] += buf[3 * k + 1];
-            yr[2] += buf[3 * k + 2];
-          }
-        }
-        sw.forward_list(sched.top_);
-        sw.backward_list(sched.top_);
-      }
-      barrier();
-      for (int p = tid; p < 2; p += team) {
-        double* buf = y + 3 * (n + p * ntop);  // the parts read the top's x from here
+    barrier();
+    if (tid == 0) {
+      for (int p = 0; p < K; ++p) {  // fixed order: the bits do not depend on the team
+        const double* buf = y + 3 * (n + p * ntop);
         for (std::ptrdiff_t k = 0; k < ntop; ++k) {
-          const double* yr = y + 3 * static_cast<std::ptrdiff_t>(top_cols[k]);
-          buf[3 * k] = yr[0];
-          buf[3 * k + 1] = yr[1];
-          buf[3 * k + 2] = yr[2];
+          double* yr = y + 3 * static_cast<std::ptrdiff_t>(top_cols[k]);
+          yr[0] += buf[3 * k];
+          yr[1] += buf[3 * k + 1];
+          yr[2] += buf[3 * k + 2];
         }
-        sw.backward_list(sched.part_[p]);
       }
-      barrier();
+      sw.forward_list(sched.top_);
+      sw.backward_list(sched.top_);
     }
-    // x = Pᵀ y (reads y only: X may alias B).
-    for (std::ptrdiff_t k = k0; k < k1; ++k) {
-      const std::ptrdiff_t r = perm[k];
-      X[r] = y[3 * k];
-      X[r + ldx] = y[3 * k + 1];
-      X[r + 2 * ldx] = y[3 * k + 2];
+    barrier();
+    for (int p; (p = next_bwd.fetch_add(1)) < K;) {
+      double* buf = y + 3 * (n + p * ntop);  // the part reads the top's x from here
+      for (std::ptrdiff_t k = 0; k < ntop; ++k) {
+        const double* yr = y + 3 * static_cast<std::ptrdiff_t>(top_cols[k]);
+        buf[3 * k] = yr[0];
+        buf[3 * k + 1] = yr[1];
+        buf[3 * k + 2] = yr[2];
+      }
+      sw.backward_list(sched.parts_[p]);
     }
+    barrier();
+    permute_out();
   };
-  if (split && threads >= 2) {
+  if (threads >= 2) {
 #pragma omp parallel num_threads(2)
     body(omp_get_thread_num(), omp_get_num_threads());
   } else {

@@ -23,7 +23,7 @@
 namespace hdeform {
 
 // Scratch memory of one solve call: the interleaved n×3 work array, followed (scheduled
-// solves) by the two parts' 3 × top_rows() update buffers; the threads of one call write
+// solves) by the parts' 3 × top_rows() update buffers; the threads of one call write
 // disjoint regions of it. It grows to the largest size it has seen and never shrinks, so
 // reusing one workspace makes every call after the first allocation-free (across factors
 // of any size up to that).
@@ -47,27 +47,32 @@ class SupernodalWorkspace {
   std::vector<double> w_;  // 3 × (rows below a supernode's diagonal block), BLAS path only
 };
 
-// A two-way split of the supernodal elimination tree (parent of s = the supernode holding
-// s's first off-diagonal row), built once per factor: two sets of disjoint subtrees
-// ("parts") of about equal work (factor entries) and the "top", every other supernode (the
-// ancestors of the parts). Forward: both parts, then the top; backward: the top, then both
-// parts. Each part scatters its updates to top rows into its own buffer, which the top adds
-// in a fixed order (part 0, then part 1), so the result does not depend on the number of
-// threads that run the schedule. A default-constructed schedule (or one whose factor was
-// too small or too unbalanced to split) solves sequentially, in supernode order.
+// A split of the supernodal elimination tree (parent of s = the supernode holding s's first
+// off-diagonal row), built once per factor for two threads: up to kMaxParts "parts", each a
+// set of disjoint subtrees, and the "top", every other supernode (the ancestors of the
+// parts). Forward: the parts, then the top; backward: the top, then the parts. The parts
+// are claimed, heaviest first, by whichever thread is free (a preempted thread does not
+// hold the other up). Each part scatters its updates to top rows into its own buffer,
+// which the top adds in part order, so the result does not depend on the number of
+// threads nor on which thread ran which part. A default-constructed schedule (or one whose
+// factor was too small or too unbalanced to split) solves sequentially, in supernode order.
 class SupernodalSchedule {
  public:
+  static constexpr int kMaxParts = 8;
   SupernodalSchedule() = default;
   // Precondition: supernodal_solvable(&L). Factors with fewer than min_rows rows are not
-  // split, nor are those whose best split would save less than a fifth of the work of the
-  // critical path.
+  // split, nor are those whose best split leaves a two-thread critical path above 80 % of
+  // the work.
   explicit SupernodalSchedule(const cholmod_factor& L, std::size_t min_rows = 20000);
 
-  bool split() const { return !part_[0].empty(); }
+  bool split() const { return !parts_.empty(); }
+  int parts() const { return static_cast<int>(parts_.size()); }
   // Rows belonging to top supernodes (each part's buffer holds 3 per row).
   int top_rows() const { return static_cast<int>(top_cols_.size()); }
-  // Factor entries in part 0, part 1 and the top (zero when not split).
-  double work(int i) const { return work_[i]; }
+  // Factor entries of part i < parts(), or of the top for i = parts().
+  double work(int i) const { return work_[static_cast<std::size_t>(i)]; }
+  // Factor entries on the two-thread critical path (parts list-scheduled, then the top).
+  double critical_path() const { return critical_; }
   std::size_t memory_bytes() const;
 
  private:
@@ -75,11 +80,12 @@ class SupernodalSchedule {
   friend void supernodal_solve3(const cholmod_factor&, const T*, const SupernodalSchedule&,
                                 const double*, std::ptrdiff_t, double*, std::ptrdiff_t,
                                 SupernodalWorkspace&, int);
-  std::vector<int> part_[2];   // supernodes of each part, ascending (children first)
-  std::vector<int> top_;       // the top's supernodes, ascending
+  std::vector<std::vector<int>> parts_;  // supernodes of each part, ascending
+  std::vector<int> top_;                 // the top's supernodes, ascending
   std::vector<int> rows_;      // L->s with the parts' top rows renumbered into their buffers
   std::vector<int> top_cols_;  // the factor column of each top row (buffer order)
-  double work_[3] = {0, 0, 0};
+  std::vector<double> work_;   // parts…, top
+  double critical_ = 0;
 };
 
 // True when L satisfies the preconditions above (a null L is not solvable).
@@ -94,8 +100,8 @@ void supernodal_solve3(const cholmod_factor& L, const double* B, std::ptrdiff_t 
 // The same, scheduled, with the factor's values read from Lx as T (double: L.x itself;
 // float: a copy of L.x's L.xsize values rounded to float, half the bytes). Accumulation is
 // in double either way. `sched` must be default-constructed or built from L. threads ∈
-// {1, 2}: 2 runs the parts of a split schedule on two OpenMP threads (one if called inside
-// a parallel region); the result is bitwise the same for both. ws.blas_min_cols is ignored.
+// {1, 2}: 2 runs a split schedule on two OpenMP threads (one if called inside a parallel
+// region); the result is bitwise the same for both. ws.blas_min_cols is ignored.
 template <class T>
 void supernodal_solve3(const cholmod_factor& L, const T* Lx, const SupernodalSchedule& sched,
                        const double* B, std::ptrdiff_t ldb, double* X, std::ptrdiff_t ldx,

@@ -285,10 +285,12 @@ void check_scheduled(double beta) {
   ASSERT_GE(f.size(), 30000);
   const SupernodalSchedule& sch = f.schedule();
   ASSERT_TRUE(sch.split());
-  const double total = sch.work(0) + sch.work(1) + sch.work(2);
-  std::printf("  beta %g: n = %d, schedule work part0 %.3f, part1 %.3f, top %.3f of %.3g\n",
-              beta, f.size(), sch.work(0) / total, sch.work(1) / total, sch.work(2) / total,
-              total);
+  double total = 0;
+  for (int i = 0; i <= sch.parts(); ++i) total += sch.work(i);
+  std::printf("  beta %g: n = %d, %d parts, largest %.3f, top %.3f, two-thread critical path "
+              "%.3f of %.3g factor entries\n",
+              beta, f.size(), sch.parts(), sch.work(0) / total, sch.work(sch.parts()) / total,
+              sch.critical_path() / total, total);
   std::srand(21);
   const Eigen::MatrixXd B = Eigen::MatrixXd::Random(f.size(), 3);
   const Eigen::MatrixXd X1 = solve3(f, B, SolvePrecision::float64, 1);
