@@ -8,10 +8,29 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
+#include <new>
 #include <thread>
+
+// Counts operator new calls (for the allocation-free check below); engine_tests-wide.
+// noinline: GCC's -Wmismatched-new-delete otherwise sees malloc/free through them.
+namespace {
+std::atomic<long> g_news{0};
+}
+[[gnu::noinline]] void* operator new(std::size_t size) {
+  g_news.fetch_add(1, std::memory_order_relaxed);
+  if (void* p = std::malloc(size ? size : 1)) return p;
+  throw std::bad_alloc();
+}
+[[gnu::noinline]] void* operator new[](std::size_t size) { return ::operator new(size); }
+[[gnu::noinline]] void operator delete(void* p) noexcept { std::free(p); }
+[[gnu::noinline]] void operator delete[](void* p) noexcept { std::free(p); }
+[[gnu::noinline]] void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+[[gnu::noinline]] void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
 
 namespace hdeform {
 namespace {
@@ -304,6 +323,16 @@ void check_scheduled(double beta) {
   Eigen::MatrixXd inplace = B;
   f.solve3(inplace.data(), inplace.data(), SolvePrecision::float64, 2);
   EXPECT_TRUE(same_bits(inplace, X2));
+
+  // No allocation after the first call of each kind on this thread (Eigen allocates
+  // through malloc, not operator new: Y is preallocated anyway).
+  Eigen::MatrixXd Y(B.rows(), 3);
+  f.solve3(B.data(), Y.data(), SolvePrecision::float32, 2);
+  const long news = g_news.load();
+  for (int threads : {1, 2})
+    for (SolvePrecision p : {SolvePrecision::float64, SolvePrecision::float32})
+      f.solve3(B.data(), Y.data(), p, threads);
+  EXPECT_EQ(g_news.load(), news);
 
   const Eigen::MatrixXd F1 = solve3(f, B, SolvePrecision::float32, 1);
   const Eigen::MatrixXd F2 = solve3(f, B, SolvePrecision::float32, 2);
