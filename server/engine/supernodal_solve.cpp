@@ -279,7 +279,8 @@ SupernodalSchedule::SupernodalSchedule(const cholmod_factor& L, std::size_t min_
   std::vector<std::vector<int>> best;
   std::vector<double> best_work;
   double top_work = 0, best_cost = total, best_top = 0;
-  for (int step = 0; step < 1024 && !cand.empty(); ++step) {
+  // Later steps cost at least top + (total − top) / 2: stop once that cannot win.
+  for (int step = 0; step < 256 && !cand.empty() && (total + top_work) / 2 < best_cost; ++step) {
     std::sort(cand.begin(), cand.end(), [&](int a, int b) {
       return subtree[a] != subtree[b] ? subtree[a] > subtree[b] : a < b;
     });

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -304,6 +305,11 @@ void check_scheduled(double beta) {
   ASSERT_GE(f.size(), 30000);
   const SupernodalSchedule& sch = f.schedule();
   ASSERT_TRUE(sch.split());
+  const auto t0 = std::chrono::steady_clock::now();
+  const SupernodalSchedule again(*f.factor());
+  std::printf("  schedule built in %.2f ms (%.2f MB)\n",
+              std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count(),
+              static_cast<double>(again.memory_bytes()) / (1 << 20));
   double total = 0;
   for (int i = 0; i <= sch.parts(); ++i) total += sch.work(i);
   std::printf("  beta %g: n = %d, %d parts, largest %.3f, top %.3f, two-thread critical path "
