@@ -171,9 +171,9 @@ void BM_Solve(benchmark::State& state, int nominal, double beta, Variant variant
   state.counters["floor_ms"] = floor_s * 1e3;
   state.counters["x_floor"] = per_solve / floor_s;
   const SupernodalSchedule& s = f.schedule();
-  double total = 0;
-  for (int i = 0; i <= s.parts(); ++i) total += s.work(i);
   if (s.split()) {  // the split: shares of the factor entries
+    double total = 0;
+    for (int i = 0; i <= s.parts(); ++i) total += s.work(i);
     state.counters["parts"] = s.parts();
     state.counters["top"] = s.work(s.parts()) / total;
     state.counters["crit_path"] = s.critical_path() / total;

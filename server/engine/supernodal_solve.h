@@ -69,7 +69,7 @@ class SupernodalSchedule {
   int parts() const { return static_cast<int>(parts_.size()); }
   // Rows belonging to top supernodes (each part's buffer holds 3 per row).
   int top_rows() const { return static_cast<int>(top_cols_.size()); }
-  // Factor entries of part i < parts(), or of the top for i = parts().
+  // Factor entries of part i < parts(), or of the top for i = parts(). Precondition: split().
   double work(int i) const { return work_[static_cast<std::size_t>(i)]; }
   // Factor entries on the two-thread critical path (parts list-scheduled, then the top).
   double critical_path() const { return critical_; }
