@@ -54,7 +54,7 @@ class Factorization {
 
   // X = K_FF⁻¹ B for n×3 column-major B and X (ld = size()); X may alias B. threads ∈
   // {1, 2}: the same bits for both (the factor's schedule, built at construction, is run
-  // by one or two OpenMP threads). Workspace is thread_local: no allocation after the first
+  // by the caller alone or with supernodal_solve3's helper thread). Workspace is thread_local: no allocation after the first
   // call on a thread (for this size or smaller), except that the first float32 call on
   // this factorization builds its float copy of the factor (once; thread-safe).
   void solve3(const double* B, double* X, SolvePrecision precision = SolvePrecision::float64,

@@ -1,11 +1,12 @@
 #include "supernodal_solve.h"
 
 #include <cblas.h>
-#include <omp.h>
 
 #include <algorithm>
 #include <atomic>
+#include <mutex>
 #include <numeric>
+#include <thread>
 
 namespace hdeform {
 
@@ -363,6 +364,89 @@ std::size_t SupernodalSchedule::memory_bytes() const {
 
 namespace {
 
+// Waits until `a` differs from `old`: a short spin (the other thread is usually about to
+// arrive), then a futex sleep (C++20 atomic wait), so a preempted partner costs no CPU.
+template <class A, class V>
+void await_change(const A& a, V old) {
+  for (int i = 0; i < 4000; ++i) {
+    if (a.load(std::memory_order_acquire) != old) return;
+    __builtin_ia32_pause();
+  }
+  while (a.load(std::memory_order_acquire) == old) a.wait(old, std::memory_order_acquire);
+}
+
+// Two-party barrier (one call's two threads).
+class Barrier2 {
+ public:
+  void arrive_and_wait() {
+    const unsigned g = gen_.load(std::memory_order_acquire);
+    if (count_.fetch_add(1, std::memory_order_acq_rel) == 1) {
+      count_.store(0, std::memory_order_relaxed);  // before the release: no one re-arrives yet
+      gen_.fetch_add(1, std::memory_order_acq_rel);
+      gen_.notify_one();
+      return;
+    }
+    await_change(gen_, g);
+  }
+
+ private:
+  std::atomic<int> count_{0};
+  std::atomic<unsigned> gen_{0};
+};
+
+// The process's one helper thread for two-thread solves, started on first use. A call
+// that finds it busy (another thread's solve) runs alone: same bits, and never more than
+// two solve threads on the machine's two cores. Not OpenMP: its barriers spin for
+// milliseconds by default (measured: a 2-thread solve 20 % slower than 1 thread when the
+// other core is busy) and are invisible to TSan.
+class Helper {
+ public:
+  static Helper& instance() {
+    static Helper h;
+    return h;
+  }
+  // Runs fn(ctx, 1) on the helper and fn(ctx, 0) on the caller; false (nothing run) if the
+  // helper is busy.
+  bool run(void (*fn)(void*, int), void* ctx) {
+    std::unique_lock<std::mutex> lock(busy_, std::try_to_lock);
+    if (!lock.owns_lock()) return false;
+    if (!thread_.joinable()) thread_ = std::thread([this] { loop(); });
+    fn_ = fn;
+    ctx_ = ctx;
+    const unsigned g = go_.fetch_add(1, std::memory_order_acq_rel) + 1;
+    go_.notify_one();
+    fn(ctx, 0);
+    await_change(done_, g - 1);
+    return true;
+  }
+  ~Helper() {
+    if (!thread_.joinable()) return;
+    stop_ = true;
+    go_.fetch_add(1, std::memory_order_acq_rel);
+    go_.notify_one();
+    thread_.join();
+  }
+
+ private:
+  void loop() {
+    unsigned seen = 0;
+    for (;;) {
+      await_change(go_, seen);
+      seen = go_.load(std::memory_order_acquire);
+      if (stop_) return;
+      fn_(ctx_, 1);
+      done_.store(seen, std::memory_order_release);
+      done_.notify_one();
+    }
+  }
+  std::mutex busy_;
+  std::thread thread_;
+  std::atomic<unsigned> go_{0}, done_{0};
+  void (*fn_)(void*, int) = nullptr;  // written before go_'s release, read after its acquire
+  void* ctx_ = nullptr;
+  bool stop_ = false;
+};
+
 template <class T>
 struct Sweep {
   const int *super, *pi, *px, *rows;
@@ -436,11 +520,10 @@ void supernodal_solve3(const cholmod_factor& L, const T* Lx, const SupernodalSch
   }
   // Each thread of the team (1 or 2) runs this; every part's arithmetic is the same
   // whichever thread runs it, and only thread 0 touches the top.
+  Barrier2 bar;
   auto body = [&](int tid, int team) {
-    auto barrier = [team] {
-      if (team > 1) {
-#pragma omp barrier
-      }
+    auto barrier = [&bar, team] {
+      if (team > 1) bar.arrive_and_wait();
     };
     permute_in();
     barrier();  // B is read (X may alias it) and y is complete
@@ -477,12 +560,8 @@ void supernodal_solve3(const cholmod_factor& L, const T* Lx, const SupernodalSch
     barrier();
     permute_out();
   };
-  if (threads >= 2) {
-#pragma omp parallel num_threads(2)
-    body(omp_get_thread_num(), omp_get_num_threads());
-  } else {
-    body(0, 1);
-  }
+  auto run2 = [](void* ctx, int tid) { (*static_cast<decltype(body)*>(ctx))(tid, 2); };
+  if (threads < 2 || !Helper::instance().run(run2, &body)) body(0, 1);
 }
 
 template void supernodal_solve3<double>(const cholmod_factor&, const double*,

@@ -100,8 +100,9 @@ void supernodal_solve3(const cholmod_factor& L, const double* B, std::ptrdiff_t 
 // The same, scheduled, with the factor's values read from Lx as T (double: L.x itself;
 // float: a copy of L.x's L.xsize values rounded to float, half the bytes). Accumulation is
 // in double either way. `sched` must be default-constructed or built from L. threads ∈
-// {1, 2}: 2 runs a split schedule on two OpenMP threads (one if called inside a parallel
-// region); the result is bitwise the same for both. ws.blas_min_cols is ignored.
+// {1, 2}: 2 runs a split schedule on the caller and the process's one helper thread
+// (started on first use; a call that finds it busy with another solve runs alone); the
+// result is bitwise the same for both. ws.blas_min_cols is ignored.
 template <class T>
 void supernodal_solve3(const cholmod_factor& L, const T* Lx, const SupernodalSchedule& sched,
                        const double* B, std::ptrdiff_t ldb, double* X, std::ptrdiff_t ldx,
