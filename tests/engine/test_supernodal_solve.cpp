@@ -325,6 +325,21 @@ void check_scheduled(double beta) {
     EXPECT_TRUE(same_bits(solve3(f, B, SolvePrecision::float64, 2), X2));
   EXPECT_LT(rel_max_diff(X2, f.solve_cholmod(B)), 1e-12);
   EXPECT_TRUE(same_bits(f.solve(B), X2));
+  // Two callers at once: one gets the helper thread, the other runs alone; same bits.
+  {
+    Eigen::MatrixXd r[2] = {Eigen::MatrixXd(B.rows(), 3), Eigen::MatrixXd(B.rows(), 3)};
+    bool ok[2] = {true, true};
+    auto work = [&](int i) {
+      for (int rep = 0; rep < 8; ++rep) {
+        f.solve3(B.data(), r[i].data(), SolvePrecision::float64, 2);
+        ok[i] = ok[i] && same_bits(r[i], X2);
+      }
+    };
+    std::thread t0(work, 0), t1(work, 1);
+    t0.join();
+    t1.join();
+    EXPECT_TRUE(ok[0] && ok[1]);
+  }
   // In place.
   Eigen::MatrixXd inplace = B;
   f.solve3(inplace.data(), inplace.data(), SolvePrecision::float64, 2);
