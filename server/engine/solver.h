@@ -53,10 +53,11 @@ class Factorization {
   Factorization(const Factorization& analysis, const SparseMatrix& K_FF);
 
   // X = K_FF⁻¹ B for n×3 column-major B and X (ld = size()); X may alias B. threads ∈
-  // {1, 2}: the same bits for both (the factor's schedule, built at construction, is run
-  // by the caller alone or with supernodal_solve3's helper thread). Workspace is thread_local: no allocation after the first
-  // call on a thread (for this size or smaller), except that the first float32 call on
-  // this factorization builds its float copy of the factor (once; thread-safe).
+  // {1, 2}, the same bits for both: the factor's schedule (built at construction) runs on
+  // the caller alone or with supernodal_solve3's helper thread. The workspace is
+  // thread_local: no allocation after the first call on a thread (for this size or
+  // smaller), except that the first float32 call on this factorization builds its float
+  // copy of the factor (once, thread-safe; counted in memory_bytes()).
   void solve3(const double* B, double* X, SolvePrecision precision = SolvePrecision::float64,
               int threads = 2) const;
   // X = K_FF⁻¹ B. Three columns: solve3 (float64, two threads); other column counts
