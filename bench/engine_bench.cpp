@@ -35,6 +35,10 @@
 #include <string>
 #include <vector>
 
+namespace hdeform::bench {
+void register_solve_benchmarks(bool smoke);  // solve_bench.cpp
+}
+
 namespace {
 
 using namespace hdeform;
@@ -602,114 +606,6 @@ benchmark::internal::Benchmark* policy(benchmark::internal::Benchmark* b, Cost c
   return b;
 }
 
-// ---------------------------------------------------------------------------------------
-// Memory-bandwidth probe: one thread streaming a buffer far bigger than any cache (256 MiB),
-// summing it with four independent accumulators so the adds never limit the read. The
-// solve's floor is reading the factor's values twice (forward and backward sweep):
-// floor = 2 × factor value bytes / bandwidth. Built and first-touched untimed.
-constexpr std::size_t kProbeDoubles = std::size_t{32} << 20;  // 256 MiB
-
-const std::vector<double>& probe_buffer() {
-  static const std::vector<double> buf = [] {
-    std::vector<double> v(kProbeDoubles);
-    std::iota(v.begin(), v.end(), 0.0);
-    return v;
-  }();
-  return buf;
-}
-
-double stream_read(const std::vector<double>& v) {
-  double a0 = 0, a1 = 0, a2 = 0, a3 = 0;
-  for (std::size_t i = 0; i + 4 <= v.size(); i += 4) {
-    a0 += v[i];
-    a1 += v[i + 1];
-    a2 += v[i + 2];
-    a3 += v[i + 3];
-  }
-  return (a0 + a1) + (a2 + a3);
-}
-
-// Bytes per second of stream_read: the best of a few passes (once per process, untimed),
-// for the Solve benchmarks' "× floor" counter.
-double bandwidth_Bps() {
-  static const double bw = [] {
-    const auto& v = probe_buffer();
-    double best = 0;
-    for (int pass = 0; pass < 5; ++pass) {
-      const auto t0 = std::chrono::steady_clock::now();
-      benchmark::DoNotOptimize(stream_read(v));
-      const double sec = seconds_since(t0);
-      best = std::max(best, static_cast<double>(v.size() * sizeof(double)) / sec);
-    }
-    return best;
-  }();
-  return bw;
-}
-
-// The probe as its own benchmark (bytes_per_second), interleaved with the solves.
-void BM_Bandwidth(benchmark::State& state) {
-  const auto& v = probe_buffer();
-  for (auto _ : state) benchmark::DoNotOptimize(stream_read(v));
-  state.SetBytesProcessed(static_cast<std::int64_t>(state.iterations()) *
-                          static_cast<std::int64_t>(v.size() * sizeof(double)));
-}
-
-// Solve/N/beta:b/{cholmod,fused}: K_FF X = B, three random right-hand sides, on the same
-// factor. cholmod = cholmod_solve as the engine called it before (Factorization::
-// solve_cholmod: CHOLMOD common, result copied to an Eigen matrix); fused =
-// supernodal_solve3 into a preallocated X with a reused workspace. Counters: factor value
-// MB, the floor (ms) and x_floor = measured time per solve / floor.
-void BM_Solve(benchmark::State& state, std::string key, double beta, bool fused,
-              int blas_min_cols = 0) {
-  Case& c = get(key);
-  System& s = system(c, beta);
-  const Factorization& f = cholmod(s);
-  const Eigen::MatrixXd B = random_rhs(s.K_FF.rows());
-  Eigen::MatrixXd X(B.rows(), 3);
-  SupernodalWorkspace ws;
-  ws.blas_min_cols = blas_min_cols;
-  const cholmod_factor* L = f.factor();
-  if (fused && !supernodal_solvable(L)) {
-    state.SkipWithError("factor is not supernodal LL'");
-    return;
-  }
-  ws.reserve(static_cast<std::size_t>(B.rows()), L->maxesize);
-  const double bw = bandwidth_Bps();
-  const auto t0 = std::chrono::steady_clock::now();
-  for (auto _ : state) {
-    if (fused) {
-      supernodal_solve3(*L, B.data(), B.rows(), X.data(), X.rows(), ws);
-      benchmark::DoNotOptimize(X.data());
-    } else {
-      solve_once(f, B);  // solve() would take the fused path: call the stock one
-    }
-  }
-  const double per_solve = seconds_since(t0) / static_cast<double>(state.iterations());
-  const double value_bytes = static_cast<double>(L->xsize) * sizeof(double);
-  const double floor_s = 2 * value_bytes / bw;
-  size_counters(state, c);
-  state.counters["factor_values_MB"] = value_bytes / (1024.0 * 1024.0);
-  state.counters["bandwidth_GBps"] = bw / 1e9;
-  state.counters["floor_ms"] = floor_s * 1e3;
-  state.counters["x_floor"] = per_solve / floor_s;
-  // Shape of the supernodes (where a BLAS cutoff would bite): the largest one, and the
-  // share of factor values in supernodes with at least 32 columns.
-  const int* super = static_cast<const int*>(L->super);
-  const int* pi = static_cast<const int*>(L->pi);
-  int max_cols = 0, max_rows = 0;
-  double big_values = 0;
-  for (std::size_t k = 0; k < L->nsuper; ++k) {
-    const int cols = super[k + 1] - super[k], rows = pi[k + 1] - pi[k];
-    max_cols = std::max(max_cols, cols);
-    max_rows = std::max(max_rows, rows);
-    if (cols >= 32) big_values += static_cast<double>(cols) * rows;
-  }
-  state.counters["nsuper"] = static_cast<double>(L->nsuper);
-  state.counters["max_super_cols"] = max_cols;
-  state.counters["max_super_rows"] = max_rows;
-  state.counters["values_in_ge32col"] = big_values / static_cast<double>(L->xsize);
-}
-
 template <typename... Args>
 void reg(const std::string& name, Cost cost, Args&&... args) {
   policy(benchmark::RegisterBenchmark(name.c_str(), std::forward<Args>(args)...), cost);
@@ -740,16 +636,6 @@ void register_size(int n) {
     b->Unit(benchmark::kMillisecond)->UseRealTime()->Threads(1)->Threads(2);
     if (g_smoke) b->Iterations(1);
   }
-  if (!big)
-    for (double beta : kBetas)
-      for (bool fused : {false, true})
-        reg("Solve" + N + "/" + beta_tag(beta) + (fused ? "/fused" : "/cholmod"), fast, BM_Solve,
-            key, beta, fused, 0);
-  if (!big)  // the BLAS cutoff: supernodes with ≥ C columns through dtrsm/dgemm
-    for (double beta : kBetas)
-      for (int cut : {32, 64, 128, 256})
-        reg("Solve" + N + "/" + beta_tag(beta) + "/fused_blas:" + std::to_string(cut), fast,
-            BM_Solve, key, beta, true, cut);
   reg("Phase" + N + "/guidance", fast, BM_Phase, key, Phase::guidance, 0.0);
   reg("Phase" + N + "/measures", fast, BM_Phase, key, Phase::measures, 0.0);
   reg("Phase" + N + "/measures+ef2", fast, BM_Phase, key, Phase::measures_ef2, 0.0);
@@ -804,7 +690,7 @@ void register_botsch_sorkine(const std::string& model) {
 int main(int argc, char** argv) {
   if (!bench::initialize(argc, argv, g_smoke)) return 1;
 
-  policy(benchmark::RegisterBenchmark("Bandwidth/read", BM_Bandwidth), Cost::fast);
+  bench::register_solve_benchmarks(g_smoke);  // Bandwidth/read, Solve/N/… (solve_bench.cpp)
   for (const char* model : {"cactus", "bar", "cylinder", "plane"}) register_botsch_sorkine(model);
   for (int n : kSizes) register_size(n);
 

@@ -68,6 +68,7 @@ Factorization::Factorization(const SparseMatrix& K_FF) : size_(static_cast<int>(
   analysis_.adopt_analysis(llt_);  // before the numeric factorization fills in values
   llt_.factorize(K_FF);
   check("factorization");
+  finish();
 }
 
 Factorization::Factorization(const Factorization& analysis, const SparseMatrix& K_FF)
@@ -76,6 +77,19 @@ Factorization::Factorization(const Factorization& analysis, const SparseMatrix& 
   llt_.adopt_analysis(analysis.analysis_);  // analysis_ is immutable: no lock needed
   llt_.factorize(K_FF);
   check("factorization");
+  finish();
+}
+
+void Factorization::finish() {
+  if (supernodal_solvable(llt_.factor())) schedule_ = SupernodalSchedule(*llt_.factor());
+}
+
+const float* Factorization::values_float() const {
+  std::call_once(float_once_, [this] {
+    float_values_ = factor_values_float(*llt_.factor());
+    float_ready_.store(true, std::memory_order_release);
+  });
+  return float_values_.data();
 }
 
 void Factorization::check(const char* what) const {
@@ -84,16 +98,31 @@ void Factorization::check(const char* what) const {
                        " failed): some part of the mesh has no constrained vertex");
 }
 
+void Factorization::solve3(const double* B, double* X, SolvePrecision precision,
+                           int threads) const {
+  if (size_ == 0) return;
+  const cholmod_factor* L = llt_.factor();
+  if (!supernodal_solvable(L)) {  // not with this CholmodLLT; allocates
+    const Eigen::MatrixXd Xc =
+        llt_.solve_concurrently(Eigen::Map<const Eigen::MatrixXd>(B, size_, 3));
+    Eigen::Map<Eigen::MatrixXd>(X, size_, 3) = Xc;
+    return;
+  }
+  // One workspace per thread: solves run concurrently on one factor from several threads,
+  // and the workspace grows to the largest K_FF the thread has solved.
+  thread_local SupernodalWorkspace ws;
+  if (precision == SolvePrecision::float32)
+    supernodal_solve3(*L, values_float(), schedule_, B, size_, X, size_, ws, threads);
+  else
+    supernodal_solve3(*L, static_cast<const double*>(L->x), schedule_, B, size_, X, size_, ws,
+                      threads);
+}
+
 Eigen::MatrixXd Factorization::solve(const Eigen::MatrixXd& B) const {
   if (size_ == 0 || B.rows() == 0) return Eigen::MatrixXd(B.rows(), B.cols());
-  const cholmod_factor* L = llt_.factor();
-  if (B.cols() == 3 && B.rows() == size_ && supernodal_solvable(L)) {
-    // One workspace per thread: solve() runs concurrently on one factor from several
-    // threads, and the workspace grows to the largest K_FF the thread has solved, so
-    // repeated moves allocate nothing in the kernel (the returned matrix is the caller's).
-    thread_local SupernodalWorkspace ws;
+  if (B.cols() == 3 && B.rows() == size_) {
     Eigen::MatrixXd X(B.rows(), 3);
-    supernodal_solve3(*L, B.data(), B.rows(), X.data(), X.rows(), ws);
+    solve3(B.data(), X.data());
     return X;
   }
   return llt_.solve_concurrently(B);
@@ -107,8 +136,10 @@ Eigen::MatrixXd Factorization::solve_cholmod(const Eigen::MatrixXd& B) const {
 std::size_t Factorization::memory_bytes() const {
   // Values (double) plus row indices (int) of the factor, roughly.
   // The symbolic copy holds row indices only.
+  const std::size_t floats =
+      float_ready_.load(std::memory_order_acquire) ? float_values_.size() * sizeof(float) : 0;
   return llt_.factor_nnz() * (sizeof(double) + sizeof(int)) + analysis_.factor_nnz() * sizeof(int) +
-         sizeof(*this);
+         schedule_.memory_bytes() + floats + sizeof(*this);
 }
 
 }  // namespace hdeform

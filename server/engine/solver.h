@@ -3,10 +3,14 @@
 #pragma once
 
 #include "operators.h"
+#include "supernodal_solve.h"
 
 #include <Eigen/CholmodSupport>
 
+#include <atomic>
 #include <memory>
+#include <mutex>
+#include <vector>
 
 namespace hdeform {
 
@@ -35,6 +39,9 @@ class CholmodLLT : public Eigen::CholmodBase<SparseMatrix, Eigen::Lower, Cholmod
   using Base::m_cholmodFactor;
 };
 
+// float32: the factor's values are read as float (half the bytes), accumulation in double.
+enum class SolvePrecision { float64, float32 };
+
 // One factorization of K_FF, symmetric positive definite. solve() is thread-safe.
 class Factorization {
  public:
@@ -45,22 +52,36 @@ class Factorization {
   // Numeric factorization of K_FF reusing `analysis`'s symbolic factor (same pattern).
   Factorization(const Factorization& analysis, const SparseMatrix& K_FF);
 
-  // X = K_FF⁻¹ B, all columns in one supernodal solve. Three columns on a supernodal LLᵀ
-  // factor (always, with this CholmodLLT) go through supernodal_solve3 with a thread_local
-  // workspace; anything else through cholmod_solve.
+  // X = K_FF⁻¹ B for n×3 column-major B and X (ld = size()); X may alias B. threads ∈
+  // {1, 2}, the same bits for both: the factor's schedule (built at construction) runs on
+  // the caller alone or with supernodal_solve3's helper thread. The workspace is
+  // thread_local: no allocation after the first call on a thread (for this size or
+  // smaller), except that the first float32 call on this factorization builds its float
+  // copy of the factor (once, thread-safe; counted in memory_bytes()).
+  void solve3(const double* B, double* X, SolvePrecision precision = SolvePrecision::float64,
+              int threads = 2) const;
+  // X = K_FF⁻¹ B. Three columns: solve3 (float64, two threads); other column counts
+  // through cholmod_solve.
   Eigen::MatrixXd solve(const Eigen::MatrixXd& B) const;
   // X = K_FF⁻¹ B through cholmod_solve always (the reference and the fallback).
   Eigen::MatrixXd solve_cholmod(const Eigen::MatrixXd& B) const;
   // CHOLMOD's factor of K_FF (null when size() == 0).
   const cholmod_factor* factor() const { return size_ == 0 ? nullptr : llt_.factor(); }
   int size() const { return size_; }
+  const SupernodalSchedule& schedule() const { return schedule_; }
   std::size_t memory_bytes() const;
 
  private:
   void check(const char* what) const;
+  void finish();  // after the numeric factorization: the solve schedule
+  const float* values_float() const;
   CholmodLLT llt_;
   CholmodLLT analysis_;  // the symbolic analysis alone, kept to seed later β; never modified
   int size_ = 0;
+  SupernodalSchedule schedule_;
+  mutable std::once_flag float_once_;
+  mutable std::vector<float> float_values_;  // L->x as float, built on the first float32 solve
+  mutable std::atomic<bool> float_ready_{false};
 };
 
 }  // namespace hdeform

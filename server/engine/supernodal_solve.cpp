@@ -2,6 +2,12 @@
 
 #include <cblas.h>
 
+#include <algorithm>
+#include <atomic>
+#include <mutex>
+#include <numeric>
+#include <thread>
+
 namespace hdeform {
 
 namespace {
@@ -10,15 +16,17 @@ namespace {
 // k1 = super[s] … k2 = super[s+1]−1; its row indices are Ls[pi[s] … pi[s+1]), the first
 // k2−k1 of them k1 … k2−1 (the dense diagonal block), the rest the off-diagonal rows; its
 // values are the column-major nsrow × ncols block at Lx + px[s] (leading dimension nsrow).
+template <class T>
 struct Super {
   int k1, nc, nsrow;
   const int* rows;
-  const double* x;  // column j at x + j·nsrow
+  const T* x;  // column j at x + j·nsrow
 };
 
-inline Super super_at(const int* super, const int* pi, const int* px, const int* Ls,
-                      const double* Lx, int s) {
-  Super S;
+template <class T>
+inline Super<T> super_at(const int* super, const int* pi, const int* px, const int* Ls,
+                         const T* Lx, int s) {
+  Super<T> S;
   S.k1 = super[s];
   S.nc = super[s + 1] - S.k1;
   S.nsrow = pi[s + 1] - pi[s];
@@ -34,9 +42,9 @@ inline Super super_at(const int* super, const int* pi, const int* px, const int*
 // Forward: solve the panel's W×W lower triangle, then y[rows[i]] −= L(i, panel) · x_panel
 // for every row below it in the supernode (the diagonal block's rows and the off-diagonal
 // ones alike: both are addressed through rows[]).
-template <int W>
-inline void forward_panel(const Super& S, int j0, double* y) {
-  const double* c[W];
+template <int W, class T>
+inline void forward_panel(const Super<T>& S, int j0, double* y) {
+  const T* c[W];
   for (int t = 0; t < W; ++t) c[t] = S.x + static_cast<std::ptrdiff_t>(j0 + t) * S.nsrow;
   double x0[W], x1[W], x2[W];
   double* yd = y + 3 * static_cast<std::ptrdiff_t>(S.k1 + j0);
@@ -73,9 +81,9 @@ inline void forward_panel(const Super& S, int j0, double* y) {
 // Backward (Lᵀ): x_j = (y_j − Σ_{i>j} L(i,j) x_{rows[i]}) / L(j,j). The rows below the
 // panel are already final (later panels and later supernodes go first): dot products
 // down the W contiguous factor columns, then the panel's own triangle from the bottom up.
-template <int W>
-inline void backward_panel(const Super& S, int j0, double* y) {
-  const double* c[W];
+template <int W, class T>
+inline void backward_panel(const Super<T>& S, int j0, double* y) {
+  const T* c[W];
   for (int t = 0; t < W; ++t) c[t] = S.x + static_cast<std::ptrdiff_t>(j0 + t) * S.nsrow;
   double a0[W] = {}, a1[W] = {}, a2[W] = {};
   for (int i = j0 + W; i < S.nsrow; ++i) {
@@ -115,10 +123,12 @@ inline void backward_panel(const Super& S, int j0, double* y) {
 // load present): 10K β = 0: in-house 0.95 ms vs 1.06–1.19 ms for C = 32…256; 10K β = 0.5:
 // 4.30 vs 4.55–6.22 ms; 100K β = 0.5: 75.8 vs 84–138 ms; 100K β = 0: 46.0 vs 41.9–51.0 ms
 // (C = 128 the only one below, within that run's noise). The path stays, tested, for a
-// re-measurement on a quiet machine.
+// re-measurement on a quiet machine (the fused_blas:C benchmarks are no longer in
+// bench/solve_bench.cpp; the scheduled solve does not use BLAS).
 constexpr int kPanel = 4;
 
-void forward(const Super& S, double* y) {
+template <class T>
+void forward(const Super<T>& S, double* y) {
   int j = 0;
   for (; j + kPanel <= S.nc; j += kPanel) forward_panel<kPanel>(S, j, y);
   switch (S.nc - j) {
@@ -129,7 +139,8 @@ void forward(const Super& S, double* y) {
   }
 }
 
-void backward(const Super& S, double* y) {
+template <class T>
+void backward(const Super<T>& S, double* y) {
   // The panels of forward() in reverse: the ragged one (at the end) first.
   const int full = S.nc / kPanel * kPanel;
   switch (S.nc - full) {
@@ -143,7 +154,7 @@ void backward(const Super& S, double* y) {
 
 // BLAS path for one supernode. The nc rows of y at k1 are a column-major 3 × nc matrix
 // (ld 3) = X_dᵀ, so the triangular solves are right-sided on Xᵀ.
-void forward_blas(const Super& S, double* y, double* w) {
+void forward_blas(const Super<double>& S, double* y, double* w) {
   double* yd = y + 3 * static_cast<std::ptrdiff_t>(S.k1);
   const int noff = S.nsrow - S.nc;
   cblas_dtrsm(CblasColMajor, CblasRight, CblasLower, CblasTrans, CblasNonUnit, 3, S.nc, 1.0,
@@ -159,7 +170,7 @@ void forward_blas(const Super& S, double* y, double* w) {
   }
 }
 
-void backward_blas(const Super& S, double* y, double* w) {
+void backward_blas(const Super<double>& S, double* y, double* w) {
   double* yd = y + 3 * static_cast<std::ptrdiff_t>(S.k1);
   const int noff = S.nsrow - S.nc;
   if (noff > 0) {
@@ -208,14 +219,14 @@ void supernodal_solve3(const cholmod_factor& L, const double* B, std::ptrdiff_t 
     y[3 * k + 2] = B[r + 2 * ldb];
   }
   for (int s = 0; s < nsuper; ++s) {
-    const Super S = super_at(super, pi, px, Ls, Lx, s);
+    const Super<double> S = super_at(super, pi, px, Ls, Lx, s);
     if (cut > 0 && S.nc >= cut)
       forward_blas(S, y, w);
     else
       forward(S, y);
   }
   for (int s = nsuper - 1; s >= 0; --s) {
-    const Super S = super_at(super, pi, px, Ls, Lx, s);
+    const Super<double> S = super_at(super, pi, px, Ls, Lx, s);
     if (cut > 0 && S.nc >= cut)
       backward_blas(S, y, w);
     else
@@ -228,6 +239,344 @@ void supernodal_solve3(const cholmod_factor& L, const double* B, std::ptrdiff_t 
     X[r + ldx] = y[3 * k + 1];
     X[r + 2 * ldx] = y[3 * k + 2];
   }
+}
+
+SupernodalSchedule::SupernodalSchedule(const cholmod_factor& L, std::size_t min_rows) {
+  const int n = static_cast<int>(L.n);
+  const int nsuper = static_cast<int>(L.nsuper);
+  if (L.n < min_rows || nsuper < 2) return;
+  const int* super = static_cast<const int*>(L.super);
+  const int* pi = static_cast<const int*>(L.pi);
+  const int* px = static_cast<const int*>(L.px);
+  const int* Ls = static_cast<const int*>(L.s);
+
+  std::vector<int> super_of(static_cast<std::size_t>(n));
+  for (int s = 0; s < nsuper; ++s)
+    for (int k = super[s]; k < super[s + 1]; ++k) super_of[k] = s;
+  // Children lists (parent > child always: a row below s's columns) and subtree work.
+  std::vector<int> head(nsuper, -1), next(nsuper, -1), roots;
+  std::vector<double> work(nsuper), subtree(nsuper);
+  for (int s = 0; s < nsuper; ++s) {
+    work[s] = static_cast<double>(px[s + 1] - px[s]);
+    subtree[s] += work[s];
+    const int nc = super[s + 1] - super[s];
+    if (pi[s + 1] - pi[s] > nc) {
+      const int parent = super_of[Ls[pi[s] + nc]];
+      next[s] = head[parent];
+      head[parent] = s;
+      subtree[parent] += subtree[s];
+    } else {
+      roots.push_back(s);
+    }
+  }
+  double total = 0;
+  for (int r : roots) total += subtree[r];
+
+  // Greedy: repeatedly move the heaviest candidate subtree's root to the top and its
+  // children to the candidates; after each step, pack the candidates into at most
+  // kMaxParts parts (largest first into the lightest), and keep the step whose two-thread
+  // critical path (parts list-scheduled heaviest first, as claimed at run time, then the
+  // top) is shortest.
+  std::vector<int> cand = roots;
+  std::vector<std::vector<int>> best;
+  std::vector<double> best_work;
+  double top_work = 0, best_cost = total, best_top = 0;
+  // Later steps cost at least top + (total − top) / 2: stop once that cannot win.
+  for (int step = 0; step < 256 && !cand.empty() && (total + top_work) / 2 < best_cost; ++step) {
+    std::sort(cand.begin(), cand.end(), [&](int a, int b) {
+      return subtree[a] != subtree[b] ? subtree[a] > subtree[b] : a < b;
+    });
+    const int K = std::min<int>(kMaxParts, static_cast<int>(cand.size()));
+    if (K >= 2) {
+      std::vector<std::vector<int>> bins(K);
+      std::vector<double> w(K, 0.0);
+      for (int c : cand) {
+        const int b = static_cast<int>(std::min_element(w.begin(), w.end()) - w.begin());
+        w[b] += subtree[c];
+        bins[b].push_back(c);
+      }
+      std::vector<int> order(K);
+      std::iota(order.begin(), order.end(), 0);
+      std::sort(order.begin(), order.end(), [&](int a, int b) { return w[a] > w[b]; });
+      double t[2] = {0, 0};
+      for (int b : order) t[t[1] < t[0] ? 1 : 0] += w[b];
+      const double cost = std::max(t[0], t[1]) + top_work;
+      if (cost < best_cost) {
+        best_cost = cost;
+        best.clear();
+        best_work.clear();
+        for (int b : order) {
+          best.push_back(std::move(bins[b]));
+          best_work.push_back(w[b]);
+        }
+        best_top = top_work;
+      }
+    }
+    const int h = cand.front();
+    if (head[h] < 0) break;  // the heaviest is a leaf: no finer split
+    cand.erase(cand.begin());
+    top_work += work[h];
+    for (int c = head[h]; c >= 0; c = next[c]) cand.push_back(c);
+  }
+  if (best.empty() || best_cost > 0.8 * total) return;
+
+  const int K = static_cast<int>(best.size());
+  parts_.resize(K);
+  std::vector<char> in_part(nsuper, 0);
+  std::vector<int> stack;
+  for (int p = 0; p < K; ++p) {
+    for (int r : best[p]) {
+      stack.push_back(r);
+      while (!stack.empty()) {
+        const int s = stack.back();
+        stack.pop_back();
+        parts_[p].push_back(s);
+        in_part[s] = 1;
+        for (int c = head[s]; c >= 0; c = next[c]) stack.push_back(c);
+      }
+    }
+    std::sort(parts_[p].begin(), parts_[p].end());
+  }
+  std::vector<int> top_index(static_cast<std::size_t>(n), -1);
+  for (int s = 0; s < nsuper; ++s) {
+    if (in_part[s]) continue;
+    top_.push_back(s);
+    for (int k = super[s]; k < super[s + 1]; ++k) {
+      top_index[k] = static_cast<int>(top_cols_.size());
+      top_cols_.push_back(k);
+    }
+  }
+  const int ntop = static_cast<int>(top_cols_.size());
+  rows_.assign(Ls, Ls + L.ssize);
+  for (int p = 0; p < K; ++p)
+    for (int s : parts_[p])
+      for (int i = pi[s] + (super[s + 1] - super[s]); i < pi[s + 1]; ++i)
+        if (top_index[Ls[i]] >= 0) rows_[i] = n + p * ntop + top_index[Ls[i]];
+  work_ = best_work;
+  work_.push_back(best_top);
+  critical_ = best_cost;
+}
+
+std::size_t SupernodalSchedule::memory_bytes() const {
+  std::size_t ints = top_.capacity() + rows_.capacity() + top_cols_.capacity();
+  for (const auto& p : parts_) ints += p.capacity();
+  return ints * sizeof(int) + work_.capacity() * sizeof(double);
+}
+
+namespace {
+
+// Waits until `a` differs from `old`: a short spin (the other thread is usually about to
+// arrive), then a futex sleep (C++20 atomic wait), so a preempted partner costs no CPU.
+template <class A, class V>
+void await_change(const A& a, V old) {
+  for (int i = 0; i < 4000; ++i) {
+    if (a.load(std::memory_order_acquire) != old) return;
+#if defined(__x86_64__) || defined(__i386__)
+    __builtin_ia32_pause();
+#endif
+  }
+  while (a.load(std::memory_order_acquire) == old) a.wait(old, std::memory_order_acquire);
+}
+
+// Two-party barrier (one call's two threads).
+class Barrier2 {
+ public:
+  void arrive_and_wait() {
+    const unsigned g = gen_.load(std::memory_order_acquire);
+    if (count_.fetch_add(1, std::memory_order_acq_rel) == 1) {
+      count_.store(0, std::memory_order_relaxed);  // before the release: no one re-arrives yet
+      gen_.fetch_add(1, std::memory_order_acq_rel);
+      gen_.notify_one();
+      return;
+    }
+    await_change(gen_, g);
+  }
+
+ private:
+  std::atomic<int> count_{0};
+  std::atomic<unsigned> gen_{0};
+};
+
+// The process's one helper thread for two-thread solves, started on first use. A call
+// that finds it busy (another thread's solve) runs alone: same bits, and never more than
+// two solve threads on the machine's two cores. Not OpenMP: its barriers spin for
+// milliseconds by default (measured: a 2-thread solve 20 % slower than 1 thread when the
+// other core is busy) and are invisible to TSan.
+class Helper {
+ public:
+  static Helper& instance() {
+    static Helper h;
+    return h;
+  }
+  // Runs fn(ctx, 1) on the helper and fn(ctx, 0) on the caller; false (nothing run) if the
+  // helper is busy.
+  bool run(void (*fn)(void*, int), void* ctx) {
+    std::unique_lock<std::mutex> lock(busy_, std::try_to_lock);
+    if (!lock.owns_lock()) return false;
+    if (!thread_.joinable()) thread_ = std::thread([this] { loop(); });
+    fn_ = fn;
+    ctx_ = ctx;
+    const unsigned g = go_.fetch_add(1, std::memory_order_acq_rel) + 1;
+    go_.notify_one();
+    fn(ctx, 0);
+    await_change(done_, g - 1);
+    return true;
+  }
+  ~Helper() {
+    if (!thread_.joinable()) return;
+    stop_ = true;
+    go_.fetch_add(1, std::memory_order_acq_rel);
+    go_.notify_one();
+    thread_.join();
+  }
+
+ private:
+  void loop() {
+    unsigned seen = 0;
+    for (;;) {
+      await_change(go_, seen);
+      seen = go_.load(std::memory_order_acquire);
+      if (stop_) return;
+      fn_(ctx_, 1);
+      done_.store(seen, std::memory_order_release);
+      done_.notify_one();
+    }
+  }
+  std::mutex busy_;
+  std::thread thread_;
+  std::atomic<unsigned> go_{0}, done_{0};
+  void (*fn_)(void*, int) = nullptr;  // written before go_'s release, read after its acquire
+  void* ctx_ = nullptr;
+  bool stop_ = false;
+};
+
+template <class T>
+struct Sweep {
+  const int *super, *pi, *px, *rows;
+  const T* Lx;
+  double* y;
+  void forward_list(const std::vector<int>& list) const {
+    for (int s : list) forward(super_at(super, pi, px, rows, Lx, s), y);
+  }
+  void backward_list(const std::vector<int>& list) const {
+    for (auto it = list.rbegin(); it != list.rend(); ++it)
+      backward(super_at(super, pi, px, rows, Lx, *it), y);
+  }
+  void forward_all(int nsuper) const {
+    for (int s = 0; s < nsuper; ++s) forward(super_at(super, pi, px, rows, Lx, s), y);
+  }
+  void backward_all(int nsuper) const {
+    for (int s = nsuper - 1; s >= 0; --s) backward(super_at(super, pi, px, rows, Lx, s), y);
+  }
+};
+
+}  // namespace
+
+template <class T>
+void supernodal_solve3(const cholmod_factor& L, const T* Lx, const SupernodalSchedule& sched,
+                       const double* B, std::ptrdiff_t ldb, double* X, std::ptrdiff_t ldx,
+                       SupernodalWorkspace& ws, int threads) {
+  const auto n = static_cast<std::ptrdiff_t>(L.n);
+  if (n == 0) return;
+  const bool split = sched.split();
+  const int K = sched.parts();
+  const std::ptrdiff_t ntop = split ? sched.top_rows() : 0;
+  ws.reserve(static_cast<std::size_t>(n + K * ntop));
+  double* y = ws.data();
+  const int* perm = static_cast<const int*>(L.Perm);
+  const int nsuper = static_cast<int>(L.nsuper);
+  const Sweep<T> sw{static_cast<const int*>(L.super), static_cast<const int*>(L.pi),
+                    static_cast<const int*>(L.px),
+                    split ? sched.rows_.data() : static_cast<const int*>(L.s), Lx, y};
+  const int* top_cols = sched.top_cols_.data();
+  // Work is claimed, not assigned: parts and blocks of rows go to whichever thread asks.
+  constexpr std::ptrdiff_t kBlock = 8192;
+  std::atomic<std::ptrdiff_t> next_in{0}, next_out{0};
+  std::atomic<int> next_fwd{0}, next_bwd{0};
+
+  // y = P b, interleaved: y[3k + c] = B(Perm[k], c).
+  auto permute_in = [&] {
+    for (std::ptrdiff_t k0; (k0 = next_in.fetch_add(kBlock)) < n;)
+      for (std::ptrdiff_t k = k0, k1 = std::min(n, k0 + kBlock); k < k1; ++k) {
+        const std::ptrdiff_t r = perm[k];
+        y[3 * k] = B[r];
+        y[3 * k + 1] = B[r + ldb];
+        y[3 * k + 2] = B[r + 2 * ldb];
+      }
+  };
+  // x = Pᵀ y (reads y only: X may alias B).
+  auto permute_out = [&] {
+    for (std::ptrdiff_t k0; (k0 = next_out.fetch_add(kBlock)) < n;)
+      for (std::ptrdiff_t k = k0, k1 = std::min(n, k0 + kBlock); k < k1; ++k) {
+        const std::ptrdiff_t r = perm[k];
+        X[r] = y[3 * k];
+        X[r + ldx] = y[3 * k + 1];
+        X[r + 2 * ldx] = y[3 * k + 2];
+      }
+  };
+  if (!split) {
+    permute_in();
+    sw.forward_all(nsuper);
+    sw.backward_all(nsuper);
+    permute_out();
+    return;
+  }
+  // Each thread of the team (1 or 2) runs this; every part's arithmetic is the same
+  // whichever thread runs it, and only thread 0 touches the top.
+  Barrier2 bar;
+  auto body = [&](int tid, int team) {
+    auto barrier = [&bar, team] {
+      if (team > 1) bar.arrive_and_wait();
+    };
+    permute_in();
+    barrier();  // B is read (X may alias it) and y is complete
+    for (int p; (p = next_fwd.fetch_add(1)) < K;) {
+      double* buf = y + 3 * (n + p * ntop);
+      std::fill(buf, buf + 3 * ntop, 0.0);
+      sw.forward_list(sched.parts_[p]);
+    }
+    barrier();
+    if (tid == 0) {
+      for (int p = 0; p < K; ++p) {  // fixed order: the bits do not depend on the team
+        const double* buf = y + 3 * (n + p * ntop);
+        for (std::ptrdiff_t k = 0; k < ntop; ++k) {
+          double* yr = y + 3 * static_cast<std::ptrdiff_t>(top_cols[k]);
+          yr[0] += buf[3 * k];
+          yr[1] += buf[3 * k + 1];
+          yr[2] += buf[3 * k + 2];
+        }
+      }
+      sw.forward_list(sched.top_);
+      sw.backward_list(sched.top_);
+    }
+    barrier();
+    for (int p; (p = next_bwd.fetch_add(1)) < K;) {
+      double* buf = y + 3 * (n + p * ntop);  // the part reads the top's x from here
+      for (std::ptrdiff_t k = 0; k < ntop; ++k) {
+        const double* yr = y + 3 * static_cast<std::ptrdiff_t>(top_cols[k]);
+        buf[3 * k] = yr[0];
+        buf[3 * k + 1] = yr[1];
+        buf[3 * k + 2] = yr[2];
+      }
+      sw.backward_list(sched.parts_[p]);
+    }
+    barrier();
+    permute_out();
+  };
+  auto run2 = [](void* ctx, int tid) { (*static_cast<decltype(body)*>(ctx))(tid, 2); };
+  if (threads < 2 || !Helper::instance().run(run2, &body)) body(0, 1);
+}
+
+template void supernodal_solve3<double>(const cholmod_factor&, const double*,
+                                        const SupernodalSchedule&, const double*, std::ptrdiff_t,
+                                        double*, std::ptrdiff_t, SupernodalWorkspace&, int);
+template void supernodal_solve3<float>(const cholmod_factor&, const float*,
+                                       const SupernodalSchedule&, const double*, std::ptrdiff_t,
+                                       double*, std::ptrdiff_t, SupernodalWorkspace&, int);
+
+std::vector<float> factor_values_float(const cholmod_factor& L) {
+  const double* x = static_cast<const double*>(L.x);
+  return std::vector<float>(x, x + L.xsize);
 }
 
 }  // namespace hdeform

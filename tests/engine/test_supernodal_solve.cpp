@@ -8,7 +8,30 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <new>
 #include <thread>
+
+// Counts operator new calls (for the allocation-free check below); engine_tests-wide.
+// noinline: GCC's -Wmismatched-new-delete otherwise sees malloc/free through them.
+namespace {
+std::atomic<long> g_news{0};
+}
+[[gnu::noinline]] void* operator new(std::size_t size) {
+  g_news.fetch_add(1, std::memory_order_relaxed);
+  if (void* p = std::malloc(size ? size : 1)) return p;
+  throw std::bad_alloc();
+}
+[[gnu::noinline]] void* operator new[](std::size_t size) { return ::operator new(size); }
+[[gnu::noinline]] void operator delete(void* p) noexcept { std::free(p); }
+[[gnu::noinline]] void operator delete[](void* p) noexcept { std::free(p); }
+[[gnu::noinline]] void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+[[gnu::noinline]] void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
 
 namespace hdeform {
 namespace {
@@ -179,6 +202,187 @@ TEST(SupernodalSolve, ConcurrentSolvesAgree) {
   t2.join();
   EXPECT_EQ(r1, ref);
   EXPECT_EQ(r2, ref);
+}
+
+// ---------------------------------------------------------------------------------------
+// Factorization::solve3: the two-thread schedule and float32 factor values, on a capsule
+// large enough to be split (K_FF ≥ 20K rows).
+
+Eigen::MatrixXd solve3(const Factorization& f, const Eigen::MatrixXd& B, SolvePrecision p,
+                       int threads) {
+  Eigen::MatrixXd X(B.rows(), 3);
+  f.solve3(B.data(), X.data(), p, threads);
+  return X;
+}
+
+bool same_bits(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+  return a.rows() == b.rows() && a.cols() == b.cols() &&
+         std::memcmp(a.data(), b.data(), sizeof(double) * a.size()) == 0;
+}
+
+// max over columns of ‖a − b‖₂ / ‖b‖₂
+double rel_col2(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+  double r = 0;
+  for (int c = 0; c < b.cols(); ++c) r = std::max(r, (a.col(c) - b.col(c)).norm() / b.col(c).norm());
+  return r;
+}
+
+// A priori bound for the float32-factor solve, relative to the exact solve, per column in
+// the 2-norm. L̃ = L + E with |E| ≤ u|L| entrywise (round to nearest, u = 2⁻²⁴), so
+// ‖E‖₂ ≤ u ‖|L|‖₂ ≤ u √(‖L‖₁ ‖L‖∞) =: e. The float solve is exact for A + ΔA,
+// ΔA = E Lᵀ + L Eᵀ + E Eᵀ; x − x̃ = A⁻¹ ΔA x̃ gives, with ‖A⁻¹L‖ = 1/√λmin,
+// ‖Lᵀ‖ = √λmax:
+//   ‖x − x̃‖ / ‖x̃‖ ≤ e (√λmax + e) / λmin + e / √λmin   (plus the double solve's own
+//   rounding, ~1e-13 here). λmax ≤ Gershgorin's bound; λmin from inverse iteration (which
+//   overestimates it: halved for safety).
+double float32_bound(const Factorization& f, const SparseMatrix& K) {
+  const cholmod_factor& L = *f.factor();
+  const int* super = static_cast<const int*>(L.super);
+  const int* pi = static_cast<const int*>(L.pi);
+  const int* px = static_cast<const int*>(L.px);
+  const int* Ls = static_cast<const int*>(L.s);
+  const double* Lx = static_cast<const double*>(L.x);
+  std::vector<double> row_sum(L.n, 0.0);
+  double norm1 = 0;
+  for (std::size_t s = 0; s < L.nsuper; ++s) {
+    const int nsrow = pi[s + 1] - pi[s];
+    for (int j = 0; j < super[s + 1] - super[s]; ++j) {
+      double col = 0;
+      for (int i = j; i < nsrow; ++i) {  // the diagonal block's upper part is not L
+        const double v = std::abs(Lx[px[s] + static_cast<std::ptrdiff_t>(j) * nsrow + i]);
+        col += v;
+        row_sum[Ls[pi[s] + i]] += v;
+      }
+      norm1 = std::max(norm1, col);
+    }
+  }
+  const double norm_inf = *std::max_element(row_sum.begin(), row_sum.end());
+  const double e = std::ldexp(1.0, -24) * std::sqrt(norm1 * norm_inf);
+  double lmax = 0;
+  for (Eigen::Index c = 0; c < K.outerSize(); ++c) {
+    double sum = 0;
+    for (SparseMatrix::InnerIterator it(K, c); it; ++it) sum += std::abs(it.value());
+    lmax = std::max(lmax, sum);  // K symmetric: column sums = row sums
+  }
+  Eigen::MatrixXd v = Eigen::MatrixXd::Ones(K.rows(), 3);
+  v.col(1).setLinSpaced(-1, 1);
+  v.col(2) = v.col(1).cwiseAbs2();
+  double lmin = 0;
+  for (int it = 0; it < 60; ++it) {
+    v = solve3(f, v, SolvePrecision::float64, 2);
+    for (int c = 0; c < 3; ++c) v.col(c).normalize();
+  }
+  lmin = (v.col(0).transpose() * K * v.col(0)).value();
+  for (int c = 1; c < 3; ++c) lmin = std::min(lmin, (v.col(c).transpose() * K * v.col(c)).value());
+  lmin *= 0.5;
+  const double bound = e * (std::sqrt(lmax) + e) / lmin + e / std::sqrt(lmin);
+  std::printf("  float32 bound: u*sqrt(|L|_1 |L|_inf) = %.3g, lambda_max <= %.4g, "
+              "lambda_min ~ %.4g (halved), bound %.3g\n", e, lmax, lmin, bound);
+  return bound;
+}
+
+struct BigCase {
+  std::shared_ptr<const PreparedMesh> pm;
+  Constraints c;
+};
+
+const BigCase& big_case() {
+  static const BigCase bc = [] {
+    procedural::CapsuleCase cc = procedural::capsule_case(40000);
+    BigCase b;
+    b.pm = PreparedMesh::create(std::move(cc.mesh));
+    b.c.fixed = cc.base;
+    b.c.handles = {cc.cap};
+    return b;
+  }();
+  return bc;
+}
+
+void check_scheduled(double beta) {
+  const BigCase& bc = big_case();
+  const SparseMatrix K = k_ff(*bc.pm, bc.c, beta);
+  const Factorization f(K);
+  ASSERT_GE(f.size(), 30000);
+  const SupernodalSchedule& sch = f.schedule();
+  ASSERT_TRUE(sch.split());
+  const auto t0 = std::chrono::steady_clock::now();
+  const SupernodalSchedule again(*f.factor());
+  std::printf("  schedule built in %.2f ms (%.2f MB)\n",
+              std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count(),
+              static_cast<double>(again.memory_bytes()) / (1 << 20));
+  double total = 0;
+  for (int i = 0; i <= sch.parts(); ++i) total += sch.work(i);
+  std::printf("  beta %g: n = %d, %d parts, largest %.3f, top %.3f, two-thread critical path "
+              "%.3f of %.3g factor entries\n",
+              beta, f.size(), sch.parts(), sch.work(0) / total, sch.work(sch.parts()) / total,
+              sch.critical_path() / total, total);
+  std::srand(21);
+  const Eigen::MatrixXd B = Eigen::MatrixXd::Random(f.size(), 3);
+  const Eigen::MatrixXd X1 = solve3(f, B, SolvePrecision::float64, 1);
+  const Eigen::MatrixXd X2 = solve3(f, B, SolvePrecision::float64, 2);
+  EXPECT_TRUE(same_bits(X1, X2));
+  for (int rep = 0; rep < 5; ++rep)  // thread timing differs between runs, the bits do not
+    EXPECT_TRUE(same_bits(solve3(f, B, SolvePrecision::float64, 2), X2));
+  EXPECT_LT(rel_max_diff(X2, f.solve_cholmod(B)), 1e-12);
+  EXPECT_TRUE(same_bits(f.solve(B), X2));
+  // Two callers at once: one gets the helper thread, the other runs alone; same bits.
+  {
+    Eigen::MatrixXd r[2] = {Eigen::MatrixXd(B.rows(), 3), Eigen::MatrixXd(B.rows(), 3)};
+    bool ok[2] = {true, true};
+    auto work = [&](int i) {
+      for (int rep = 0; rep < 8; ++rep) {
+        f.solve3(B.data(), r[i].data(), SolvePrecision::float64, 2);
+        ok[i] = ok[i] && same_bits(r[i], X2);
+      }
+    };
+    std::thread t0(work, 0), t1(work, 1);
+    t0.join();
+    t1.join();
+    EXPECT_TRUE(ok[0] && ok[1]);
+  }
+  // In place.
+  Eigen::MatrixXd inplace = B;
+  f.solve3(inplace.data(), inplace.data(), SolvePrecision::float64, 2);
+  EXPECT_TRUE(same_bits(inplace, X2));
+
+  // No allocation after the first call of each kind on this thread (Eigen allocates
+  // through malloc, not operator new: Y is preallocated anyway).
+  Eigen::MatrixXd Y(B.rows(), 3);
+  f.solve3(B.data(), Y.data(), SolvePrecision::float32, 2);
+  const long news = g_news.load();
+  for (int threads : {1, 2})
+    for (SolvePrecision p : {SolvePrecision::float64, SolvePrecision::float32})
+      f.solve3(B.data(), Y.data(), p, threads);
+  EXPECT_EQ(g_news.load(), news);
+
+  const Eigen::MatrixXd F1 = solve3(f, B, SolvePrecision::float32, 1);
+  const Eigen::MatrixXd F2 = solve3(f, B, SolvePrecision::float32, 2);
+  EXPECT_TRUE(same_bits(F1, F2));
+  EXPECT_TRUE(same_bits(solve3(f, B, SolvePrecision::float32, 2), F2));
+  const double err2 = rel_col2(X2, F2), errmax = rel_max_diff(F2, X2);
+  const double bound = float32_bound(f, K);
+  std::printf("  beta %g: float32 vs float64: max rel error %.3g (max norm), %.3g (column "
+              "2-norm), bound %.3g\n", beta, errmax, err2, bound);
+  EXPECT_LT(err2, bound);
+  EXPECT_LT(errmax, 1e-3);  // what the engine can live with (mm on a metre-sized model)
+}
+
+TEST(SupernodalSolve, ScheduledTwoThreadsBeta0) { check_scheduled(0.0); }
+TEST(SupernodalSolve, ScheduledTwoThreadsBetaPositive) { check_scheduled(0.3); }
+
+// Small factors are not split and still solve through solve3 with either thread count.
+TEST(SupernodalSolve, Solve3SmallUnsplit) {
+  const test::Benchmark bar = test::load_benchmark("bar");
+  const Factorization f(k_ff(*bar.mesh, bar.constraints, 0.0));
+  EXPECT_FALSE(f.schedule().split());
+  std::srand(4);
+  const Eigen::MatrixXd B = Eigen::MatrixXd::Random(f.size(), 3);
+  const Eigen::MatrixXd X = solve3(f, B, SolvePrecision::float64, 2);
+  EXPECT_TRUE(same_bits(X, solve3(f, B, SolvePrecision::float64, 1)));
+  EXPECT_LT(rel_max_diff(X, f.solve_cholmod(B)), 1e-12);
+  const std::size_t before = f.memory_bytes();
+  EXPECT_LT(rel_max_diff(solve3(f, B, SolvePrecision::float32, 2), X), 1e-3);
+  EXPECT_EQ(f.memory_bytes(), before + f.factor()->xsize * sizeof(float));
 }
 
 }  // namespace
