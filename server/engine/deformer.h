@@ -110,6 +110,7 @@ struct Frame {
   Measures measures;         // valid when has_measures
   bool has_measures = false;
   bool exact = true;  // false: a drag-path frame (FramePrecision::drag)
+  int solves = 0;     // K_FF solves the frame took (drag: 1 per refinement step, + 1 cold)
 };
 
 struct BetaSystem;  // deformer.cpp: K_FF factorization, K_FC, (Gᵀ W_β)_F for one β
@@ -129,6 +130,8 @@ class UpdateWorkspace {
   Eigen::MatrixXd x_C, rhs, x_F, residual, correction;
   std::weak_ptr<const BetaSystem> warm_system;  // x_F solves this system (drag path)
   bool warm = false;
+  std::weak_ptr<const BetaSystem> contraction_system;  // the drag refinement's measured δ
+  double contraction = -1;
 };
 
 class Factorization;  // solver.h
@@ -208,6 +211,9 @@ class ConstraintSet {
   void solve(const std::shared_ptr<const BetaSystem>& sys,
              std::span<const HandleTransform> transforms, const UpdateOptions& options,
              UpdateWorkspace& ws, Frame& out) const;
+  // x_F = K_FF⁻¹ ws.rhs into ws.x_F on the drag path (float32 factor + refinement).
+  void drag_solve(const std::shared_ptr<const BetaSystem>& sys, bool warm, UpdateWorkspace& ws,
+                  Frame& out) const;
   Frame solve(const std::shared_ptr<const BetaSystem>& sys,
               std::span<const HandleTransform> transforms, const UpdateOptions& options) const;
   struct WideBlocks;  // the β > 0 pattern, split into its (1 − β) and β parts
@@ -219,6 +225,7 @@ class ConstraintSet {
   std::vector<int> region_of_;           // −1 free, 0 fixed (F₀ or unreferenced), j+1 handle j
   Eigen::MatrixXd basis_;
   std::vector<Eigen::Vector3d> centroids_;
+  double rest_diagonal_ = 0;  // bbox diagonal at rest: the drag tolerance's unit
   // Lock order: build_mutex_, then mutex_. wide_ and wide_symbolic_ are written with both
   // held, so holding either one is enough to read them.
   mutable std::mutex mutex_;
