@@ -160,12 +160,13 @@ struct TestServer {
 
   grpc::Status update(const std::string& name, std::int64_t seq,
                       const std::vector<pb::HandleTransform>& ts, pb::Frame* out,
-                      bool energies = false) {
+                      bool energies = false, bool dragging = false) {
     grpc::ClientContext ctx;
     pb::UpdateHandlesRequest req;
     req.set_name(name);
     req.set_sequence(seq);
     req.set_energies(energies);
+    req.set_dragging(dragging);
     for (const auto& t : ts) *req.add_transforms() = t;
     return stub->UpdateHandles(&ctx, req, out);
   }

@@ -2,6 +2,8 @@
 #include "service_fixture.h"
 
 #include <atomic>
+#include <cmath>
+#include <cstring>
 #include <cstdio>
 #include <condition_variable>
 #include <map>
@@ -246,4 +248,53 @@ TEST(ServiceStreams, DeformStreamEndsWhenItsSessionIsDeleted) {
   while (stream->Read(&f)) EXPECT_NE(f.sequence(), 2) << "a deleted session answered";
   const grpc::Status st = stream->Finish();
   EXPECT_EQ(st.error_code(), grpc::StatusCode::NOT_FOUND) << st.error_message();
+}
+
+// Drag frames (docs/api.md "Drag frames"): while `dragging`, frames are marked inexact and
+// carry measures at most every 100 ms; they stay within 1e-6 of the bbox diagonal of the
+// exact answer; the release frame is exact with measures, and GetMesh never serves a drag
+// frame's positions.
+TEST(ServiceStreams, DragFramesAreMarkedBoundedAndEndExact) {
+  TestServer t;
+  const pb::Session s = constrained_cactus(t);
+  const double diag = std::sqrt(std::pow(s.bbox_max().x() - s.bbox_min().x(), 2) +
+                                std::pow(s.bbox_max().y() - s.bbox_min().y(), 2) +
+                                std::pow(s.bbox_max().z() - s.bbox_min().z(), 2));
+  auto floats = [](const std::string& bytes) {
+    std::vector<float> v(bytes.size() / sizeof(float));
+    std::memcpy(v.data(), bytes.data(), bytes.size());
+    return v;
+  };
+  pb::Frame drag, exact;
+  int with_measures = 0;
+  const int kMoves = 6;
+  for (int i = 1; i <= kMoves; ++i) {
+    const auto move = translation(0, 0.01 * i, 0);
+    ASSERT_TRUE(t.update(s.name(), i, {move}, &drag, false, /*dragging=*/true).ok());
+    EXPECT_FALSE(drag.exact()) << "move " << i;
+    with_measures += drag.has_measures();
+  }
+  EXPECT_GE(with_measures, 1);  // the first drag frame is measured (none for 100 ms before)
+  EXPECT_LT(with_measures, kMoves) << "every drag frame was measured (moves took > 100 ms?)";
+
+  // The same pose, exact: the drag frame was within the tolerance of it.
+  const auto last_move = translation(0, 0.01 * kMoves, 0);
+  ASSERT_TRUE(t.update(s.name(), kMoves + 1, {last_move}, &exact).ok());
+  EXPECT_TRUE(exact.exact());
+  EXPECT_TRUE(exact.has_measures());
+  const auto a = floats(drag.positions()), b = floats(exact.positions());
+  ASSERT_EQ(a.size(), b.size());
+  double worst = 0;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    worst = std::max(worst, std::abs(static_cast<double>(a[i]) - b[i]));
+  // float32 frames round at ≈ 6e-8 relative to the coordinates; the solves differ ≤ 1e-6·d.
+  EXPECT_LE(worst, 1e-6 * diag + 1e-6 * diag) << "diag " << diag;
+
+  // GetMesh after a drag frame solves exactly (never serves the drag frame's positions).
+  const auto after_drag = translation(0, 0.07, 0);
+  ASSERT_TRUE(t.update(s.name(), kMoves + 2, {after_drag}, &drag, false, true).ok());
+  ASSERT_FALSE(drag.exact());
+  const std::string mesh_after_drag = t.deformed(s.name(), pb::MESH_FORMAT_OBJ);
+  ASSERT_TRUE(t.update(s.name(), kMoves + 3, {after_drag}, &exact).ok());
+  EXPECT_EQ(mesh_after_drag, t.deformed(s.name(), pb::MESH_FORMAT_OBJ));
 }
