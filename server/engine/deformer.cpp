@@ -484,12 +484,11 @@ void ConstraintSet::solve(const std::shared_ptr<const BetaSystem>& system,
     ws.rhs.resize(nF, 3);
     ws.rhs.noalias() = sys.GtW_F * ws.g;
     ws.rhs.noalias() -= sys.K_FC * ws.x_C;
-    const bool warm = ws.warm && ws.x_F.rows() == nF && ws.warm_system.lock() == system;
     if (options.precision == FramePrecision::exact) {
       solve3(*sys.factor, ws.rhs, ws.x_F, SolvePrecision::float64);
       out.solves = 1;
     } else {
-      drag_solve(system, warm, ws, out);
+      drag_solve(system, ws, out);
     }
     ws.warm = true;
     ws.warm_system = system;
@@ -520,12 +519,14 @@ void ConstraintSet::solve(const std::shared_ptr<const BetaSystem>& system,
 // Iterative refinement with the float32 factor M ≈ K_FF (SPEC §Drag frames). Each step
 // x += M⁻¹(b − K_FF x), the residual in double, shrinks the error by the contraction
 // δ ≈ ‖I − M⁻¹K_FF‖, so after a step of size s the error is ≈ δ·s. δ is measured as the ratio
-// of two successive steps (kept per system in the workspace), and steps go on until δ·s is
-// below half the tolerance. A drag frame starts from the previous solution (warm: s is the
-// frame-to-frame motion, so one step usually suffices) or from x = M⁻¹b.
-void ConstraintSet::drag_solve(const std::shared_ptr<const BetaSystem>& system, bool warm,
+// of two successive steps (kept per system in the workspace), and steps go on until
+// kSafety·δ·s is below the tolerance. A drag frame starts from the previous solution of this
+// system (warm: s is the frame-to-frame motion, so one step usually suffices) or from x = M⁻¹b.
+void ConstraintSet::drag_solve(const std::shared_ptr<const BetaSystem>& system,
                                UpdateWorkspace& ws, Frame& out) const {
   const BetaSystem& sys = *system;
+  const bool warm =
+      ws.warm && ws.x_F.rows() == ws.rhs.rows() && ws.warm_system.lock() == system;
   constexpr int kMaxSteps = 4;
   constexpr double kMinContraction = 6e-8;  // float32's unit roundoff: δ is never below it
   // The max-norm step ratio underestimates δ for smooth, low-frequency moves (up to 7× on

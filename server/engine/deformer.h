@@ -212,7 +212,7 @@ class ConstraintSet {
              std::span<const HandleTransform> transforms, const UpdateOptions& options,
              UpdateWorkspace& ws, Frame& out) const;
   // x_F = K_FF⁻¹ ws.rhs into ws.x_F on the drag path (float32 factor + refinement).
-  void drag_solve(const std::shared_ptr<const BetaSystem>& sys, bool warm, UpdateWorkspace& ws,
+  void drag_solve(const std::shared_ptr<const BetaSystem>& sys, UpdateWorkspace& ws,
                   Frame& out) const;
   Frame solve(const std::shared_ptr<const BetaSystem>& sys,
               std::span<const HandleTransform> transforms, const UpdateOptions& options) const;
