@@ -430,7 +430,7 @@ void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta
   Case& c = get(key);
   System& s = system(c, beta);
   const HandleTransform t = move(c, 0);
-  Eigen::MatrixX3d g;
+  GuidanceField g;
   std::vector<Eigen::Quaterniond> R_l;
   c.cs->guidance(std::span(&t, 1), g, R_l);
   const Frame frame = c.cs->update(std::span(&t, 1), Beta{beta}, {false, false});
@@ -491,7 +491,7 @@ void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta
   }
   size_counters(state, c);
   if (phase == Phase::guidance_sketch) {  // same field as the engine's?
-    Eigen::MatrixX3d g_engine;
+    GuidanceField g_engine;
     std::vector<Eigen::Quaterniond> R_engine;
     c.cs->guidance(std::span(&t, 1), g_engine, R_engine);
     state.counters["diff_vs_engine"] = (RowMajorX3(g_engine) - g_row).cwiseAbs().maxCoeff();

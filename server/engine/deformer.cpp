@@ -388,7 +388,7 @@ std::shared_ptr<const BetaSystem> ConstraintSet::local_system(const LocalBeta& f
 
 void ConstraintSet::prepare(Beta beta) const { system(mesh_->raw_beta(beta)); }
 
-void ConstraintSet::guidance(std::span<const HandleTransform> transforms, Eigen::MatrixX3d& g,
+void ConstraintSet::guidance(std::span<const HandleTransform> transforms, GuidanceField& g,
                              std::vector<Eigen::Quaterniond>& R_l) const {
   guidance_field(mesh_->mesh().F, mesh_->normals(), basis_, transforms, g, R_l);
 }

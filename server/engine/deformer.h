@@ -128,7 +128,7 @@ class UpdateWorkspace {
 
  private:
   friend class ConstraintSet;
-  Eigen::MatrixX3d g;
+  GuidanceField g;
   std::vector<Eigen::Quaterniond> R_l;
   Eigen::MatrixXd x_C, rhs, x_F, residual, correction;
   Vertices face_w;  // per-triangle normal weights (vertex_normals' scratch)
@@ -192,7 +192,7 @@ class ConstraintSet {
   static constexpr std::size_t kMaxCachedFields = 4;
 
   // Guidance per triangle (SPEC §Harmonic guidance field): g (3m×3) and R_l.
-  void guidance(std::span<const HandleTransform> transforms, Eigen::MatrixX3d& g,
+  void guidance(std::span<const HandleTransform> transforms, GuidanceField& g,
                 std::vector<Eigen::Quaterniond>& R_l) const;
 
   std::size_t memory_bytes() const;
