@@ -388,7 +388,7 @@ void BM_UpdateConcurrent(benchmark::State& state, std::string key, double beta) 
 
 // Phases of update(), each on its own (the same operations the engine performs).
 enum class Phase {
-  guidance, rhs, solve, measures, measures_ef2, normals,
+  guidance, rhs, solve, measures, measures_ef2, normals, normals_gather,
   // Candidate improvements, measured on the same data (not used by the engine):
   guidance_sketch,  // single handle: slerp angle precomputed, g row-major
   rhs_rowmajor_g,   // (GᵀW)_F · g with g row-major: one pass over the matrix instead of 3
@@ -430,7 +430,7 @@ void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta
   Case& c = get(key);
   System& s = system(c, beta);
   const HandleTransform t = move(c, 0);
-  Eigen::MatrixX3d g;
+  GuidanceField g;
   std::vector<Eigen::Quaterniond> R_l;
   c.cs->guidance(std::span(&t, 1), g, R_l);
   const Frame frame = c.cs->update(std::span(&t, 1), Beta{beta}, {false, false});
@@ -442,6 +442,7 @@ void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta
   Eigen::VectorXf ef2;
   RowMajorX3 g_row = g;
   Eigen::MatrixX3d Y;
+  Vertices face_w, N_reused;
   for (auto _ : state) {
     switch (phase) {
       case Phase::guidance:
@@ -481,11 +482,16 @@ void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta
         benchmark::DoNotOptimize(N.data());
         break;
       }
+      case Phase::normals_gather: {  // what update() runs: gathering, two cores, buffers reused
+        vertex_normals(frame.positions, c.pm->mesh().F, c.pm->vertex_triangles(), face_w, N_reused);
+        benchmark::DoNotOptimize(N_reused.data());
+        break;
+      }
     }
   }
   size_counters(state, c);
   if (phase == Phase::guidance_sketch) {  // same field as the engine's?
-    Eigen::MatrixX3d g_engine;
+    GuidanceField g_engine;
     std::vector<Eigen::Quaterniond> R_engine;
     c.cs->guidance(std::span(&t, 1), g_engine, R_engine);
     state.counters["diff_vs_engine"] = (RowMajorX3(g_engine) - g_row).cwiseAbs().maxCoeff();
@@ -640,6 +646,7 @@ void register_size(int n) {
   reg("Phase" + N + "/measures", fast, BM_Phase, key, Phase::measures, 0.0);
   reg("Phase" + N + "/measures+ef2", fast, BM_Phase, key, Phase::measures_ef2, 0.0);
   reg("Phase" + N + "/normals", fast, BM_Phase, key, Phase::normals, 0.0);
+  reg("Phase" + N + "/normals_gather", fast, BM_Phase, key, Phase::normals_gather, 0.0);
   reg("Phase" + N + "/GX", fast, BM_Phase, key, Phase::GX, 0.0);
   reg("Phase" + N + "/guidance_sketch", fast, BM_Phase, key, Phase::guidance_sketch, 0.0);
   for (double beta : kBetas) {

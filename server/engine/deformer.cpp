@@ -5,6 +5,7 @@
 #include "mesh_io.h"
 #include "solver.h"
 #include "validate.h"
+#include "vertex_normals.h"
 
 #include <algorithm>
 #include <cmath>
@@ -134,6 +135,7 @@ std::shared_ptr<const PreparedMesh> PreparedMesh::create(TriMesh mesh) {
   pm->grads_ = hat_gradients(V, F);
   pm->G_ = grad(V, F);
   pm->edges_ = interior_edges(V, F);
+  pm->vertex_triangles_ = VertexTriangles::build(pm->n(), F);
 
   // A as a 3m vector, so Gᵀ A is a column scaling of Gᵀ.
   Eigen::VectorXd a3(3 * F.rows());
@@ -164,7 +166,8 @@ std::size_t PreparedMesh::memory_bytes() const {
          sparse_bytes(L_) + sparse_bytes(Reg_) + sparse_bytes(GtA_) + sparse_bytes(GtDBD_) +
          static_cast<std::size_t>(grads_.size()) * sizeof(double) +
          static_cast<std::size_t>(areas_.size() + normals_.size()) * sizeof(double) +
-         edges_.size() * sizeof(InteriorEdge) + component_.size() * sizeof(int);
+         edges_.size() * sizeof(InteriorEdge) + component_.size() * sizeof(int) +
+         vertex_triangles_.memory_bytes();
 }
 
 // ---------------------------------------------------------------------------------------
@@ -385,7 +388,7 @@ std::shared_ptr<const BetaSystem> ConstraintSet::local_system(const LocalBeta& f
 
 void ConstraintSet::prepare(Beta beta) const { system(mesh_->raw_beta(beta)); }
 
-void ConstraintSet::guidance(std::span<const HandleTransform> transforms, Eigen::MatrixX3d& g,
+void ConstraintSet::guidance(std::span<const HandleTransform> transforms, GuidanceField& g,
                              std::vector<Eigen::Quaterniond>& R_l) const {
   guidance_field(mesh_->mesh().F, mesh_->normals(), basis_, transforms, g, R_l);
 }
@@ -512,7 +515,8 @@ void ConstraintSet::solve(const std::shared_ptr<const BetaSystem>& system,
     out.measures = Measures{};
   }
   if (!options.energies) out.energies.resize(0);
-  if (options.normals) vertex_normals(out.positions, mesh_->mesh().F, out.normals);
+  if (options.normals)
+    vertex_normals(out.positions, mesh_->mesh().F, mesh_->vertex_triangles(), ws.face_w, out.normals);
   else out.normals.resize(0, 3);
 }
 
@@ -561,7 +565,7 @@ void ConstraintSet::drag_solve(const std::shared_ptr<const BetaSystem>& system,
 
 std::size_t UpdateWorkspace::memory_bytes() const {
   const auto doubles = g.size() + x_C.size() + rhs.size() + x_F.size() + residual.size() +
-                       correction.size();
+                       correction.size() + face_w.size();
   return static_cast<std::size_t>(doubles) * sizeof(double) + R_l.capacity() * sizeof(R_l[0]);
 }
 

@@ -6,6 +6,7 @@
 #include "mesh.h"
 #include "operators.h"
 #include "transform.h"
+#include "vertex_normals.h"
 
 #include <cstddef>
 #include <cstdint>
@@ -41,6 +42,7 @@ class PreparedMesh {
   const Eigen::VectorXd& areas() const { return areas_; }        // a_l (units²)
   const Vertices& normals() const { return normals_; }           // n_l at rest
   const std::vector<InteriorEdge>& edges() const { return edges_; }
+  const VertexTriangles& vertex_triangles() const { return vertex_triangles_; }
   const SparseMatrix& L() const { return L_; }                   // Gᵀ A G
   const SparseMatrix& Reg() const { return Reg_; }               // Gᵀ D₃ᵀ B₃ D₃ G
   const SparseMatrix& GtA() const { return GtA_; }               // Gᵀ A (n × 3m)
@@ -65,6 +67,7 @@ class PreparedMesh {
   Eigen::VectorXd areas_;
   Vertices normals_;
   std::vector<InteriorEdge> edges_;
+  VertexTriangles vertex_triangles_;
   double total_area_ = 0;
   std::vector<int> unreferenced_;
   std::vector<int> component_;
@@ -125,9 +128,10 @@ class UpdateWorkspace {
 
  private:
   friend class ConstraintSet;
-  Eigen::MatrixX3d g;
+  GuidanceField g;
   std::vector<Eigen::Quaterniond> R_l;
   Eigen::MatrixXd x_C, rhs, x_F, residual, correction;
+  Vertices face_w;  // per-triangle normal weights (vertex_normals' scratch)
   std::weak_ptr<const BetaSystem> warm_system;  // x_F solves this system (drag path)
   bool warm = false;
   std::weak_ptr<const BetaSystem> contraction_system;  // the drag refinement's measured δ
@@ -188,7 +192,7 @@ class ConstraintSet {
   static constexpr std::size_t kMaxCachedFields = 4;
 
   // Guidance per triangle (SPEC §Harmonic guidance field): g (3m×3) and R_l.
-  void guidance(std::span<const HandleTransform> transforms, Eigen::MatrixX3d& g,
+  void guidance(std::span<const HandleTransform> transforms, GuidanceField& g,
                 std::vector<Eigen::Quaterniond>& R_l) const;
 
   std::size_t memory_bytes() const;

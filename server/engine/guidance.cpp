@@ -5,7 +5,7 @@
 namespace hdeform {
 
 void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::MatrixXd& Phi,
-                    std::span<const HandleTransform> transforms, Eigen::MatrixX3d& g,
+                    std::span<const HandleTransform> transforms, GuidanceField& g,
                     std::vector<Eigen::Quaterniond>& R_l) {
   const Eigen::Index m = F.rows();
   const int k = static_cast<int>(transforms.size());

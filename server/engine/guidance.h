@@ -18,7 +18,7 @@ namespace hdeform {
 // F₀) averaged per triangle and normalized; S entries blended the same way.
 // Output: g (3m × 3), block l = rows 3l..3l+2; R_l per triangle.
 void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::MatrixXd& Phi,
-                    std::span<const HandleTransform> transforms, Eigen::MatrixX3d& g,
+                    std::span<const HandleTransform> transforms, GuidanceField& g,
                     std::vector<Eigen::Quaterniond>& R_l);
 
 }  // namespace hdeform

@@ -7,7 +7,7 @@
 
 namespace hdeform {
 
-Measures measure(const PreparedMesh& pm, const Vertices& X, const Eigen::MatrixX3d& g,
+Measures measure(const PreparedMesh& pm, const Vertices& X, const GuidanceField& g,
                  const std::vector<Eigen::Quaterniond>& R_l, Eigen::VectorXf* ef2) {
   const Triangles& F = pm.mesh().F;
   const Eigen::VectorXd& a = pm.areas();

@@ -25,7 +25,7 @@ class PreparedMesh;
 // Measures of deformed positions X' against guidance g (3m×3, block l = g_l) with the
 // per-triangle guidance rotations R_l. `ef2` (optional) receives ‖r_l‖²_F per triangle.
 Measures measure(const PreparedMesh& pm, const Vertices& X_deformed,
-                 const Eigen::MatrixX3d& g, const std::vector<Eigen::Quaterniond>& R_l,
+                 const GuidanceField& g, const std::vector<Eigen::Quaterniond>& R_l,
                  Eigen::VectorXf* ef2 = nullptr);
 
 }  // namespace hdeform

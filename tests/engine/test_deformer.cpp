@@ -144,7 +144,7 @@ TEST(Deformer, SolutionSatisfiesKKTOptimality) {
   const HandleTransform h = HandleTransform::from_matrix(b.T, cs.centroid(0));
   for (double beta : {0.0, 0.3}) {
     const Frame f = cs.update(std::span(&h, 1), {beta, BetaUnits::raw});
-    Eigen::MatrixX3d g;
+    GuidanceField g;
     std::vector<Eigen::Quaterniond> R;
     cs.guidance(std::span(&h, 1), g, R);
     const SparseMatrix W = W_beta(b.mesh->areas(), b.mesh->edges(), beta);

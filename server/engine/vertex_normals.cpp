@@ -1,0 +1,45 @@
+#include "vertex_normals.h"
+
+#include <Eigen/Geometry>
+
+namespace hdeform {
+
+VertexTriangles VertexTriangles::build(int n, const Triangles& F) {
+  VertexTriangles vt;
+  vt.offsets.assign(static_cast<std::size_t>(n) + 1, 0);
+  for (Eigen::Index t = 0; t < F.rows(); ++t)
+    for (int k = 0; k < 3; ++k) ++vt.offsets[static_cast<std::size_t>(F(t, k)) + 1];
+  for (std::size_t v = 0; v < static_cast<std::size_t>(n); ++v)
+    vt.offsets[v + 1] += vt.offsets[v];
+  vt.triangles.resize(static_cast<std::size_t>(vt.offsets.back()));
+  std::vector<int> fill(vt.offsets.begin(), vt.offsets.end() - 1);
+  for (Eigen::Index t = 0; t < F.rows(); ++t)  // ascending t: each list comes out sorted
+    for (int k = 0; k < 3; ++k) vt.triangles[static_cast<std::size_t>(fill[F(t, k)]++)] = static_cast<int>(t);
+  return vt;
+}
+
+void vertex_normals(const Vertices& X, const Triangles& F, const VertexTriangles& vt,
+                    Vertices& face_w, Vertices& N) {
+  const Eigen::Index m = F.rows(), n = X.rows();
+  face_w.resize(m, 3);
+  N.resize(n, 3);
+#pragma omp parallel
+  {
+#pragma omp for schedule(static)
+    for (Eigen::Index t = 0; t < m; ++t) {
+      const Eigen::RowVector3d a = X.row(F(t, 0)), b = X.row(F(t, 1)), c = X.row(F(t, 2));
+      face_w.row(t) = (b - a).cross(c - a);  // |w| = 2 · area: area weighting
+    }
+#pragma omp for schedule(static)
+    for (Eigen::Index v = 0; v < n; ++v) {
+      Eigen::RowVector3d s = Eigen::RowVector3d::Zero();
+      for (int i = vt.offsets[static_cast<std::size_t>(v)]; i < vt.offsets[static_cast<std::size_t>(v) + 1]; ++i)
+        s += face_w.row(vt.triangles[static_cast<std::size_t>(i)]);
+      const double len = s.norm();
+      if (len > 0) s /= len;
+      N.row(v) = s;
+    }
+  }
+}
+
+}  // namespace hdeform
