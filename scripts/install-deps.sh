@@ -14,6 +14,8 @@ packages=(
   # service and clients
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler libssl-dev
   libspdlog-dev libcli11-dev libboost-dev nlohmann-json3-dev
+  # compact frame encodings (FrameEncoding MESHOPT)
+  libmeshoptimizer-dev
   # durable state: SQLite (embedded default), Redis (replicas)
   libsqlite3-dev libhiredis-dev redis-server
   # tests and benchmarks
