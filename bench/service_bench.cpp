@@ -17,6 +17,11 @@
 //                          read on a second thread; frames, frames/s, coalesced updates.
 //   Drag/N/hz:H/updates:U  the same at a fixed rate (a user dragging at H Hz): fps, and
 //                          p50/p99 latency from each answered update to its frame.
+//   Unary/N/ENC            Unary with frames in encoding ENC (quantized, meshopt).
+//   Encode/N/ENC           the server's encoder alone on one real frame of the capsule (its
+//                          first move, with normals and energies): time per encoding; bytes
+//                          (positions + normals + energies) per frame and the client decoder's
+//                          time (client-cli/frame_decode.h) as counters.
 //   Memory/N/{distinct,shared}/sessions:K
 //                          VmRSS delta for K sessions (CreateSession + SetConstraints + one
 //                          UpdateHandles each) on K distinct meshes or on one mesh; a fresh
@@ -27,6 +32,8 @@
 //
 // Extra flag (ours): --hdeform_smoke  a handful of iterations everywhere (ctest bench-smoke).
 #include "bench_common.h"
+#include "frame_decode.h"
+#include "frame_encoding.h"
 #include "hdeform/v1/deform.grpc.pb.h"
 #include "procedural.h"
 #include "server.h"
@@ -188,14 +195,23 @@ void set_move(pb::HandleTransform* t, std::int64_t k) {
 }
 
 grpc::Status update_once(pb::Deformation::Stub& stub, const std::string& name, std::int64_t k,
-                         pb::Frame* frame) {
+                         pb::Frame* frame,
+                         pb::FrameEncoding encoding = pb::FRAME_ENCODING_FLOAT32,
+                         bool energies = false) {
   grpc::ClientContext ctx;
   authorize(ctx);
   pb::UpdateHandlesRequest req;
   req.set_name(name);
   req.set_sequence(k);
   set_move(req.add_transforms(), k);
+  req.mutable_format()->set_encoding(encoding);
+  req.set_energies(energies);
   return stub.UpdateHandles(&ctx, req, frame);
+}
+
+const char* encoding_name(pb::FrameEncoding e) {
+  return e == pb::FRAME_ENCODING_MESHOPT ? "meshopt"
+         : e == pb::FRAME_ENCODING_QUANTIZED ? "quantized" : "float32";
 }
 
 // One session per size on the latency server, built on first use.
@@ -249,7 +265,7 @@ void common_counters(benchmark::State& state, const Case& c) {
 // ---------------------------------------------------------------------------------------
 // in_process: the same calls over the server's in-process channel (no TCP, no HTTP/2
 // framing; messages are still serialized), to separate the network share of the overhead.
-void BM_Unary(benchmark::State& state, int n, bool in_process) {
+void BM_Unary(benchmark::State& state, int n, bool in_process, pb::FrameEncoding encoding) {
   Case* c = get_case(n, state);
   if (!c) return;
   if (in_process && !g_in_process_stub)
@@ -260,7 +276,7 @@ void BM_Unary(benchmark::State& state, int n, bool in_process) {
   for (auto _ : state) {
     pb::Frame frame;
     const auto t0 = Clock::now();
-    const auto status = update_once(stub, c->name, g_move++, &frame);
+    const auto status = update_once(stub, c->name, g_move++, &frame, encoding);
     total.push_back(ms_since(t0));
     if (!status.ok()) {
       state.SkipWithError(("UpdateHandles: " + status.error_message()).c_str());
@@ -275,6 +291,39 @@ void BM_Unary(benchmark::State& state, int n, bool in_process) {
   state.counters["max_ms"] = percentile(total, 1.0);
   state.counters["server_p50_ms"] = percentile(server, 0.5);  // Frame.solve_ms
   state.counters["frame_MB"] = static_cast<double>(frame_bytes) / 1e6;
+}
+
+void BM_Encode(benchmark::State& state, int n, pb::FrameEncoding encoding) {
+  Case* c = get_case(n, state);
+  if (!c) return;
+  auto frame = std::make_shared<pb::Frame>();
+  const auto status = update_once(*g_main->stub, c->name, g_move++, frame.get(),
+                                  pb::FRAME_ENCODING_FLOAT32, true);
+  if (!status.ok()) {
+    state.SkipWithError(("UpdateHandles: " + status.error_message()).c_str());
+    return;
+  }
+  pb::FrameFormat format;
+  format.set_encoding(encoding);
+  std::shared_ptr<const pb::Frame> out;
+  for (auto _ : state) {
+    out = service::encode_frame(frame, format);
+    benchmark::DoNotOptimize(out.get());
+  }
+  std::vector<double> decode;
+  const auto triangles = static_cast<std::size_t>(c->capsule.mesh.num_triangles());
+  for (int i = 0; i < 5; ++i) {
+    const auto t0 = Clock::now();
+    const auto d = cli::decode_frame(*out, static_cast<std::size_t>(c->vertices), triangles);
+    decode.push_back(ms_since(t0));
+    benchmark::DoNotOptimize(d.positions.data());
+  }
+  common_counters(state, *c);
+  state.counters["frame_MB"] = static_cast<double>(cli::frame_buffer_bytes(*out)) / 1e6;
+  state.counters["bytes_per_vertex"] =
+      static_cast<double>(out->positions().size() + out->normals().size() + out->vertices().size()) /
+      c->vertices;
+  state.counters["decode_ms"] = percentile(decode, 0.5);
 }
 
 void BM_Stream(benchmark::State& state, int n) {
@@ -450,14 +499,29 @@ void register_all() {
   for (const auto& s : sizes) {
     const std::string N = "/" + std::to_string(s.n);
     auto iters = [&](int k) { return g_smoke ? std::min(k, 5) : k; };
-    benchmark::RegisterBenchmark(("Unary" + N).c_str(), BM_Unary, s.n, false)
+    benchmark::RegisterBenchmark(("Unary" + N).c_str(), BM_Unary, s.n, false,
+                                 pb::FRAME_ENCODING_FLOAT32)
         ->Iterations(iters(s.unary))
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime();
-    benchmark::RegisterBenchmark(("UnaryInProcess" + N).c_str(), BM_Unary, s.n, true)
+    benchmark::RegisterBenchmark(("UnaryInProcess" + N).c_str(), BM_Unary, s.n, true,
+                                 pb::FRAME_ENCODING_FLOAT32)
         ->Iterations(iters(s.unary))
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime();
+    for (auto e : {pb::FRAME_ENCODING_QUANTIZED, pb::FRAME_ENCODING_MESHOPT})
+      benchmark::RegisterBenchmark(("Unary" + N + "/" + encoding_name(e)).c_str(), BM_Unary, s.n,
+                                   false, e)
+          ->Iterations(iters(s.unary))
+          ->Unit(benchmark::kMillisecond)
+          ->UseRealTime();
+    for (auto e : {pb::FRAME_ENCODING_FLOAT32, pb::FRAME_ENCODING_QUANTIZED,
+                   pb::FRAME_ENCODING_MESHOPT})
+      benchmark::RegisterBenchmark(("Encode" + N + "/" + encoding_name(e)).c_str(), BM_Encode,
+                                   s.n, e)
+          ->Iterations(iters(s.unary))
+          ->Unit(benchmark::kMillisecond)
+          ->UseRealTime();
     benchmark::RegisterBenchmark(("Stream" + N).c_str(), BM_Stream, s.n)
         ->Iterations(iters(s.stream))
         ->Unit(benchmark::kMillisecond)

@@ -1,5 +1,6 @@
 // hdeform watch SESSION: one line per frame and state change of a live session.
 #include "commands.h"
+#include "frame_decode.h"
 #include "output.h"
 
 #include <spdlog/spdlog.h>
@@ -7,7 +8,9 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <algorithm>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <sstream>
@@ -21,7 +24,18 @@ struct WatchOptions {
   std::string session;
   long count = 0;         // stop after this many events (0 = until the session ends)
   double duration = 0;    // stop after this many seconds (0 = no limit)
+  pb::FrameEncoding encoding = pb::FRAME_ENCODING_FLOAT32;
+  bool exact_float32 = false;
 };
+
+std::string frame_encoding_name(pb::FrameEncoding e) {
+  switch (e) {
+    case pb::FRAME_ENCODING_FLOAT32: return "float32";
+    case pb::FRAME_ENCODING_QUANTIZED: return "quantized";
+    case pb::FRAME_ENCODING_MESHOPT: return "meshopt";
+    default: return std::to_string(static_cast<int>(e));
+  }
+}
 
 std::string frame_line(const pb::Frame& f) {
   std::ostringstream s;
@@ -31,7 +45,8 @@ std::string frame_line(const pb::Frame& f) {
     const double v = c.get(f.measures());
     s << " " << c.csv << "=" << (c.integer ? std::to_string(static_cast<long long>(v)) : g6(v));
   }
-  s << " solve_ms=" << g6(f.solve_ms());
+  s << " solve_ms=" << g6(f.solve_ms()) << " exact=" << (f.exact() ? 1 : 0)
+    << " encoding=" << frame_encoding_name(f.encoding()) << " bytes=" << frame_buffer_bytes(f);
   return s.str();
 }
 
@@ -54,6 +69,17 @@ Command add_watch_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("SESSION", opts->session, "sessions/ID or ID")->required();
   cmd->add_option("--count", opts->count, "stop after N events (default: until the session ends)");
   cmd->add_option("--for", opts->duration, "stop after S seconds");
+  cmd->add_option("--encoding", opts->encoding,
+                  "frame buffers: float32 (exact), quantized (16-bit positions, 8-bit "
+                  "octahedral normals) or meshopt (quantized, compressed); every frame is "
+                  "decoded and checked")
+      ->transform(CLI::CheckedTransformer(
+          std::map<std::string, pb::FrameEncoding>{{"float32", pb::FRAME_ENCODING_FLOAT32},
+                                                   {"quantized", pb::FRAME_ENCODING_QUANTIZED},
+                                                   {"meshopt", pb::FRAME_ENCODING_MESHOPT}},
+          CLI::ignore_case));
+  cmd->add_flag("--exact-float32", opts->exact_float32,
+                "exact frames (the one ending a drag) as float32 whatever --encoding says");
 
   return [opts, &global]() -> int {
     const auto& o = *opts;
@@ -64,6 +90,8 @@ Command add_watch_command(CLI::App& app, const GlobalOptions& global) {
     const std::string id = session_id_of(name);
     pb::WatchSessionRequest req;
     req.set_name(name);
+    req.mutable_format()->set_encoding(o.encoding);
+    req.mutable_format()->set_exact_as_float32(o.exact_float32);
 
     // --for: cancel the current stream from a timer thread.
     std::atomic<bool> timed_out{false};
@@ -91,6 +119,8 @@ Command add_watch_command(CLI::App& app, const GlobalOptions& global) {
     };
 
     long events = 0;
+    std::size_t vertices = 0, triangles = 0;  // from the state event, which comes first
+    std::string bad_frame;                    // a frame that did not decode
     bool deleted = false;
     bool may_reopen = true;
     grpc::Status status;
@@ -107,8 +137,19 @@ Command add_watch_command(CLI::App& app, const GlobalOptions& global) {
       pb::SessionEvent ev;
       while (reader->Read(&ev)) {
         switch (ev.event_case()) {
-          case pb::SessionEvent::kFrame: std::cout << frame_line(ev.frame()) << std::endl; break;
-          case pb::SessionEvent::kState: std::cout << state_line(ev.state()) << std::endl; break;
+          case pb::SessionEvent::kFrame:
+            try {
+              decode_frame(ev.frame(), vertices, triangles);
+            } catch (const FrameDecodeError& e) {
+              bad_frame = e.what();
+            }
+            if (bad_frame.empty()) std::cout << frame_line(ev.frame()) << std::endl;
+            break;
+          case pb::SessionEvent::kState:
+            vertices = static_cast<std::size_t>(std::max(0, ev.state().vertex_count()));
+            triangles = static_cast<std::size_t>(std::max(0, ev.state().triangle_count()));
+            std::cout << state_line(ev.state()) << std::endl;
+            break;
           case pb::SessionEvent::kDeleted:
             std::cout << "deleted " << ev.deleted() << std::endl;
             deleted = true;
@@ -116,7 +157,7 @@ Command add_watch_command(CLI::App& app, const GlobalOptions& global) {
           default: break;
         }
         ++events;
-        if (deleted || (o.count > 0 && events >= o.count)) {
+        if (!bad_frame.empty() || deleted || (o.count > 0 && events >= o.count)) {
           ctx.TryCancel();
           break;
         }
@@ -125,6 +166,10 @@ Command add_watch_command(CLI::App& app, const GlobalOptions& global) {
       {
         std::lock_guard lock(mu);
         current = nullptr;
+      }
+      if (!bad_frame.empty()) {
+        stop_timer();
+        throw CliError("WatchSession: " + bad_frame);
       }
       const bool stopped = timed_out || deleted || (o.count > 0 && events >= o.count);
       // The retry policy for streams: a stream cut by UNAVAILABLE (the server restarted, a

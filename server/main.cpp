@@ -131,6 +131,11 @@ int main(int argc, char** argv) {
       ->envname("HDEFORM_MAX_WATCHERS")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  app.add_option("--max-pending-updates", request.max_pending_updates,
+                 "coalescing UpdateHandles (pipelined clients) waiting per session")
+      ->envname("HDEFORM_MAX_PENDING_UPDATES")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   app.add_option("--max-upload-inflight-mb", max_upload_inflight_mb,
                  "upload bytes held by unfinished uploads, all clients together (MiB)")
       ->envname("HDEFORM_MAX_UPLOAD_INFLIGHT_MB")

@@ -2,6 +2,7 @@
 
 #include "convert.h"
 #include "errors.h"
+#include "frame_encoding.h"
 
 #include <malloc.h>
 #include <spdlog/spdlog.h>
@@ -251,7 +252,8 @@ class MeshWriter final : public grpc::ServerWriteReactor<v1::MeshChunk> {
 // frame (the newest) and one state (the newest) waiting.
 class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
  public:
-  WatchReactor(std::shared_ptr<Session> session) : session_(std::move(session)) {
+  WatchReactor(std::shared_ptr<Session> session, const v1::FrameFormat& format)
+      : session_(std::move(session)), format_(format) {
     sink_ = std::make_shared<Sink>(this);
     session_->add_watcher(sink_);
   }
@@ -327,6 +329,12 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
     }
     current_ = std::move(pending_.front());
     pending_.pop_front();
+    if (current_->event_case() == v1::SessionEvent::kFrame) {
+      // Encoded here, not at broadcast: only frames that are written cost an encoding.
+      auto encoded = std::make_shared<v1::SessionEvent>();
+      if (encode_frame_to(current_->frame(), format_, false, encoded->mutable_frame()))
+        current_ = std::move(encoded);
+    }
     writing_ = true;
     StartWrite(current_.get());
   }
@@ -339,6 +347,7 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
   }
 
   std::shared_ptr<Session> session_;
+  const v1::FrameFormat format_;
   std::shared_ptr<Sink> sink_;
   std::mutex mutex_;
   std::deque<std::shared_ptr<const v1::SessionEvent>> pending_;
@@ -383,6 +392,14 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
       session_->stream_opened();
     }
     if (finished_) return;
+    if (in_.has_format()) {
+      const auto status = guarded([&] { check_frame_format(in_.format(), "Deform"); }, "Deform");
+      if (!status.ok()) {
+        finish_locked(status);
+        return;
+      }
+      format_ = in_.format();
+    }
     if (pending_) ++coalesced_;
     pending_ = std::move(in_);
     in_.Clear();
@@ -434,8 +451,10 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
     // strand's queue wait can be long, and newer updates arriving meanwhile must win.
     session_->post([this] {
       std::shared_ptr<v1::DeformRequest> request;
+      v1::FrameFormat format;
       {
         std::lock_guard lock(mutex_);
+        format = format_;
         if (pending_) {
           request = std::make_shared<v1::DeformRequest>(std::move(*pending_));
           pending_.reset();
@@ -445,7 +464,7 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
         solved({grpc::StatusCode::CANCELLED, "Deform ended"}, nullptr);
         return;
       }
-      std::shared_ptr<v1::Frame> frame;
+      std::shared_ptr<const v1::Frame> frame;
       const auto status = guarded(
           [&] {
             Session::Update u;
@@ -460,13 +479,14 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
             // accepted change like SetBeta: durable before its frame goes out.
             if (u.beta) svc_->sessions().save(*session_);
             else svc_->sessions().moved(*session_);
+            frame = encode_frame(std::move(frame), format);
           },
           "Deform");
       solved(status, std::move(frame));
     });
   }
 
-  void solved(const grpc::Status& status, std::shared_ptr<v1::Frame> frame) {
+  void solved(const grpc::Status& status, std::shared_ptr<const v1::Frame> frame) {
     std::unique_lock lock(mutex_);
     --inflight_;
     solving_ = false;
@@ -494,7 +514,7 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
       maybe_finish_locked();
   }
 
-  void write_locked(std::shared_ptr<v1::Frame> frame) {
+  void write_locked(std::shared_ptr<const v1::Frame> frame) {
     current_ = std::move(frame);
     writing_ = true;
     StartWrite(current_.get());
@@ -518,7 +538,8 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
   std::mutex mutex_;
   v1::DeformRequest in_;
   std::optional<v1::DeformRequest> pending_;
-  std::shared_ptr<v1::Frame> current_, pending_out_;
+  v1::FrameFormat format_;  // the latest a message set
+  std::shared_ptr<const v1::Frame> current_, pending_out_;
   std::shared_ptr<Session> session_;
   bool solving_ = false, writing_ = false, reads_done_ = false, finished_ = false, done_ = false;
   int inflight_ = 0;
@@ -665,10 +686,16 @@ grpc::ServerUnaryReactor* DeformService::finish_on_session(grpc::CallbackServerC
                                                            const char* op,
                                                            const std::string& name,
                                                            Access needed,
-                                                           std::function<void(Session&)> fn) {
+                                                           std::function<void(Session&)> fn,
+                                                           std::function<void(Session&)> admit) {
   auto* reactor = ctx->DefaultReactor();
   std::shared_ptr<Session> session;
-  const auto status = guarded([&] { session = session_for(*ctx, name, needed, op); }, op);
+  const auto status = guarded(
+      [&] {
+        session = session_for(*ctx, name, needed, op);
+        if (admit) admit(*session);
+      },
+      op);
   if (!status.ok()) {
     reactor->Finish(status);
     return reactor;
@@ -759,18 +786,32 @@ grpc::ServerUnaryReactor* DeformService::SetBeta(grpc::CallbackServerContext* ct
 grpc::ServerUnaryReactor* DeformService::UpdateHandles(grpc::CallbackServerContext* ctx,
                                                        const v1::UpdateHandlesRequest* request,
                                                        v1::Frame* response) {
-  return finish_on_session(ctx, "UpdateHandles", request->name(), Access::kEdit,
-                           [this, request, response](Session& s) {
-                             Session::Update u;
-                             u.sequence = request->sequence();
-                             u.transforms = &request->transforms();
-                             u.energies = request->energies();
-                             u.dragging = request->dragging();
-                             u.expected_version = request->expected_version();
-                             auto frame = s.update(u);
-                             store_.moved(s);  // a drag: saved coalesced (SQLite) or at once (Redis)
-                             response->Swap(frame.get());
-                           });
+  // A coalescing update takes its ticket on arrival (bounded per session), so that when its
+  // turn on the strand comes it knows whether a newer one is waiting.
+  auto ticket = std::make_shared<std::unique_ptr<Session::CoalesceTicket>>();
+  auto admit = [this, request, ticket](Session& s) {
+    check_frame_format(request->format(), "UpdateHandles");
+    if (request->coalesce()) *ticket = s.coalesce_ticket(options_.request.max_pending_updates);
+  };
+  return finish_on_session(
+      ctx, "UpdateHandles", request->name(), Access::kEdit,
+      [this, request, response, ticket](Session& s) {
+        if (*ticket && (*ticket)->superseded()) {
+          *response = s.superseded_frame(request->sequence());
+          return;
+        }
+        Session::Update u;
+        u.sequence = request->sequence();
+        u.transforms = &request->transforms();
+        u.energies = request->energies();
+        u.dragging = request->dragging();
+        u.expected_version = request->expected_version();
+        auto frame = s.update(u);
+        store_.moved(s);  // a drag: saved coalesced (SQLite) or at once (Redis)
+        if (!encode_frame_to(*frame, request->format(), request->omit_buffers(), response))
+          response->Swap(frame.get());
+      },
+      admit);
 }
 
 grpc::ServerWriteReactor<v1::MeshChunk>* DeformService::GetMesh(
@@ -870,7 +911,10 @@ grpc::ServerWriteReactor<v1::SessionEvent>* DeformService::WatchSession(
     grpc::CallbackServerContext* ctx, const v1::WatchSessionRequest* request) {
   std::shared_ptr<Session> session;
   const auto status = guarded(
-      [&] { session = session_for(*ctx, request->name(), Access::kView, "WatchSession"); },
+      [&] {
+        session = session_for(*ctx, request->name(), Access::kView, "WatchSession");
+        check_frame_format(request->format(), "WatchSession");
+      },
       "WatchSession");
   if (!status.ok()) {
     class Fail final : public grpc::ServerWriteReactor<v1::SessionEvent> {
@@ -891,7 +935,7 @@ grpc::ServerWriteReactor<v1::SessionEvent>* DeformService::WatchSession(
                      session->name() + " has " + std::to_string(session->observers()) +
                          " watchers, the limit (--max-watchers)"});
   }
-  return new WatchReactor(std::move(session));
+  return new WatchReactor(std::move(session), request->format());
 }
 
 grpc::ServerUnaryReactor* DeformService::ExportSession(grpc::CallbackServerContext* ctx,

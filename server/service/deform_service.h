@@ -101,14 +101,16 @@ class DeformService final : public v1::Deformation::CallbackService {
   // Mesh parsing bounds: --max-vertices while parsing, stopped by shutdown.
   ReadLimits read_limits() const;
   // Finish a unary call with fn's outcome: inline (cheap), on the pool, or on a session's
-  // strand (NOT_FOUND when the session does not exist).
+  // strand (NOT_FOUND when the session does not exist). `admit` runs at arrival, before the
+  // call waits for the strand (cheap checks and per-session admission).
   grpc::ServerUnaryReactor* finish_inline(grpc::CallbackServerContext* ctx, const char* op,
                                           const Work& fn);
   grpc::ServerUnaryReactor* finish_on_pool(grpc::CallbackServerContext* ctx, const char* op,
                                            Work fn);
   grpc::ServerUnaryReactor* finish_on_session(grpc::CallbackServerContext* ctx, const char* op,
                                               const std::string& name, Access needed,
-                                              std::function<void(Session&)> fn);
+                                              std::function<void(Session&)> fn,
+                                              std::function<void(Session&)> admit = {});
   // Durable state from the options (none, SQLite folder, Redis); throws StateError.
   void open_state();
   std::shared_ptr<const MeshRef> load_stored_mesh(const v1::Snapshot& snapshot,

@@ -15,6 +15,8 @@ struct RequestLimits {
   std::size_t max_sweep_betas = 64;          // --max-sweep-betas: β values in one Sweep
   std::size_t max_concurrent_sweeps = 1;     // --max-sweeps: Sweeps running at once (server)
   std::size_t max_watchers = 64;             // --max-watchers: WatchSession streams per session
+  std::size_t max_pending_updates = 16;      // --max-pending-updates: coalescing UpdateHandles
+                                             // waiting per session
 };
 
 // Throws ServiceError RESOURCE_EXHAUSTED "WHAT: COUNT exceeds the limit of LIMIT (FLAG)".

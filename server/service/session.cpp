@@ -338,6 +338,26 @@ std::shared_ptr<pb::Frame> Session::update(const Update& u) {
   return out;
 }
 
+std::unique_ptr<Session::CoalesceTicket> Session::coalesce_ticket(std::size_t limit) {
+  if (coalesce_waiting_.fetch_add(1) >= limit) {
+    const std::size_t waiting = --coalesce_waiting_;
+    fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
+         name_ + " has " + std::to_string(waiting) +
+             " coalescing updates waiting, the limit (--max-pending-updates); send the next "
+             "one when an answer arrives");
+  }
+  return std::make_unique<CoalesceTicket>(*this, ++coalesce_newest_);
+}
+
+pb::Frame Session::superseded_frame(std::int64_t sequence) const {
+  pb::Frame out;
+  out.set_session(name_);
+  out.set_sequence(sequence);
+  out.set_version(version());
+  out.set_superseded(true);
+  return out;
+}
+
 Session::SweepPlan Session::sweep_plan(const pb::SweepRequest& request) const {
   if (closed_) fail(grpc::StatusCode::NOT_FOUND, name_ + " was deleted");
   if (request.betas_size() == 0) throw InvalidInput("Sweep: betas is empty");

@@ -132,6 +132,26 @@ class Session : public std::enable_shared_from_this<Session> {
   bool busy() const { return streams_.load() > 0 || observers() > 0; }
   void touch();
   std::chrono::steady_clock::time_point last_used() const;
+  // Pipelined UpdateHandles (UpdateHandlesRequest.coalesce): each such update holds a
+  // ticket while it waits for the strand; only the newest ticket's update is solved.
+  class CoalesceTicket {
+   public:
+    CoalesceTicket(Session& s, std::uint64_t id) : session_(s), id_(id) {}
+    CoalesceTicket(const CoalesceTicket&) = delete;
+    CoalesceTicket& operator=(const CoalesceTicket&) = delete;
+    ~CoalesceTicket() { --session_.coalesce_waiting_; }
+    // A newer coalescing update arrived after this one: answer superseded, do not solve.
+    bool superseded() const { return id_ != session_.coalesce_newest_.load(); }
+
+   private:
+    Session& session_;
+    const std::uint64_t id_;
+  };
+  // RESOURCE_EXHAUSTED when `limit` coalescing updates already wait (--max-pending-updates).
+  std::unique_ptr<CoalesceTicket> coalesce_ticket(std::size_t limit);
+  // The answer to a superseded update: sequence, version, superseded; no buffers.
+  pb::Frame superseded_frame(std::int64_t sequence) const;
+
   // The session was deleted or expired: observers get `deleted` and their streams end.
   void close();
   bool closed() const { return closed_.load(); }
@@ -197,6 +217,8 @@ class Session : public std::enable_shared_from_this<Session> {
   Persisted persisted_;
 
   std::atomic<int> streams_{0};
+  std::atomic<std::size_t> coalesce_waiting_{0};
+  std::atomic<std::uint64_t> coalesce_newest_{0};
   std::atomic<bool> closed_{false};
   std::atomic<std::int64_t> last_used_ns_{0};
 };

@@ -304,6 +304,10 @@ remote)
   echo "kept $SESSION"
   "$HDEFORM" --server "$ADDR" --token "$VIEW" watch "$SESSION" --for 60 >"$TMP/watch" 2>"$TMP/watch.err" &
   WATCH_PID=$!
+  # A second watcher takes its frames meshopt-compressed (watch decodes and checks each one).
+  "$HDEFORM" --server "$ADDR" --token "$VIEW" watch "$SESSION" --encoding meshopt --for 60 \
+    >"$TMP/watch-meshopt" 2>"$TMP/watch-meshopt.err" &
+  WATCH_MESHOPT_PID=$!
   sleep 1
   "$HDEFORM" --server "$ADDR" --token "$EDIT" deform --session "$SESSION" --beta 0.1 --translate 0,0.01,0 \
     >"$TMP/out3" || fail "deform --session exited $?"
@@ -316,6 +320,16 @@ remote)
   grep -Eq '^frame seq=1 version=[0-9]+ beta=0.1 E=[^ ]+ .* flips=[0-9]+ solve_ms=' "$TMP/watch" \
     || fail "watch printed no frame line"
   grep -q "^state $SESSION " "$TMP/watch" || fail "watch printed no state line"
+  grep -Eq ' encoding=float32 bytes=[0-9]+$' "$TMP/watch" || fail "watch: no float32 frame"
+  for _ in $(seq 1 100); do
+    grep -q '^frame seq=1 ' "$TMP/watch-meshopt" && break
+    kill -0 "$WATCH_MESHOPT_PID" 2>/dev/null || break  # exited: a frame did not decode
+    sleep 0.1
+  done
+  kill "$WATCH_MESHOPT_PID" 2>/dev/null; wait "$WATCH_MESHOPT_PID" 2>/dev/null
+  cat "$TMP/watch-meshopt" "$TMP/watch-meshopt.err"
+  grep -Eq '^frame seq=1 .* encoding=meshopt bytes=[0-9]+$' "$TMP/watch-meshopt" \
+    || fail "watch --encoding meshopt printed no meshopt frame"
   kill "$WATCH_PID" 2>/dev/null; wait "$WATCH_PID" 2>/dev/null; WATCH_PID=""
   expect_fail "watch unknown session" 'hdeform: WatchSession: NOT_FOUND: ' -- \
     "$HDEFORM" --server "$ADDR" --token "$VIEW" watch sessions/doesnotexist --for 10

@@ -1,0 +1,513 @@
+// Frame encodings (deform.proto FrameEncoding): the server's encoder against the client's
+// decoder (client-cli/frame_decode.h) and against the error bounds the proto states; then
+// over loopback: UpdateHandles, Deform and WatchSession in every encoding, exact frames as
+// float32 on request, omitted buffers, and coalescing pipelined updates.
+#include "frame_decode.h"
+#include "service/frame_encoding.h"
+#include "service_fixture.h"
+
+#include <google/protobuf/descriptor.h>
+#include <google/protobuf/reflection.h>
+#include <google/protobuf/util/message_differencer.h>
+
+#include <cmath>
+#include <random>
+#include <set>
+
+namespace hdeform::testing {
+namespace {
+
+namespace svc = ::hdeform::service;
+using cli::decode_frame;
+
+double angle_deg(const float a[3], const float b[3]) {
+  const double d = std::clamp(double(a[0]) * b[0] + double(a[1]) * b[1] + double(a[2]) * b[2],
+                              -1.0, 1.0);
+  return std::acos(d) * 180.0 / M_PI;
+}
+
+std::string float_bytes(const std::vector<float>& v) {
+  return std::string(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(float));
+}
+
+// A float32 frame of n random points in a skewed box, random unit normals, energies.
+pb::Frame random_frame(std::size_t n, std::size_t t, std::uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1, 1);
+  std::vector<float> p(3 * n), nr(3 * n), e(t);
+  for (std::size_t i = 0; i < n; ++i) {
+    p[3 * i] = 100 + 7 * u(rng);
+    p[3 * i + 1] = -3 + 0.01f * u(rng);
+    p[3 * i + 2] = 5e3f * u(rng);
+    float v[3];
+    double l = 0;
+    do {
+      for (float& x : v) x = u(rng);
+      l = std::sqrt(double(v[0]) * v[0] + double(v[1]) * v[1] + double(v[2]) * v[2]);
+    } while (l < 1e-3 || l > 1);
+    for (int k = 0; k < 3; ++k) nr[3 * i + k] = static_cast<float>(v[k] / l);
+  }
+  for (auto& x : e) x = 4 * (u(rng) + 1);
+  pb::Frame f;
+  f.set_positions(float_bytes(p));
+  f.set_normals(float_bytes(nr));
+  f.set_energies(float_bytes(e));
+  f.set_exact(false);
+  return f;
+}
+
+// Every encoded value within the bounds deform.proto states for QUANTIZED.
+void expect_within_stated_bounds(const pb::Frame& f32, const cli::DecodedFrame& q,
+                                 const pb::Box& box, float energies_max) {
+  const auto ref = decode_frame(f32, q.positions.size() / 3, q.energies.size());
+  const double lo[3] = {box.min().x(), box.min().y(), box.min().z()};
+  const double hi[3] = {box.max().x(), box.max().y(), box.max().z()};
+  double worst_pos = 0, worst_angle = 0, worst_e = 0;
+  for (std::size_t i = 0; i < ref.positions.size() / 3; ++i) {
+    for (int k = 0; k < 3; ++k) {
+      const double x = ref.positions[3 * i + k];
+      EXPECT_LE(lo[k], x);
+      EXPECT_GE(hi[k], x);
+      const double bound = (hi[k] - lo[k]) / 131070 + 1e-6 * std::max(std::abs(lo[k]), std::abs(hi[k]));
+      const double err = std::abs(q.positions[3 * i + k] - x);
+      worst_pos = std::max(worst_pos, err / std::max(bound, 1e-300));
+      ASSERT_LE(err, bound) << "vertex " << i << " axis " << k;
+    }
+    worst_angle = std::max(worst_angle, angle_deg(&ref.normals[3 * i], &q.normals[3 * i]));
+  }
+  for (std::size_t l = 0; l < ref.energies.size(); ++l)
+    worst_e = std::max(worst_e, std::abs(double(q.energies[l]) - ref.energies[l]));
+  EXPECT_LE(worst_angle, 1.2) << "octahedral int8 normals";
+  // The stated bound plus float32 rounding at both ends (2^-24 relative each, twice over).
+  EXPECT_LE(worst_e, energies_max / 131070.0 + 2.5e-7 * energies_max);
+  std::printf("[ measured ] position error ≤ %.3f of the stated bound, normals ≤ %.3f°, "
+              "energies ≤ %.3g (max %.3g)\n",
+              worst_pos, worst_angle, worst_e, double(energies_max));
+}
+
+TEST(FrameEncoding, QuantizedAndMeshoptDecodeWithinTheStatedBounds) {
+  const std::size_t n = 20000, t = 39000;
+  const pb::Frame f32 = random_frame(n, t, 7);
+  auto shared = std::make_shared<const pb::Frame>(f32);
+  for (auto enc : {pb::FRAME_ENCODING_QUANTIZED, pb::FRAME_ENCODING_MESHOPT}) {
+    pb::FrameFormat fmt;
+    fmt.set_encoding(enc);
+    const auto out = svc::encode_frame(shared, fmt);
+    ASSERT_NE(out.get(), shared.get());
+    EXPECT_EQ(out->encoding(), enc);
+    EXPECT_TRUE(out->positions().empty());
+    EXPECT_TRUE(out->normals().empty());
+    if (enc == pb::FRAME_ENCODING_QUANTIZED) {
+      EXPECT_EQ(out->vertices().size(), 8 * n);
+    }
+    EXPECT_EQ(out->energies().size(), 2 * t);
+    const auto q = decode_frame(*out, n, t);
+    expect_within_stated_bounds(f32, q, out->position_box(), out->energies_max());
+  }
+}
+
+TEST(FrameEncoding, MeshoptIsTheQuantizedBufferLosslessly) {
+  const pb::Frame f32 = random_frame(5000, 0, 3);
+  pb::FrameFormat quantized, meshopt;
+  quantized.set_encoding(pb::FRAME_ENCODING_QUANTIZED);
+  meshopt.set_encoding(pb::FRAME_ENCODING_MESHOPT);
+  pb::Frame q, m;
+  ASSERT_TRUE(svc::encode_frame_to(f32, quantized, false, &q));
+  ASSERT_TRUE(svc::encode_frame_to(f32, meshopt, false, &m));
+  const auto dq = decode_frame(q, 5000, 0), dm = decode_frame(m, 5000, 0);
+  EXPECT_EQ(dq.positions, dm.positions);
+  EXPECT_EQ(dq.normals, dm.normals);
+}
+
+TEST(FrameEncoding, OctahedralNormalsAreWithinOnePointTwoDegreesEverywhere) {
+  // A dense sweep over the sphere, poles, axes and the octahedron's folds included.
+  double worst = 0;
+  const int steps = 400;
+  for (int a = 0; a <= steps; ++a)
+    for (int b = 0; b < 2 * steps; ++b) {
+      const double th = M_PI * a / steps, ph = M_PI * b / steps;
+      const float n[3] = {float(std::sin(th) * std::cos(ph)), float(std::sin(th) * std::sin(ph)),
+                          float(std::cos(th))};
+      std::int8_t q[2];
+      svc::octahedral_encode(n, q);
+      float d[3];
+      cli::octahedral_decode(q[0], q[1], d);
+      worst = std::max(worst, angle_deg(n, d));
+    }
+  std::printf("[ measured ] octahedral int8: worst %.3f°\n", worst);
+  EXPECT_LE(worst, 1.2);
+  EXPECT_GT(worst, 0.05);  // it is a lossy code: a zero here would mean the test is vacuous
+}
+
+TEST(FrameEncoding, FlatAxesEmptyFramesAndZeroEnergiesDecode) {
+  std::vector<float> p = {1, 2, 3, 4, 2, 3, 1, 2, 3}, nr = {0, 0, 1, 0, 0, -1, 1, 0, 0};
+  pb::Frame f;
+  f.set_positions(float_bytes(p));
+  f.set_normals(float_bytes(nr));
+  f.set_energies(float_bytes({0.f}));
+  pb::FrameFormat fmt;
+  fmt.set_encoding(pb::FRAME_ENCODING_MESHOPT);
+  pb::Frame out;
+  ASSERT_TRUE(svc::encode_frame_to(f, fmt, false, &out));
+  const auto d = decode_frame(out, 3, 1);
+  for (std::size_t i = 0; i < p.size(); ++i) EXPECT_FLOAT_EQ(d.positions[i], p[i]);
+  EXPECT_NEAR(d.normals[5], -1.f, 1e-6);
+  EXPECT_EQ(d.energies, std::vector<float>{0.f});
+  pb::Frame empty;
+  ASSERT_TRUE(svc::encode_frame_to(pb::Frame{}, fmt, false, &empty));
+  EXPECT_TRUE(decode_frame(empty, 0, 0).positions.empty());
+}
+
+// Sets every field of `m` that is not skipped to a non-default value (recursively).
+void fill_every_field(google::protobuf::Message* m, const std::set<std::string>& skip) {
+  const auto* d = m->GetDescriptor();
+  const auto* r = m->GetReflection();
+  using FD = google::protobuf::FieldDescriptor;
+  for (int i = 0; i < d->field_count(); ++i) {
+    const FD* f = d->field(i);
+    if (skip.count(f->name())) continue;
+    if (f->is_repeated()) {
+      if (f->cpp_type() == FD::CPPTYPE_MESSAGE) fill_every_field(r->AddMessage(m, f), {});
+      else if (f->cpp_type() == FD::CPPTYPE_DOUBLE) r->AddDouble(m, f, 0.5 + i);
+      continue;
+    }
+    switch (f->cpp_type()) {
+      case FD::CPPTYPE_INT32: r->SetInt32(m, f, 3 + i); break;
+      case FD::CPPTYPE_INT64: r->SetInt64(m, f, 1000 + i); break;
+      case FD::CPPTYPE_DOUBLE: r->SetDouble(m, f, 0.25 + i); break;
+      case FD::CPPTYPE_FLOAT: r->SetFloat(m, f, 0.75f + i); break;
+      case FD::CPPTYPE_BOOL: r->SetBool(m, f, true); break;
+      case FD::CPPTYPE_STRING: r->SetString(m, f, "x" + std::to_string(i)); break;
+      case FD::CPPTYPE_ENUM: r->SetEnumValue(m, f, 1); break;
+      case FD::CPPTYPE_MESSAGE: fill_every_field(r->MutableMessage(m, f), {}); break;
+      default: ADD_FAILURE() << "field type of " << f->full_name() << " not covered"; break;
+    }
+  }
+}
+
+TEST(FrameEncoding, AnEncodedFrameKeepsEveryOtherField) {
+  // Reflection fills every field, so a field added to Frame later and not copied fails here.
+  const std::set<std::string> buffers = {"positions", "normals", "energies", "vertices",
+                                         "position_box", "energies_max", "encoding"};
+  pb::Frame header;
+  fill_every_field(&header, buffers);
+  header.set_superseded(false);  // a superseded frame has no buffers to encode
+  pb::Frame f = header;
+  *f.mutable_positions() = float_bytes({1, 2, 3});
+  *f.mutable_normals() = float_bytes({0, 0, 1});
+  pb::FrameFormat fmt;
+  fmt.set_encoding(pb::FRAME_ENCODING_QUANTIZED);
+  pb::Frame out;
+  ASSERT_TRUE(svc::encode_frame_to(f, fmt, false, &out));
+  google::protobuf::util::MessageDifferencer diff;
+  for (const auto& name : buffers) diff.IgnoreField(pb::Frame::descriptor()->FindFieldByName(name));
+  std::string report;
+  diff.ReportDifferencesToString(&report);
+  EXPECT_TRUE(diff.Compare(header, out)) << report;
+  // omit_buffers: the same header, no buffers.
+  ASSERT_TRUE(svc::encode_frame_to(f, pb::FrameFormat{}, true, &out));
+  EXPECT_TRUE(diff.Compare(header, out)) << report;
+  EXPECT_TRUE(out.positions().empty() && out.vertices().empty() && out.normals().empty());
+}
+
+TEST(FrameEncoding, ExactFramesGoAsFloat32OnlyWhenAsked) {
+  pb::Frame f;
+  f.set_exact(true);
+  pb::FrameFormat fmt;
+  fmt.set_encoding(pb::FRAME_ENCODING_MESHOPT);
+  EXPECT_EQ(svc::encoding_for(f, fmt), pb::FRAME_ENCODING_MESHOPT);
+  fmt.set_exact_as_float32(true);
+  EXPECT_EQ(svc::encoding_for(f, fmt), pb::FRAME_ENCODING_FLOAT32);
+  f.set_exact(false);
+  EXPECT_EQ(svc::encoding_for(f, fmt), pb::FRAME_ENCODING_MESHOPT);
+}
+
+TEST(FrameDecode, MalformedFramesAreRefusedWithTheirReason) {
+  pb::FrameFormat fmt;
+  fmt.set_encoding(pb::FRAME_ENCODING_MESHOPT);
+  pb::Frame good;
+  ASSERT_TRUE(svc::encode_frame_to(random_frame(100, 10, 1), fmt, false, &good));
+  auto expect_refused = [](const pb::Frame& f, std::size_t n, std::size_t t, const char* what) {
+    try {
+      decode_frame(f, n, t);
+      ADD_FAILURE() << "decoded: " << what;
+    } catch (const cli::FrameDecodeError& e) {
+      EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
+    }
+  };
+  pb::Frame f = good;
+  f.mutable_vertices()->resize(f.vertices().size() / 2);
+  expect_refused(f, 100, 10, "not a meshopt vertex buffer");
+  expect_refused(good, 300, 10, "not a meshopt vertex buffer");
+  expect_refused(good, 100, 11, "energies");
+  f = good;
+  f.mutable_position_box()->mutable_min()->set_x(1e9);
+  expect_refused(f, 100, 10, "position_box");
+  f = good;
+  f.set_energies_max(-1);
+  expect_refused(f, 100, 10, "energies_max");
+  f = good;
+  f.set_encoding(pb::FRAME_ENCODING_QUANTIZED);
+  expect_refused(f, 100, 10, "vertices");
+  f.set_encoding(static_cast<pb::FrameEncoding>(9));
+  expect_refused(f, 100, 10, "unknown");
+  pb::Frame g;
+  g.set_positions(std::string(11, '\0'));
+  expect_refused(g, 1, 0, "positions");
+}
+
+// ---- over loopback --------------------------------------------------------------------
+
+pb::UpdateHandlesRequest move(const std::string& name, std::int64_t seq, pb::FrameEncoding enc,
+                              bool dragging = false) {
+  pb::UpdateHandlesRequest req;
+  req.set_name(name);
+  req.set_sequence(seq);
+  *req.add_transforms() = cactus_transform();
+  req.set_energies(true);
+  req.set_dragging(dragging);
+  req.mutable_format()->set_encoding(enc);
+  return req;
+}
+
+TEST(FrameEncodingService, UpdateHandlesAnswersInTheEncodingAskedAndDecodesToTheExactFrame) {
+  TestServer t;
+  const auto s = constrained_cactus(t);
+  const std::size_t n = s.vertex_count(), tris = s.triangle_count();
+  pb::Frame exact;
+  {
+    grpc::ClientContext ctx;
+    ASSERT_TRUE(t.stub->UpdateHandles(&ctx, move(s.name(), 1, pb::FRAME_ENCODING_FLOAT32), &exact).ok());
+  }
+  ASSERT_EQ(exact.encoding(), pb::FRAME_ENCODING_FLOAT32);
+  std::size_t bytes[3] = {cli::frame_buffer_bytes(exact), 0, 0};
+  for (auto enc : {pb::FRAME_ENCODING_QUANTIZED, pb::FRAME_ENCODING_MESHOPT}) {
+    pb::Frame f;
+    grpc::ClientContext ctx;
+    ASSERT_TRUE(t.stub->UpdateHandles(&ctx, move(s.name(), 2, enc), &f).ok());
+    EXPECT_EQ(f.encoding(), enc);
+    EXPECT_TRUE(f.exact());
+    EXPECT_TRUE(f.has_measures());
+    bytes[enc] = cli::frame_buffer_bytes(f);
+    // Same transforms, same exact solve: the decoded frame is the float32 one within bounds.
+    expect_within_stated_bounds(exact, decode_frame(f, n, tris), f.position_box(), f.energies_max());
+  }
+  std::printf("[ measured ] cactus (%zu vertices) bytes per frame with energies: float32 %zu, "
+              "quantized %zu, meshopt %zu\n", n, bytes[0], bytes[1], bytes[2]);
+  EXPECT_LE(bytes[1] * 2, bytes[0]);
+  EXPECT_LT(bytes[2], bytes[1]);
+
+  // exact_as_float32: exact frames come as float32, drag frames as asked.
+  auto req = move(s.name(), 3, pb::FRAME_ENCODING_MESHOPT);
+  req.mutable_format()->set_exact_as_float32(true);
+  pb::Frame f;
+  {
+    grpc::ClientContext ctx;
+    ASSERT_TRUE(t.stub->UpdateHandles(&ctx, req, &f).ok());
+  }
+  EXPECT_EQ(f.encoding(), pb::FRAME_ENCODING_FLOAT32);
+  EXPECT_EQ(f.positions(), exact.positions());
+  req.set_dragging(true);
+  {
+    grpc::ClientContext ctx;
+    ASSERT_TRUE(t.stub->UpdateHandles(&ctx, req, &f).ok());
+  }
+  if (!f.exact()) {
+    EXPECT_EQ(f.encoding(), pb::FRAME_ENCODING_MESHOPT);
+  }
+
+  // omit_buffers: the frame's header only.
+  req = move(s.name(), 4, pb::FRAME_ENCODING_FLOAT32);
+  req.set_omit_buffers(true);
+  {
+    grpc::ClientContext ctx;
+    ASSERT_TRUE(t.stub->UpdateHandles(&ctx, req, &f).ok());
+  }
+  EXPECT_EQ(cli::frame_buffer_bytes(f), 0u);
+  EXPECT_EQ(f.sequence(), 4);
+  EXPECT_TRUE(f.has_measures());
+  EXPECT_GT(f.version(), exact.version());
+}
+
+TEST(FrameEncodingService, UnknownEncodingsAreInvalidArgumentsEverywhere) {
+  TestServer t;
+  const auto s = constrained_cactus(t);
+  const auto bad = static_cast<pb::FrameEncoding>(7);
+  pb::Frame f;
+  {
+    grpc::ClientContext ctx;
+    const auto st = t.stub->UpdateHandles(&ctx, move(s.name(), 1, bad), &f);
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_NE(st.error_message().find("unknown frame encoding 7"), std::string::npos)
+        << st.error_message();
+  }
+  {
+    grpc::ClientContext ctx;
+    pb::WatchSessionRequest req;
+    req.set_name(s.name());
+    req.mutable_format()->set_encoding(bad);
+    auto reader = t.stub->WatchSession(&ctx, req);
+    pb::SessionEvent ev;
+    EXPECT_FALSE(reader->Read(&ev));
+    EXPECT_EQ(reader->Finish().error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  }
+  {
+    grpc::ClientContext ctx;
+    auto stream = t.stub->Deform(&ctx);
+    auto req = deform_request(s.name(), 1, cactus_transform());
+    req.mutable_format()->set_encoding(bad);
+    stream->Write(req);
+    stream->WritesDone();
+    while (stream->Read(&f)) {
+    }
+    EXPECT_EQ(stream->Finish().error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  }
+  // The session still serves.
+  grpc::ClientContext ctx;
+  EXPECT_TRUE(t.stub->UpdateHandles(&ctx, move(s.name(), 2, pb::FRAME_ENCODING_MESHOPT), &f).ok());
+}
+
+TEST(FrameEncodingService, DeformAndWatchStreamsCarryTheirOwnEncodings) {
+  TestServer t;
+  const auto s = constrained_cactus(t);
+  const std::size_t n = s.vertex_count(), tris = s.triangle_count();
+  // A watcher in MESHOPT and one in FLOAT32 see the same frames, each in its encoding.
+  grpc::ClientContext wctx_m, wctx_f;
+  pb::WatchSessionRequest wm, wf;
+  wm.set_name(s.name());
+  wm.mutable_format()->set_encoding(pb::FRAME_ENCODING_MESHOPT);
+  wf.set_name(s.name());
+  auto watch_m = t.stub->WatchSession(&wctx_m, wm);
+  auto watch_f = t.stub->WatchSession(&wctx_f, wf);
+  pb::SessionEvent ev;
+  ASSERT_TRUE(watch_m->Read(&ev) && ev.has_state());
+  ASSERT_TRUE(watch_f->Read(&ev) && ev.has_state());
+
+  grpc::ClientContext ctx;
+  auto stream = t.stub->Deform(&ctx);
+  auto req = deform_request(s.name(), 1, cactus_transform());
+  req.mutable_format()->set_encoding(pb::FRAME_ENCODING_QUANTIZED);
+  ASSERT_TRUE(stream->Write(req));
+  pb::Frame f1;
+  ASSERT_TRUE(stream->Read(&f1));
+  EXPECT_EQ(f1.encoding(), pb::FRAME_ENCODING_QUANTIZED);
+  // A later message without a format keeps the stream's; one with a format changes it.
+  ASSERT_TRUE(stream->Write(deform_request("", 2, cactus_transform())));
+  pb::Frame f2;
+  ASSERT_TRUE(stream->Read(&f2));
+  EXPECT_EQ(f2.encoding(), pb::FRAME_ENCODING_QUANTIZED);
+  req = deform_request("", 3, cactus_transform());
+  req.mutable_format()->set_encoding(pb::FRAME_ENCODING_FLOAT32);
+  ASSERT_TRUE(stream->Write(req));
+  pb::Frame f3;
+  ASSERT_TRUE(stream->Read(&f3));
+  EXPECT_EQ(f3.encoding(), pb::FRAME_ENCODING_FLOAT32);
+  stream->WritesDone();
+  EXPECT_TRUE(stream->Finish().ok());
+  expect_within_stated_bounds(f3, decode_frame(f1, n, tris), f1.position_box(), 0);
+
+  // Each watcher sees the last frame (sequence 3) in its own encoding.
+  for (auto* w : {watch_m.get(), watch_f.get()}) {
+    pb::Frame last;
+    while (last.sequence() != 3 && w->Read(&ev))
+      if (ev.has_frame()) last = ev.frame();
+    ASSERT_EQ(last.sequence(), 3);
+    const auto d = decode_frame(last, n, tris);
+    if (w == watch_m.get()) {
+      EXPECT_EQ(last.encoding(), pb::FRAME_ENCODING_MESHOPT);
+      expect_within_stated_bounds(f3, d, last.position_box(), 0);
+    } else {
+      EXPECT_EQ(last.encoding(), pb::FRAME_ENCODING_FLOAT32);
+      EXPECT_EQ(last.positions(), f3.positions());
+    }
+  }
+  wctx_m.TryCancel();
+  wctx_f.TryCancel();
+  watch_m->Finish();
+  watch_f->Finish();
+}
+
+// Coalescing: updates queued behind a slow call on the session's strand (a β change on the
+// 40K-vertex plane) are superseded by the newest; beyond --max-pending-updates they are
+// refused. The newest is solved and its frame is the session's state.
+TEST(FrameEncodingService, CoalescingUpdatesLetTheNewestWinWithinTheLimit) {
+  service::ServerOptions options;
+  options.request.max_pending_updates = 3;
+  TestServer t(options);
+  const pb::Session plane = t.library_session("plane");
+  pb::Session st;
+  ASSERT_TRUE(t.set_constraints(plane.name(), benchmark_constraints("plane"), &st).ok());
+
+  pb::Session beta_out;
+  grpc::ClientContext beta_ctx;
+  pb::SetBetaRequest beta_req;
+  beta_req.set_name(plane.name());
+  beta_req.mutable_beta()->set_value(0.37);
+  grpc::CompletionQueue cq;
+  auto beta_call = t.stub->AsyncSetBeta(&beta_ctx, beta_req, &cq);
+  grpc::Status beta_status;
+  beta_call->Finish(&beta_out, &beta_status, reinterpret_cast<void*>(100));
+
+  constexpr int kUpdates = 5;
+  grpc::ClientContext ctxs[kUpdates];
+  pb::Frame frames[kUpdates];
+  grpc::Status statuses[kUpdates];
+  std::unique_ptr<grpc::ClientAsyncResponseReader<pb::Frame>> calls[kUpdates];
+  for (int i = 0; i < kUpdates; ++i) {
+    pb::UpdateHandlesRequest req;
+    req.set_name(plane.name());
+    req.set_sequence(i + 1);
+    *req.add_transforms() = translation(0, 0, 0.01 * (i + 1));
+    req.set_coalesce(true);
+    calls[i] = t.stub->AsyncUpdateHandles(&ctxs[i], req, &cq);
+    calls[i]->Finish(&frames[i], &statuses[i], reinterpret_cast<void*>(std::intptr_t{i}));
+  }
+  void* tag;
+  bool ok;
+  for (int done = 0; done < kUpdates + 1 && cq.Next(&tag, &ok); ++done) {
+  }
+  ASSERT_TRUE(beta_status.ok()) << beta_status.error_message();
+  int superseded = 0, solved = 0, refused = 0;
+  for (int i = 0; i < kUpdates; ++i) {
+    if (statuses[i].error_code() == grpc::StatusCode::RESOURCE_EXHAUSTED) {
+      EXPECT_NE(statuses[i].error_message().find("--max-pending-updates"), std::string::npos);
+      ++refused;
+      continue;
+    }
+    ASSERT_TRUE(statuses[i].ok()) << statuses[i].error_message();
+    EXPECT_EQ(frames[i].sequence(), i + 1);
+    if (frames[i].superseded()) {
+      ++superseded;
+      EXPECT_EQ(cli::frame_buffer_bytes(frames[i]), 0u);
+    } else {
+      ++solved;
+    }
+  }
+  std::printf("[ measured ] %d superseded, %d solved, %d refused\n", superseded, solved, refused);
+  // All five were sent while the β change held the strand (it takes far longer than five
+  // sends on loopback): three waited (the limit), two were refused, the newest waiting won.
+  EXPECT_EQ(refused, kUpdates - 3);
+  EXPECT_EQ(solved, 1);
+  EXPECT_EQ(superseded, 2);
+  int newest = -1;
+  for (int i = 0; i < kUpdates; ++i)
+    if (statuses[i].ok() && !frames[i].superseded()) newest = i;
+  for (int i = 0; i < kUpdates; ++i)
+    if (statuses[i].ok() && frames[i].superseded()) {
+      EXPECT_LT(i, newest) << "an older update won";
+    }
+  // The slots are free again: a next coalescing update is solved.
+  pb::UpdateHandlesRequest req;
+  req.set_name(plane.name());
+  req.set_sequence(9);
+  *req.add_transforms() = translation(0, 0, 0.5);
+  req.set_coalesce(true);
+  pb::Frame last;
+  grpc::ClientContext ctx;
+  ASSERT_TRUE(t.stub->UpdateHandles(&ctx, req, &last).ok());
+  EXPECT_FALSE(last.superseded());
+  EXPECT_FALSE(last.positions().empty());
+}
+
+}  // namespace
+}  // namespace hdeform::testing
