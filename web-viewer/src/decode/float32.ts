@@ -4,7 +4,7 @@ import type { Frame } from "../gen/hdeform/v1/deform_pb";
 import { FrameDecodeError, type DecodedFrame } from "./decoded_frame";
 
 /** float32 LE bytes → Float32Array (copies only when the bytes are not 4-aligned). */
-export function floats(bytes: Uint8Array): Float32Array {
+function floats(bytes: Uint8Array): Float32Array {
   if (bytes.byteOffset % 4 === 0) {
     return new Float32Array(bytes.buffer, bytes.byteOffset, bytes.byteLength >>> 2);
   }
