@@ -161,13 +161,3 @@ export function createSessionViaUpload(
     }
   });
 }
-
-/** float32 LE bytes → Float32Array (copies only when the bytes are not 4-aligned). */
-export function floats(bytes: Uint8Array): Float32Array {
-  if (bytes.byteOffset % 4 === 0) {
-    return new Float32Array(bytes.buffer, bytes.byteOffset, bytes.byteLength >>> 2);
-  }
-  return new Float32Array(bytes.slice().buffer);
-}
-
-

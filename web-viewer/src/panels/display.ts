@@ -1,0 +1,46 @@
+// The Display panel: energy colour map (off, linear, truncated at a value) with its legend,
+// and the wireframe overlay.
+import type { App } from "../app";
+import { drawLegend, fmt, scaleTop, type EnergyMapping } from "../colormap";
+import { $ } from "../dom";
+import { energyTop } from "../energy_scale";
+import type { MeshDisplay } from "../viewport/mesh_display";
+
+export function setupDisplayPanel({ state, edits }: App, display: MeshDisplay): void {
+  const select = $<HTMLSelectElement>("energy-map");
+  const trunc = $<HTMLInputElement>("energy-trunc");
+  const legend = $<HTMLCanvasElement>("legend");
+  let truncTouched = false; // the user typed a truncation value
+  const readTruncation = () => (state.truncation = Number(trunc.value) || 0);
+  const defaultTruncation = () => {
+    if (!state.mesh?.energies) return;
+    trunc.value = fmt(scaleTop("linear", state.mesh.energies, 0) / 2);
+    readTruncation();
+  };
+  const showLegend = () => {
+    const top = energyTop(state);
+    legend.classList.toggle("hidden", top === null);
+    if (top !== null) drawLegend(legend, top, state.energyMapping);
+  };
+  state.on("mesh", showLegend);
+  state.on("colours", showLegend);
+  state.on("energies", ({ first }) => {
+    if (first && state.energyMapping === "truncated" && !truncTouched) defaultTruncation();
+  });
+  select.addEventListener("change", () => {
+    state.energyMapping = select.value as EnergyMapping;
+    trunc.classList.toggle("hidden", state.energyMapping !== "truncated");
+    if (state.energyMapping === "truncated" && !truncTouched) defaultTruncation();
+    if (state.energyMapping !== "off" && !state.mesh?.energies) edits.requestFrame();
+    state.emit("colours", undefined);
+  });
+  trunc.addEventListener("input", () => {
+    truncTouched = true;
+    readTruncation();
+    state.emit("colours", undefined);
+  });
+  readTruncation();
+  const wireframe = $<HTMLInputElement>("wireframe");
+  wireframe.addEventListener("change", () => display.setWireframe(wireframe.checked));
+  display.setWireframe(wireframe.checked);
+}

@@ -1,0 +1,63 @@
+// Downloads (GLB / OBJ of the deformed mesh, snapshots as JSON or binary) and Import….
+import { fromBinary, fromJsonString, toBinary, toJsonString } from "@bufbuild/protobuf";
+import { describeError, fetchMesh, newSessionId, setRoutingSession } from "../api";
+import type { App } from "../app";
+import { $ } from "../dom";
+import { MeshFormat, SnapshotSchema, type Session } from "../gen/hdeform/v1/deform_pb";
+
+function saveBytes(bytes: Uint8Array | string, filename: string, type: string): void {
+  const blob = new Blob([bytes as BlobPart], { type });
+  const a = document.createElement("a");
+  a.href = URL.createObjectURL(blob);
+  a.download = filename;
+  document.body.appendChild(a);
+  a.click();
+  a.remove();
+  setTimeout(() => URL.revokeObjectURL(a.href), 10_000);
+}
+
+export function setupFilesPanel({ state, client, banner }: App, load: (s: Session) => Promise<void>): void {
+  const baseName = () => (state.session?.meshName || "mesh").replace(/\.[^.]+$/, "").replace(/[^\w.-]+/g, "_");
+  const download = async (format: MeshFormat, ext: string, type: string) => {
+    try {
+      saveBytes(await fetchMesh(client, state.sessionName, false, format), `${baseName()}-deformed.${ext}`, type);
+    } catch (err) {
+      banner.show(`Download failed: ${describeError(err)}`);
+    }
+  };
+  const exportSnapshot = async (json: boolean) => {
+    try {
+      const snap = await client.exportSession({ name: state.sessionName, includeMesh: true });
+      if (json) saveBytes(toJsonString(SnapshotSchema, snap, { prettySpaces: 2 }), `${baseName()}-session.json`, "application/json");
+      else saveBytes(toBinary(SnapshotSchema, snap), `${baseName()}-session.pb`, "application/x-protobuf");
+    } catch (err) {
+      banner.show(`Export failed: ${describeError(err)}`);
+    }
+  };
+  $("dl-glb").addEventListener("click", () => void download(MeshFormat.GLB, "glb", "model/gltf-binary"));
+  $("dl-obj").addEventListener("click", () => void download(MeshFormat.OBJ, "obj", "text/plain"));
+  $("dl-json").addEventListener("click", () => void exportSnapshot(true));
+  $("dl-bin").addEventListener("click", () => void exportSnapshot(false));
+  $<HTMLInputElement>("import-input").addEventListener("change", async (e) => {
+    const input = e.target as HTMLInputElement;
+    const file = input.files?.[0];
+    input.value = "";
+    if (!file) return;
+    try {
+      const bytes = new Uint8Array(await file.arrayBuffer());
+      const snapshot = file.name.endsWith(".json")
+        ? fromJsonString(SnapshotSchema, new TextDecoder().decode(bytes))
+        : fromBinary(SnapshotSchema, bytes);
+      // A client-chosen id, sent as the routing header too: behind a load balancer the import
+      // then lands on the replica that every later call of the new session reaches.
+      const id = newSessionId();
+      setRoutingSession(id);
+      const s = await client.importSession({ snapshot, sessionId: id });
+      await load(s);
+      banner.clear();
+    } catch (err) {
+      if (state.sessionName) setRoutingSession(state.sessionName); // still showing the previous session
+      banner.show(`Import failed: ${describeError(err)}`);
+    }
+  });
+}

@@ -1,0 +1,112 @@
+// The Regions panel: what the tools assign (Fixed, Handle k, Erase), + handle, Clear, the
+// per-region counts, and Apply constraints (SetConstraints; also on entering Move with
+// unapplied edits).
+import { describeError } from "../api";
+import type { App } from "../app";
+import { $ } from "../dom";
+
+export function setupRegionsPanel(app: App): { applyConstraints: () => Promise<void> } {
+  const { state, banner, status, edits } = app;
+  const labelSelect = $<HTMLSelectElement>("label-select");
+  const activeSelect = $<HTMLSelectElement>("active-handle");
+
+  const showCounts = () => {
+    const mesh = state.mesh;
+    if (!mesh) return;
+    const counts = new Map<number, number>();
+    for (let v = 0; v < mesh.n; v++) if (mesh.labels[v] >= 0) counts.set(mesh.labels[v], (counts.get(mesh.labels[v]) ?? 0) + 1);
+    const parts = [`fixed ${counts.get(0) ?? 0}`];
+    for (let h = 1; h <= state.handleCount; h++) parts.push(`handle ${h}: ${counts.get(h) ?? 0}`);
+    $("region-counts").textContent = parts.join(" · ") + (state.labelsDirty ? " — not applied" : "");
+  };
+  const showLabels = () => {
+    const opts = [`<option value="0">Fixed</option>`];
+    for (let h = 1; h <= state.handleCount; h++) opts.push(`<option value="${h}">Handle ${h}</option>`);
+    opts.push(`<option value="-1">Erase</option>`);
+    labelSelect.innerHTML = opts.join("");
+    labelSelect.value = String(state.currentLabel <= state.handleCount ? state.currentLabel : 0);
+    const n = Math.max(state.handles.length, 1);
+    activeSelect.innerHTML = Array.from({ length: n }, (_, i) => `<option value="${i + 1}">Handle ${i + 1}</option>`).join("");
+    activeSelect.value = String(Math.min(state.activeHandle, n));
+    showCounts();
+  };
+
+  async function applyConstraints(): Promise<void> {
+    const mesh = state.mesh;
+    const name = state.sessionName;
+    if (!mesh || !name) return;
+    // Compact handle labels so the handles sent are 1..k without gaps.
+    const used = new Set<number>();
+    for (let v = 0; v < mesh.n; v++) if (mesh.labels[v] > 0) used.add(mesh.labels[v]);
+    const order = [...used].sort((x, y) => x - y);
+    const remap = new Map(order.map((l, i) => [l, i + 1]));
+    const fixed: number[] = [];
+    const handleIds: number[][] = order.map(() => []);
+    for (let v = 0; v < mesh.n; v++) {
+      const l = mesh.labels[v];
+      if (l === 0) fixed.push(v);
+      else if (l > 0) {
+        const k = remap.get(l)!;
+        mesh.labels[v] = k;
+        handleIds[k - 1].push(v);
+      }
+    }
+    if (handleIds.length === 0) {
+      banner.show("Select at least one handle region before applying constraints", "rejected");
+      return;
+    }
+    // Vertex indices of the base GLB this viewer loaded: the server maps them through its weld
+    // map (glTF uploads), so they need not be engine ids.
+    const region = (ids: number[]) => ({ selectors: ids.length ? [{ kind: { case: "baseIds" as const, value: { ids } } }] : [] });
+    try {
+      status.set("factorizing…");
+      const s = await edits.setConstraints({ name, constraints: { fixed: region(fixed), handles: handleIds.map(region) } });
+      if (name !== state.sessionName) return;
+      state.labelsDirty = false;
+      banner.clear("rejected");
+      state.handles = [];
+      state.adoptSession(s, { labels: true, transforms: false });
+      state.handleCount = Math.max(1, handleIds.length);
+      if (state.activeHandle > handleIds.length) state.activeHandle = 1;
+      state.resetHandles();
+      showLabels();
+      edits.requestFrame();
+    } catch (err) {
+      banner.show(`Constraints rejected: ${describeError(err)}`, "rejected");
+    }
+  }
+
+  state.on("labels", showLabels);
+  state.on("mesh", showCounts);
+  state.on("colours", showCounts);
+  state.on("mode", (mode) => {
+    if (mode === "move" && state.labelsDirty) void applyConstraints();
+  });
+  labelSelect.addEventListener("change", () => (state.currentLabel = Number(labelSelect.value)));
+  $("new-handle").addEventListener("click", () => {
+    state.handleCount++;
+    state.currentLabel = state.handleCount;
+    showLabels();
+  });
+  const clear = (which: (label: number) => boolean) => {
+    const mesh = state.mesh;
+    if (!mesh) return;
+    const ids: number[] = [];
+    for (let v = 0; v < mesh.n; v++) if (which(mesh.labels[v])) ids.push(v);
+    state.assign(ids, -1);
+  };
+  $("clear-label").addEventListener("click", () => clear((l) => l === state.currentLabel));
+  $("clear-all").addEventListener("click", () => {
+    if (!state.mesh) return;
+    clear((l) => l >= 0);
+    state.handleCount = 1;
+    showLabels();
+  });
+  $("apply").addEventListener("click", () => void applyConstraints());
+  const brush = $<HTMLInputElement>("brush-radius");
+  const showBrush = () => ($("brush-radius-val").textContent = `${brush.value}%`);
+  brush.addEventListener("input", showBrush);
+  showBrush();
+  showLabels();
+  return { applyConstraints };
+}

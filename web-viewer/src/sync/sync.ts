@@ -1,0 +1,265 @@
+// The update/frame pump and the connection, as a state machine without DOM or three.js: the
+// client is injected, everything the page shows comes out as typed events.
+//
+// Handle updates: request() marks the pose dirty; tick() (once per animation frame) sends
+// one UpdateHandles when fewer than `window` are in flight, built at send time, so the newest
+// pose wins. While the gizmo is held the requests carry `dragging`; its release sends one more
+// without it, whose frame is exact.
+//
+// window = 1 (the default): each reply brings its frame; WatchSession frames are ignored while
+// this page's own edit is pending (they are older).
+// window > 1 (pipelined): requests carry `coalesce` (the server skips an update a newer one
+// overtook, answering `superseded`) and `omit_buffers` (the frame comes on the WatchSession
+// stream); frames apply in version order from wherever they come. The update after a
+// non-dragging one never coalesces, so a drag's last update is always solved.
+import type { MessageInitShape } from "@bufbuild/protobuf";
+import { describeError, isAbort, isTransient } from "../api";
+import { Emitter } from "../events";
+import type {
+  Frame,
+  HandleTransformSchema,
+  Session,
+  SessionEvent,
+  SetBetaRequestSchema,
+  SetConstraintsRequestSchema,
+} from "../gen/hdeform/v1/deform_pb";
+import type { SyncClient } from "./client";
+import { FrameOrder, type FrameSource } from "./frame_order";
+import { LinkState, type Link } from "./link";
+import { DEFAULT_TIMING, watchLoop, type SyncTiming, type WatchHost } from "./watch_loop";
+
+export type { Link } from "./link";
+export type { FrameSource } from "./frame_order";
+
+/** Banner kinds: a rejected edit, or the connection / session lost. */
+export type SyncErrorKind = "rejected" | "lost";
+
+export interface SyncEvents {
+  link: { link: Link; why: string };
+  /** A frame to show: in version order, not shown before. */
+  frame: { frame: Frame; source: FrameSource };
+  /** A session state to adopt: from WatchSession, or re-read after a reconnect. */
+  state: { session: Session; source: "watch" | "resync"; adoptTransforms: boolean };
+  error: { message: string; kind: SyncErrorKind };
+  clearError: SyncErrorKind;
+}
+
+/** The pose an UpdateHandles sends, read when the request is built. */
+export interface Pose {
+  transforms: MessageInitShape<typeof HandleTransformSchema>[];
+  energies: boolean;
+}
+
+export interface SyncOptions {
+  client: SyncClient;
+  pose: () => Pose;
+  /** After a reconnect, the session's current shape (frames may have been missed). */
+  refreshShape?: (name: string, session: Session, signal: AbortSignal) => Promise<void>;
+  /** UpdateHandles calls in flight at most. */
+  window?: number;
+  timing?: Partial<SyncTiming>;
+}
+
+function carriesShape(frame: Frame): boolean {
+  return frame.positions.byteLength + frame.vertices.byteLength > 0;
+}
+
+export class Sync extends Emitter<SyncEvents> implements WatchHost {
+  readonly client: SyncClient;
+  readonly link: LinkState;
+  readonly timing: SyncTiming;
+  readonly window: number;
+  /** Completed reconnects. */
+  reconnects = 0;
+  /** WatchSession events received (frames and states). */
+  watchEvents = 0;
+  private readonly pose: () => Pose;
+  private readonly refreshShape: NonNullable<SyncOptions["refreshShape"]>;
+  private readonly order = new FrameOrder();
+  private name = "";
+  private watchAbort: AbortController | null = null;
+  private stream: AbortController | null = null;
+  // The pump: `dirty` = a newer pose than the last sent.
+  private dirty = false;
+  private inFlight = 0;
+  private held = false;
+  private sequence = 0;
+  private lastSentDragging = false;
+  /** Pipelined: version of an answered update whose buffers are still to come (0 = none). */
+  private awaitingBuffers = 0n;
+
+  constructor(options: SyncOptions) {
+    super();
+    this.client = options.client;
+    this.pose = options.pose;
+    this.refreshShape = options.refreshShape ?? (async () => {});
+    this.window = Math.max(1, options.window ?? 1);
+    this.timing = { ...DEFAULT_TIMING, ...options.timing };
+    this.link = new LinkState((link, why) => this.emit("link", { link, why }));
+  }
+
+  get sessionName(): string {
+    return this.name;
+  }
+  get pipelined(): boolean {
+    return this.window > 1;
+  }
+  get dragging(): boolean {
+    return this.held;
+  }
+  /** This page's own edit is not yet shown. */
+  get busy(): boolean {
+    return this.dirty || this.inFlight > 0 || this.held || this.awaitingBuffers > 0n;
+  }
+  /** Session version of the newest frame shown. */
+  get version(): bigint {
+    return this.order.newest;
+  }
+  get framesApplied(): number {
+    return this.order.applied;
+  }
+
+  /** Switches to session `name` (stops watching the previous one); watch() follows. */
+  open(name: string): void {
+    this.watchAbort?.abort();
+    this.watchAbort = null;
+    this.link.set("connected");
+    this.name = name;
+    this.dirty = false;
+    this.awaitingBuffers = 0n;
+    this.order.reset();
+  }
+
+  /** Starts the WatchSession loop of the open session. */
+  watch(): void {
+    this.watchAbort?.abort();
+    this.watchAbort = new AbortController();
+    void watchLoop(this, this.name, this.watchAbort.signal);
+  }
+
+  /** The pose changed: send it at the next tick. */
+  request(): void {
+    if (this.name) this.dirty = true;
+  }
+
+  /** The gizmo is held (or released: then the final pose is sent without `dragging`). */
+  setDragging(held: boolean): void {
+    const released = this.held && !held;
+    this.held = held;
+    if (released) this.request();
+  }
+
+  /** Once per animation frame: sends at most one update. */
+  tick(): void {
+    if (!this.dirty || this.inFlight >= this.window || !this.name || this.link.state !== "connected") return;
+    this.dirty = false;
+    this.inFlight++;
+    const name = this.name;
+    let seq = 0;
+    this.edit(() => {
+      seq = ++this.sequence;
+      const { transforms, energies } = this.pose();
+      const coalesce = this.pipelined && this.lastSentDragging;
+      this.lastSentDragging = this.held;
+      return this.client.updateHandles({
+        name,
+        sequence: BigInt(seq),
+        transforms,
+        energies,
+        // While the gizmo is held the server may answer with a drag frame (float32 factor).
+        dragging: this.held,
+        coalesce,
+        omitBuffers: this.pipelined,
+      });
+    })
+      .then((frame) => {
+        if (name !== this.name) return; // another session was opened meanwhile
+        if (seq === this.sequence) this.emit("clearError", "rejected");
+        if (frame.superseded) return; // acknowledged, not solved: a newer update was waiting
+        // omit_buffers: the shape comes on the stream (unless it came first).
+        if (this.pipelined && !carriesShape(frame) && frame.version > this.order.newest) {
+          this.awaitingBuffers = frame.version;
+        }
+        this.offer(frame, "reply");
+      })
+      .catch((err) => {
+        if (isAbort(err)) return;
+        this.emit("error", { message: `Handle update rejected: ${describeError(err)}`, kind: "rejected" });
+      })
+      .finally(() => {
+        this.inFlight--;
+      });
+  }
+
+  setBeta(request: MessageInitShape<typeof SetBetaRequestSchema>): Promise<Session> {
+    return this.edit(() => this.client.setBeta(request));
+  }
+
+  setConstraints(request: MessageInitShape<typeof SetConstraintsRequestSchema>): Promise<Session> {
+    return this.edit(() => this.client.setConstraints(request));
+  }
+
+  /**
+   * An edit waits while the page reconnects; when it fails for a transient reason it starts a
+   * reconnect and is made once more after it. `call` builds its request each time (a retry
+   * sends the newest state; edits carry absolute state, so a repeat cannot apply twice).
+   */
+  async edit<T>(call: () => Promise<T>): Promise<T> {
+    if (this.link.state !== "connected") await this.link.waitConnected(this.timing.editRetryWaitMs);
+    try {
+      return await call();
+    } catch (err) {
+      if (!isTransient(err) || this.link.state === "gone") throw err;
+      this.kickReconnect("an edit failed");
+      if (!(await this.link.waitConnected(this.timing.editRetryWaitMs))) throw err;
+      return await call();
+    }
+  }
+
+  /** An edit failed for a transient reason: reconnect now (the stream may not know yet). */
+  private kickReconnect(why: string): void {
+    if (this.link.state !== "connected") return;
+    this.link.set("reconnecting", why);
+    this.stream?.abort(); // the watch loop then re-reads the session
+  }
+
+  private offer(frame: Frame, source: FrameSource): void {
+    const ownEditPending = !this.pipelined && (this.held || this.inFlight > 0 || this.dirty);
+    if (!this.order.accept(frame, source, ownEditPending)) return;
+    if (carriesShape(frame) && frame.version >= this.awaitingBuffers) {
+      this.awaitingBuffers = 0n;
+    }
+    this.emit("frame", { frame, source });
+  }
+
+  // WatchHost
+
+  setStream(stream: AbortController): void {
+    this.stream = stream;
+  }
+
+  async resynced(name: string, session: Session, signal: AbortSignal): Promise<void> {
+    this.order.reset(); // the server's version is the truth now (a restart may have lost a move)
+    this.awaitingBuffers = 0n;
+    this.emit("state", { session, source: "resync", adoptTransforms: !this.busy });
+    await this.refreshShape(name, session, signal);
+    this.order.forgetLast();
+    this.reconnects++;
+  }
+
+  event(ev: SessionEvent): void {
+    if (ev.event.case === "frame") this.offer(ev.event.value, "watch");
+    else if (ev.event.case === "state") {
+      this.emit("state", { session: ev.event.value, source: "watch", adoptTransforms: !this.busy });
+    }
+    this.watchEvents++;
+  }
+
+  error(message: string): void {
+    this.emit("error", { message, kind: "lost" });
+  }
+
+  clearError(): void {
+    this.emit("clearError", "lost");
+  }
+}

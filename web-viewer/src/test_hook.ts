@@ -1,0 +1,119 @@
+// The page's test hook (tests/browser/e2e.mjs): state, and the same code paths the UI uses.
+import * as THREE from "three";
+import { Code, ConnectError } from "@connectrpc/connect";
+import { tokens } from "./api";
+import type { App } from "./app";
+import { shareLink } from "./links";
+import type { SelectionTools } from "./selection/tools";
+import { verticesInBox } from "./selection/pick";
+import type { Mode } from "./state";
+import type { Sync } from "./sync/sync";
+import { toProtoTransforms } from "./transforms";
+import type { HandleGizmo } from "./viewport/handle_gizmo";
+import type { Viewport } from "./viewport/viewport";
+
+declare global {
+  interface Window {
+    hdeform: unknown;
+  }
+}
+
+export interface HookParts {
+  sync: Sync;
+  viewport: Viewport;
+  gizmo: HandleGizmo;
+  tools: SelectionTools;
+  applyConstraints: () => Promise<void>;
+  openLibrary: (name: string) => Promise<void>;
+  sweepRows: () => number;
+}
+
+export function installTestHook({ state, client, banner, status }: App, parts: HookParts): void {
+  const { sync, viewport, gizmo, tools } = parts;
+  window.hdeform = {
+    get loaded() {
+      return state.loaded && !!state.mesh;
+    },
+    get sessionName() {
+      return state.sessionName;
+    },
+    /** The newest version seen: of the session, or of a frame (handle moves bump it too). */
+    get version() {
+      return state.version;
+    },
+    get framesApplied() {
+      return sync.framesApplied;
+    },
+    get watchEvents() {
+      return sync.watchEvents;
+    },
+    get constraintsApplied() {
+      return state.constraintsApplied && !state.labelsDirty;
+    },
+    get lastError() {
+      return banner.shown;
+    },
+    get busy() {
+      return sync.busy;
+    },
+    bbox(): number[][] {
+      const b = new THREE.Box3().setFromArray(state.mesh!.rest);
+      return [b.min.toArray(), b.max.toArray()];
+    },
+    /** Assigns every vertex whose rest position lies in the model-space box; returns the count. */
+    selectBox(min: number[], max: number[], label: number): number {
+      if (!state.mesh) return 0;
+      const ids = verticesInBox(state.mesh, min, max);
+      state.assign(ids, label);
+      return ids.length;
+    },
+    selectScreenRect: (a: { x: number; y: number }, b: { x: number; y: number }, label: number) => tools.selectScreenRect(a, b, label),
+    applyConstraints: parts.applyConstraints,
+    setMode: (mode: Mode) => state.setMode(mode),
+    openLibrary: parts.openLibrary,
+    gizmoScreenPoint: (axis?: "x" | "y" | "z") => gizmo.screenPoint(axis),
+    /** Client coordinates of a model-space point. */
+    screenPoint: (x: number, y: number, z: number) => viewport.toClient(viewport.root.localToWorld(new THREE.Vector3(x, y, z))),
+    positions: () => (state.mesh ? Array.from(state.mesh.cur) : []),
+    restPositions: () => (state.mesh ? Array.from(state.mesh.rest) : []),
+    labels: () => (state.mesh ? Array.from(state.mesh.labels) : []),
+    measures: () => (state.measures ? { ...state.measures } : null),
+    handleTransforms: () => toProtoTransforms(state.handles, state.pivots),
+    get sweepRows() {
+      return parts.sweepRows();
+    },
+    get meshName() {
+      return state.session?.meshName ?? "";
+    },
+    shareLink: (watch: boolean) => shareLink(state.sessionName, watch),
+    get watchOnly() {
+      return state.watchOnly;
+    },
+    /** "connected" | "reconnecting" | "gone" */
+    get connection() {
+      return sync.link.state;
+    },
+    get reconnects() {
+      return sync.reconnects;
+    },
+    get status() {
+      return status.shown;
+    },
+    /** The tokens this page holds (it sends them with every call anyway). */
+    tokens: () => tokens(),
+    /**
+     * Any Deformation call with the page's own headers (x-session-id, authorization):
+     * resolves to { code: "OK" } or the error's code name and message.
+     */
+    async call(method: string, request: object): Promise<{ code: string; message: string }> {
+      try {
+        const fn = (client as unknown as Record<string, (r: object) => Promise<unknown>>)[method];
+        await fn.call(client, request);
+        return { code: "OK", message: "" };
+      } catch (err) {
+        const e = err instanceof ConnectError ? err : ConnectError.from(err);
+        return { code: Code[e.code] ?? String(e.code), message: e.rawMessage };
+      }
+    },
+  };
+}

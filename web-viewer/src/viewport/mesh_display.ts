@@ -1,0 +1,123 @@
+// The mesh on screen. The display geometry is non-indexed (3 corners per triangle) so
+// per-triangle energy colours are exact; the state's per-vertex arrays are expanded through
+// the index on every change.
+import * as THREE from "three";
+import { ramp } from "../colormap";
+import { energyTop } from "../energy_scale";
+import type { MeshData, SessionState } from "../state";
+import type { Viewport } from "./viewport";
+
+const REGION_COLOURS = [
+  new THREE.Color(0x3b6fd8), // fixed
+  new THREE.Color(0xe0483a),
+  new THREE.Color(0x3fb950),
+  new THREE.Color(0xd29922),
+  new THREE.Color(0xb062d9),
+  new THREE.Color(0x2fb8b0),
+  new THREE.Color(0xe06fa8),
+];
+const BASE_COLOUR = new THREE.Color(0xc9c4ba);
+function regionColour(label: number): THREE.Color {
+  return label === 0 ? REGION_COLOURS[0] : REGION_COLOURS[1 + ((label - 1) % (REGION_COLOURS.length - 1))];
+}
+
+export class MeshDisplay {
+  object: THREE.Mesh | null = null;
+  private wire: THREE.Mesh | null = null;
+  private geometry: THREE.BufferGeometry | null = null;
+  private wireframe = false;
+  private readonly material = new THREE.MeshStandardMaterial({
+    vertexColors: true,
+    side: THREE.DoubleSide,
+    roughness: 0.75,
+    metalness: 0.0,
+    polygonOffset: true,
+    polygonOffsetFactor: 1,
+    polygonOffsetUnits: 1,
+  });
+  private readonly wireMaterial = new THREE.MeshBasicMaterial({ color: 0x000000, wireframe: true, transparent: true, opacity: 0.25 });
+
+  constructor(private readonly viewport: Viewport, private readonly state: SessionState) {
+    state.on("mesh", (mesh) => this.build(mesh));
+    state.on("shape", () => this.expandPositions());
+    state.on("colours", () => this.updateColours());
+  }
+
+  setWireframe(on: boolean): void {
+    this.wireframe = on;
+    if (this.wire) this.wire.visible = on;
+    this.viewport.requestRender();
+  }
+
+  private build(mesh: MeshData): void {
+    const root = this.viewport.root;
+    if (this.object && this.wire && this.geometry) {
+      root.remove(this.object, this.wire);
+      this.geometry.dispose();
+    }
+    const geometry = new THREE.BufferGeometry();
+    for (const name of ["position", "normal", "color"]) {
+      geometry.setAttribute(name, new THREE.BufferAttribute(new Float32Array(9 * mesh.m), 3));
+    }
+    this.geometry = geometry;
+    this.object = new THREE.Mesh(geometry, this.material);
+    this.wire = new THREE.Mesh(geometry, this.wireMaterial);
+    this.wire.visible = this.wireframe;
+    root.add(this.object, this.wire);
+    this.expandPositions();
+    this.updateColours();
+    this.viewport.fitCamera(new THREE.Box3().setFromArray(mesh.rest));
+  }
+
+  private expandPositions(): void {
+    const mesh = this.state.mesh;
+    if (!mesh || !this.geometry) return;
+    const pos = this.geometry.getAttribute("position") as THREE.BufferAttribute;
+    const nor = this.geometry.getAttribute("normal") as THREE.BufferAttribute;
+    const P = pos.array as Float32Array;
+    const N = nor.array as Float32Array;
+    const { index, cur, normals } = mesh;
+    for (let c = 0; c < index.length; c++) {
+      const v = index[c] * 3;
+      const o = c * 3;
+      P[o] = cur[v];
+      P[o + 1] = cur[v + 1];
+      P[o + 2] = cur[v + 2];
+      N[o] = normals[v];
+      N[o + 1] = normals[v + 1];
+      N[o + 2] = normals[v + 2];
+    }
+    pos.needsUpdate = true;
+    nor.needsUpdate = true;
+    this.geometry.computeBoundingSphere();
+    this.geometry.computeBoundingBox();
+    this.viewport.requestRender();
+  }
+
+  private updateColours(): void {
+    const mesh = this.state.mesh;
+    if (!mesh || !this.geometry) return;
+    const col = this.geometry.getAttribute("color") as THREE.BufferAttribute;
+    const C = col.array as Float32Array;
+    const { index, labels, energies } = mesh;
+    const top = energyTop(this.state);
+    for (let c = 0; c < index.length; c++) {
+      const o = c * 3;
+      const label = labels[index[c]];
+      if (label >= 0) {
+        const k = regionColour(label);
+        C[o] = k.r;
+        C[o + 1] = k.g;
+        C[o + 2] = k.b;
+      } else if (top !== null) {
+        ramp(energies![(c / 3) | 0] / top, C, o);
+      } else {
+        C[o] = BASE_COLOUR.r;
+        C[o + 1] = BASE_COLOUR.g;
+        C[o + 2] = BASE_COLOUR.b;
+      }
+    }
+    col.needsUpdate = true;
+    this.viewport.requestRender();
+  }
+}
