@@ -157,5 +157,42 @@ def grpc_web():
     put("fuzz_grpc_web_frames", "timeout-max", "99999999H")
 
 
+def pb_varint(v):
+    out = b""
+    while True:
+        b = v & 0x7F
+        v >>= 7
+        out += bytes([b | (0x80 if v else 0)])
+        if not v:
+            return out
+
+
+def pb_field(num, wire, payload):
+    key = pb_varint(num << 3 | wire)
+    if wire == 0:
+        return key + pb_varint(payload)
+    if wire == 2:
+        return key + pb_varint(len(payload)) + payload
+    return key + payload  # fixed 32/64: payload already packed
+
+
+def frame_decode():
+    """Mode byte, vertex and triangle counts (LE u32), then a hdeform.v1.Frame (mode 0); or
+    mode 1 and a raw QUANTIZED vertex buffer that the target meshopt-encodes itself."""
+    vec3 = lambda x, y, z: b"".join(pb_field(i + 1, 1, struct.pack("<d", c)) for i, c in enumerate((x, y, z)))
+    box = pb_field(1, 2, vec3(-1, 0, 2)) + pb_field(2, 2, vec3(1, 4, 2))
+    n, t = 4, 2
+    verts = b"".join(struct.pack("<3H2b", 65535 * (i % 2), 20000 * i, 7, 127 - 40 * i, -30) for i in range(n))
+    head = lambda mode: bytes([mode]) + struct.pack("<II", n, t)
+    quant = (pb_field(11, 0, 1) + pb_field(12, 2, verts) + pb_field(13, 2, box)
+             + pb_field(6, 2, struct.pack("<2H", 0, 65535)) + pb_field(14, 5, struct.pack("<f", 2.5)))
+    put("fuzz_frame_decode", "quantized", head(0) + quant)
+    put("fuzz_frame_decode", "meshopt-wrong-bytes", head(0) + pb_field(11, 0, 2) + pb_field(12, 2, verts))
+    f32 = pb_field(4, 2, struct.pack("<12f", *range(12))) + pb_field(5, 2, struct.pack("<12f", *([0, 0, 1] * 4)))
+    put("fuzz_frame_decode", "float32", head(0) + f32 + pb_field(6, 2, struct.pack("<2f", 0.5, 1)))
+    put("fuzz_frame_decode", "superseded", head(0) + pb_field(15, 0, 1))
+    put("fuzz_frame_decode", "roundtrip", bytes([1]) + verts * 40)
+
+
 if __name__ == "__main__":
-    obj(); off(); ply(); stl(); gltf(); sel(); def_(); grpc_web()
+    obj(); off(); ply(); stl(); gltf(); sel(); def_(); grpc_web(); frame_decode()
