@@ -310,17 +310,46 @@ void BM_SessionOpen(benchmark::State& state, std::string key) {
   size_counters(state, c);
 }
 
+// Medians of a β build's phases (ConstraintSet::last_build_timings) as counters.
+struct BuildPhases {
+  std::vector<double> blocks, K_FF, analysis, factor, schedule, rest;
+  void add(const ConstraintSet::BuildTimings& t) {
+    blocks.push_back(t.blocks_ms);
+    K_FF.push_back(t.K_FF_ms);
+    analysis.push_back(t.analysis_ms);
+    factor.push_back(t.factor_ms);
+    schedule.push_back(t.schedule_ms);
+    rest.push_back(t.rest_ms);
+  }
+  void report(benchmark::State& state) {
+    auto median = [](std::vector<double> v) {
+      if (v.empty()) return 0.0;
+      std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+      return v[v.size() / 2];
+    };
+    state.counters["blocks_ms"] = median(blocks);
+    state.counters["K_FF_ms"] = median(K_FF);
+    state.counters["analysis_ms"] = median(analysis);
+    state.counters["factor_ms"] = median(factor);
+    state.counters["schedule_ms"] = median(schedule);
+    state.counters["K_FC_GtW_ms"] = median(rest);
+  }
+};
+
 // First β > 0 on a constraint set: wide blocks + METIS on the wide pattern + factorization.
 void BM_BetaFirst(benchmark::State& state, std::string key) {
   Case& c = get(key);
+  BuildPhases phases;
   for (auto _ : state) {
     state.PauseTiming();
     auto cs = std::make_shared<ConstraintSet>(c.pm, c.constraints);
     state.ResumeTiming();
     cs->prepare(Beta{0.5});
+    phases.add(cs->last_build_timings());
     free_untimed(state, cs);
   }
   size_counters(state, c);
+  phases.report(state);
 }
 
 // β change on a warm set: numeric factorization reusing the shared wide analysis (plus the
@@ -328,14 +357,17 @@ void BM_BetaFirst(benchmark::State& state, std::string key) {
 void BM_BetaRefactor(benchmark::State& state, std::string key) {
   Case& c = get(key);
   static int counter = 0;
+  BuildPhases phases;
   for (auto _ : state) {
     const Beta beta{0.3 + 1e-4 * (++counter % 1000)};
     c.cs->prepare(beta);
     state.PauseTiming();
+    phases.add(c.cs->last_build_timings());
     c.cs->drop_factorization(beta);
     state.ResumeTiming();
   }
   size_counters(state, c);
+  phases.report(state);
   state.counters["cached"] = static_cast<double>(c.cs->num_cached_factorizations());
 }
 

@@ -8,6 +8,7 @@
 #include "vertex_normals.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -276,17 +277,25 @@ std::shared_ptr<const BetaSystem> ConstraintSet::system(double raw_beta) const {
 }
 
 std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_beta) const {
+  using Clock = std::chrono::steady_clock;
+  auto ms = [](Clock::time_point t0) {
+    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  };
   const auto nF = static_cast<Eigen::Index>(free_.size());
   const auto nC = static_cast<Eigen::Index>(constrained_.size());
   auto sys = std::make_shared<BetaSystem>();
+  BuildTimings timings;
   if (raw_beta == 0.0) {
     // The Laplacian's own narrow pattern (SPEC: factoring β = 0 on the wide one is slower).
+    auto t0 = Clock::now();
     Blocks b = split(mesh_->L(), mesh_->GtA(), region_of_, block_index_, nF, nC);
+    timings.blocks_ms = ms(t0);
     sys->factor = std::make_shared<Factorization>(b.FF);
     sys->K_FF = std::move(b.FF);
     sys->K_FC = std::move(b.FC);
     sys->GtW_F = std::move(b.GtW_F);
   } else {
+    auto t0 = Clock::now();
     if (!wide_) {
       // Same structure for both parts: each is the other plus explicit zeros.
       const SparseMatrix Lw = mesh_->L() + 0.0 * mesh_->Reg();
@@ -299,12 +308,28 @@ std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_
       std::lock_guard lock(mutex_);  // memory_bytes() reads wide_ under mutex_ alone
       wide_ = std::move(w);
     }
+    timings.blocks_ms = ms(t0);
+    t0 = Clock::now();
     sys->K_FF = combine(1.0 - raw_beta, wide_->area.FF, raw_beta, wide_->reg.FF);
+    timings.K_FF_ms = ms(t0);
     sys->factor = factor_wide(sys->K_FF);
+    t0 = Clock::now();
     sys->K_FC = combine(1.0 - raw_beta, wide_->area.FC, raw_beta, wide_->reg.FC);
     sys->GtW_F = combine(1.0 - raw_beta, wide_->area.GtW_F, raw_beta, wide_->reg.GtW_F);
+    timings.rest_ms = ms(t0);
   }
+  const Factorization::Timings& f = sys->factor->timings();
+  timings.analysis_ms = f.analysis_ms;
+  timings.factor_ms = f.factor_ms;
+  timings.schedule_ms = f.schedule_ms;
+  std::lock_guard lock(mutex_);
+  last_build_ = timings;
   return sys;
+}
+
+ConstraintSet::BuildTimings ConstraintSet::last_build_timings() const {
+  std::lock_guard lock(mutex_);
+  return last_build_;
 }
 
 std::shared_ptr<const Factorization> ConstraintSet::factor_wide(const SparseMatrix& K_FF) const {

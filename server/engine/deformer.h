@@ -200,6 +200,14 @@ class ConstraintSet {
   // Drops a cached β factorization (β = 0 stays: the harmonic basis came from it). Only
   // for benchmarks and tests: a shared set's other users would have to rebuild it.
   void drop_factorization(Beta beta);
+  // Where the last system build went (ms, wall; docs/benchmarks.md "β change"): the β > 0
+  // blocks (first β > 0 only), K_FF's values for β, the factorization (analysis, numeric,
+  // schedule), K_FC and (Gᵀ W_β)_F.
+  struct BuildTimings {
+    double blocks_ms = 0, K_FF_ms = 0, analysis_ms = 0, factor_ms = 0, schedule_ms = 0,
+           rest_ms = 0;
+  };
+  BuildTimings last_build_timings() const;
 
  private:
   std::shared_ptr<const BetaSystem> system(double raw_beta) const;
@@ -247,6 +255,7 @@ class ConstraintSet {
   mutable std::uint64_t field_serial_ = 0;  // insertion order, to drop the oldest field
   mutable std::shared_ptr<const WideBlocks> wide_;                 // built on first β > 0
   mutable std::shared_ptr<const Factorization> wide_symbolic_;  // analysis shared by β > 0
+  mutable BuildTimings last_build_;  // guarded by mutex_
 };
 
 }  // namespace hdeform

@@ -3,6 +3,7 @@
 #include "mesh.h"
 #include "supernodal_solve.h"
 
+#include <chrono>
 #include <stdexcept>
 #include <string>
 
@@ -61,27 +62,43 @@ std::size_t CholmodLLT::factor_nnz() const {
 
 // An empty K_FF (every vertex constrained) is legal: the answer is the targets. CHOLMOD
 // is never called with it (it returns a null factor that a later solve dereferences).
+namespace {
+double ms_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+}  // namespace
+
 Factorization::Factorization(const SparseMatrix& K_FF) : size_(static_cast<int>(K_FF.rows())) {
   if (size_ == 0) return;
+  const auto t0 = std::chrono::steady_clock::now();
   llt_.analyzePattern(K_FF);
   check("analysis");
   analysis_.adopt_analysis(llt_);  // before the numeric factorization fills in values
+  timings_.analysis_ms = ms_since(t0);
+  const auto t1 = std::chrono::steady_clock::now();
   llt_.factorize(K_FF);
   check("factorization");
+  timings_.factor_ms = ms_since(t1);
   finish();
 }
 
 Factorization::Factorization(const Factorization& analysis, const SparseMatrix& K_FF)
     : size_(static_cast<int>(K_FF.rows())) {
   if (size_ == 0) return;
+  const auto t0 = std::chrono::steady_clock::now();
   llt_.adopt_analysis(analysis.analysis_);  // analysis_ is immutable: no lock needed
+  timings_.analysis_ms = ms_since(t0);       // the copy of the symbolic factor
+  const auto t1 = std::chrono::steady_clock::now();
   llt_.factorize(K_FF);
   check("factorization");
+  timings_.factor_ms = ms_since(t1);
   finish();
 }
 
 void Factorization::finish() {
+  const auto t0 = std::chrono::steady_clock::now();
   if (supernodal_solvable(llt_.factor())) schedule_ = SupernodalSchedule(*llt_.factor());
+  timings_.schedule_ms = ms_since(t0);
 }
 
 const float* Factorization::values_float() const {
