@@ -25,7 +25,7 @@ void expect_size(const std::string& bytes, std::size_t want, const char* what) {
 
 std::vector<float> float32s(const std::string& bytes) {
   std::vector<float> out(bytes.size() / sizeof(float));
-  std::memcpy(out.data(), bytes.data(), out.size() * sizeof(float));
+  if (!out.empty()) std::memcpy(out.data(), bytes.data(), out.size() * sizeof(float));
   return out;
 }
 
