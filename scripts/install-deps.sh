@@ -24,6 +24,8 @@ packages=(
   nginx-light curl chromium python3
   # test certificates (TLS tests)
   openssl
+  # the Python client (client-python/: stubs from grpc_python_plugin, tests with pytest)
+  python3-grpcio python3-protobuf python3-numpy python3-pytest
 )
 # The machine image ships Node.js 20 (with npm); Debian's npm conflicts with it.
 command -v npm >/dev/null 2>&1 || packages+=(nodejs npm)

@@ -1,0 +1,121 @@
+"""Handle transforms: x' = p + R S (x - p) + t, or a 4×4 matrix (see deform.proto)."""
+import os
+from dataclasses import dataclass
+from typing import Any, Optional
+
+import numpy as np
+
+from ._proto import pb
+
+
+def axis_angle(axis, degrees):
+    """The unit quaternion (w, x, y, z) of a rotation by `degrees` about `axis`."""
+    a = np.asarray(axis, dtype=np.float64).reshape(3)
+    norm = np.linalg.norm(a)
+    if not norm > 0:
+        raise ValueError("axis_angle: the axis must be non-zero")
+    half = np.radians(float(degrees)) / 2
+    return np.concatenate([[np.cos(half)], np.sin(half) * a / norm])
+
+
+def _matrix_to_quaternion(m):
+    # Shepperd's method on a proper rotation matrix.
+    t = np.trace(m)
+    if t > 0:
+        s = 2 * np.sqrt(1 + t)
+        q = [s / 4, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]
+    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
+        s = 2 * np.sqrt(1 + m[0, 0] - m[1, 1] - m[2, 2])
+        q = [(m[2, 1] - m[1, 2]) / s, s / 4, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s]
+    elif m[1, 1] > m[2, 2]:
+        s = 2 * np.sqrt(1 + m[1, 1] - m[0, 0] - m[2, 2])
+        q = [(m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, s / 4, (m[1, 2] + m[2, 1]) / s]
+    else:
+        s = 2 * np.sqrt(1 + m[2, 2] - m[0, 0] - m[1, 1])
+        q = [(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, s / 4]
+    return np.asarray(q)
+
+
+def quaternion(rotate):
+    """A unit quaternion (w, x, y, z) from 4 numbers (w, x, y, z) or a 3×3 rotation matrix."""
+    a = np.asarray(rotate, dtype=np.float64)
+    if a.shape == (4,):
+        q = a
+    elif a.shape == (3, 3):
+        q = _matrix_to_quaternion(a)
+    else:
+        raise ValueError("rotate: expected a quaternion (w, x, y, z) or a 3×3 rotation matrix "
+                         f"(use hdeform.axis_angle(axis, degrees)), got shape {a.shape}")
+    n = np.linalg.norm(q)
+    if not n > 0:
+        raise ValueError("rotate: zero quaternion")
+    return q / n
+
+
+@dataclass
+class Transform:
+    """One handle's transform. rotate: quaternion (w, x, y, z) or 3×3 matrix; translate: 3
+    numbers; scale: a number, 3 numbers (per axis) or a symmetric positive definite 3×3;
+    pivot: 3 numbers (default: the handle's rest centroid); matrix: 4×4 homogeneous (replaces
+    rotate/scale/translate)."""
+    rotate: Any = None
+    translate: Any = None
+    scale: Any = None
+    pivot: Any = None
+    matrix: Any = None
+
+    def to_proto(self):
+        t = pb.HandleTransform()
+        if self.pivot is not None:
+            p = np.asarray(self.pivot, dtype=np.float64).reshape(3)
+            t.pivot.CopyFrom(pb.Vec3(x=p[0], y=p[1], z=p[2]))
+        if self.matrix is not None:
+            m = np.asarray(self.matrix, dtype=np.float64)
+            if m.shape != (4, 4):
+                raise ValueError(f"matrix: expected 4×4, got shape {m.shape}")
+            t.matrix.extend(m.reshape(-1).tolist())
+        if self.rotate is not None:
+            q = quaternion(self.rotate)
+            t.rotation.CopyFrom(pb.Quaternion(w=q[0], x=q[1], y=q[2], z=q[3]))
+        if self.translate is not None:
+            v = np.asarray(self.translate, dtype=np.float64).reshape(3)
+            t.translation.CopyFrom(pb.Vec3(x=v[0], y=v[1], z=v[2]))
+        if self.scale is not None:
+            s = np.asarray(self.scale, dtype=np.float64)
+            if s.size == 1:
+                t.uniform_scale = float(s.reshape(-1)[0])
+            elif s.shape == (3,):
+                t.axis_scale.CopyFrom(pb.Vec3(x=s[0], y=s[1], z=s[2]))
+            elif s.shape == (3, 3):
+                t.stretch.m.extend(s.reshape(-1).tolist())
+            else:
+                raise ValueError(f"scale: expected 1, 3 or 3×3 numbers, got shape {s.shape}")
+        return t
+
+
+def transform(rotate=None, translate=None, scale=None, pivot=None, matrix=None):
+    """A Transform (see its fields)."""
+    return Transform(rotate, translate, scale, pivot, matrix)
+
+
+def to_transform(spec) -> Optional[Transform]:
+    """A Transform from a Transform, a dict of its fields, a 4×4 matrix or None (identity)."""
+    if spec is None:
+        return Transform()
+    if isinstance(spec, Transform):
+        return spec
+    if isinstance(spec, dict):
+        return Transform(**spec)
+    return Transform(matrix=spec)
+
+
+def read_def(path):
+    """A Botsch–Sorkine .def file's 4×4 matrix (16 numbers; '#' lines are comments)."""
+    numbers = []
+    with open(os.fspath(path)) as f:
+        for line in f:
+            line = line.split("#", 1)[0]
+            numbers.extend(float(x) for x in line.split())
+    if len(numbers) != 16:
+        raise ValueError(f"{path}: expected 16 numbers (a 4×4 matrix), found {len(numbers)}")
+    return np.asarray(numbers).reshape(4, 4)

@@ -1,0 +1,209 @@
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import hdeform
+from conftest import BENCH, DATA, HERE
+
+
+def diag(s):
+    lo, hi = s.bbox
+    return np.linalg.norm(hi - lo)
+
+
+def test_private_server_and_library(hd):
+    assert hd.server is not None and hd.address.startswith("127.0.0.1:")
+    names = [m.name for m in hd.meshes()]
+    assert "cactus" in names and "bar" in names
+
+
+def test_constrain_by_sel_file(cactus):
+    assert cactus.handle_count == 1
+    sel = np.loadtxt(os.path.join(BENCH, "cactus.sel"), comments="#", dtype=int)
+    np.testing.assert_array_equal(cactus.fixed, np.flatnonzero(sel == 0))
+    np.testing.assert_array_equal(cactus.handles[0], np.flatnonzero(sel == 2))
+
+
+def test_identity_reproduces_rest_and_translation_moves_handle(cactus):
+    V0, F0 = cactus.rest()
+    assert V0.shape == (cactus.vertex_count, 3) and F0.shape == (cactus.triangle_count, 3)
+    tol = 1e-9 * diag(cactus)
+    frame = cactus.update(double=True)
+    assert np.abs(frame.V - V0).max() <= tol
+    f32 = cactus.update()
+    assert f32.V.dtype == np.float64 and f32.V.shape == V0.shape and f32.N.shape == V0.shape
+    assert np.abs(f32.V - V0).max() <= 1e-6 * diag(cactus)
+    np.testing.assert_allclose(np.linalg.norm(f32.N, axis=1), 1, atol=1e-5)
+    assert f32.measures.flips == 0 and abs(f32.measures.e) < 1e-12
+
+    t = np.array([0.05, -0.02, 0.1])
+    moved = cactus.update(translate=t, double=True)
+    h, fixed = cactus.handles[0], cactus.fixed
+    assert np.abs(moved.V[h] - V0[h] - t).max() <= tol
+    assert np.abs(moved.V[fixed] - V0[fixed]).max() <= tol
+    assert isinstance(moved.measures, hdeform.Measures) and moved.measures.e > 0
+
+
+def test_rotation_forms_agree(cactus):
+    q = hdeform.axis_angle([1, 0, 0], 30)
+    c, s = np.cos(np.radians(30)), np.sin(np.radians(30))
+    R = np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+    a = cactus.update(rotate=q, double=True).V
+    b = cactus.update(rotate=R, double=True).V
+    assert np.abs(a - b).max() <= 1e-9 * diag(cactus)
+    m = cactus.update(matrix=hdeform.read_def(os.path.join(BENCH, "cactus.def")))
+    assert m.measures.e > 0
+
+
+def test_beta(cactus):
+    cactus.beta = 0.1
+    assert cactus.beta == pytest.approx(0.1) and cactus.beta_units == "area"
+    cactus.set_beta(0.25, units="raw")
+    assert cactus.beta_units == "raw"
+    cactus.update(matrix=hdeform.read_def(os.path.join(BENCH, "cactus.def")))
+    cactus.beta = "auto"
+    assert cactus.beta_automatic and 0 <= cactus.beta < 1
+    frame = cactus.update()
+    assert frame.beta_automatic and frame.beta == pytest.approx(cactus.beta)
+    cactus.set_beta(0.05, local=[{"region": hdeform.sel_file(os.path.join(BENCH, "cactus.sel"),
+                                                             hdeform.HANDLE),
+                                  "beta": 0.3, "falloff_radius": 0.2}])
+    assert len(cactus.info.beta.local) == 1
+
+
+def test_sweep(cactus):
+    cactus.update(matrix=hdeform.read_def(os.path.join(BENCH, "cactus.def")))
+    rows = cactus.sweep([0, 0.1, 0.25])
+    assert [r.beta for r in rows] == [0, 0.1, 0.25]
+    assert all(isinstance(r.measures, hdeform.Measures) and r.measures.e > 0 for r in rows)
+    assert rows.records()[1]["beta"] == 0.1
+    pandas = pytest.importorskip("pandas")
+    df = rows.to_dataframe()
+    assert isinstance(df, pandas.DataFrame) and list(df["beta"]) == [0, 0.1, 0.25]
+
+
+def test_constrain_by_ids_and_selectors(hd):
+    with hd.open("bar") as s:
+        V, _ = s.rest()
+        lo, hi = s.bbox
+        z = V[:, 2]
+        bottom = np.flatnonzero(z <= lo[2] + 0.05 * (hi[2] - lo[2]))
+        s.constrain(fixed=bottom, handles=[hdeform.half_space([0, 0, 1], hi[2] - 0.05 * (hi[2] - lo[2]))])
+        np.testing.assert_array_equal(s.fixed, bottom)
+        np.testing.assert_array_equal(s.handles[0], np.flatnonzero(z >= hi[2] - 0.05 * (hi[2] - lo[2])))
+        s.constrain(fixed={"box": (lo - 1, [hi[0] + 1, hi[1] + 1, lo[2] + 0.05 * (hi[2] - lo[2])])},
+                    handles=[[hdeform.ids(s.handles[0][:3]), hdeform.ids(s.handles[0][3:])]])
+        np.testing.assert_array_equal(s.fixed, bottom)
+        with pytest.raises(hdeform.InvalidArgument) as e:
+            s.constrain(fixed=bottom, handles=[[len(V) + 5]])
+        assert str(len(V) + 5) in e.value.message and e.value.code.name == "INVALID_ARGUMENT"
+
+
+def test_quantized_frames(cactus):
+    t = [0, 0, 0.1]
+    exact = cactus.update(translate=t)
+    q = cactus.update(translate=t, encoding="quantized", energies=True)
+    assert q.encoding == "quantized" and q.energies.shape == (cactus.triangle_count,)
+    extent = diag(cactus)
+    assert np.abs(q.V - exact.V).max() <= extent / 65535
+    cos = np.clip((q.N * exact.N).sum(axis=1), -1, 1)
+    assert np.degrees(np.arccos(cos)).max() < 1.5
+
+
+def test_watch_sees_update_from_another_connection(hd, cactus):
+    with cactus.watch() as w:
+        assert w.state is not None and w.state.name == cactus.name
+        other = hdeform.connect(hd.address, token=cactus.edit_token)
+        try:
+            sent = other.session(cactus.name).update(translate=[0, 0.1, 0])
+        finally:
+            other.close()
+        frame = next(iter(w))
+        assert frame.version == sent.version and frame.V.shape == (cactus.vertex_count, 3)
+        np.testing.assert_array_equal(frame.V, sent.V)
+
+
+def test_tokens(hd, cactus):
+    anon = hdeform.connect(hd.address)
+    try:
+        with pytest.raises(hdeform.Unauthenticated):
+            anon.session(cactus.name)
+        with pytest.raises(hdeform.PermissionDenied) as e:
+            anon.session(cactus.name, token="0" * 64)
+        assert e.value.message
+        viewer = anon.session(cactus.name, token=cactus.view_token)
+        assert viewer.vertex_count == cactus.vertex_count
+        with pytest.raises(hdeform.PermissionDenied):
+            viewer.update()
+        editor = anon.session(cactus.name, token=cactus.edit_token)
+        assert editor.update().measures is not None
+        with pytest.raises(hdeform.NotFound):
+            anon.session("sessions/nope", token=cactus.edit_token)
+    finally:
+        anon.close()
+
+
+def test_upload_small_mesh(hd):
+    # a tetrahedron: 4 vertices, 4 triangles; vertex order is kept
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0 / 3]])
+    F = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    with hd.upload(V, F) as s:
+        assert (s.vertex_count, s.triangle_count) == (4, 4)
+        R, RF = s.rest()
+        np.testing.assert_array_equal(R, V)
+        np.testing.assert_array_equal(RF, F)
+        s.constrain(fixed=[0], handles=[[3]])
+        f = s.update(translate=[0, 0, 0.5], double=True)
+        np.testing.assert_allclose(f.V[3], V[3] + [0, 0, 0.5], atol=1e-12)
+        np.testing.assert_array_equal(f.V[0], V[0])
+    with pytest.raises(hdeform.InvalidArgument):
+        hd.upload(V, F[:1] * 0)  # degenerate triangle
+    with hd.upload_file(os.path.join(DATA, "botsch-sorkine", "bar.off")) as s:
+        assert s.vertex_count > 1000
+
+
+def test_context_manager_deletes(hd):
+    with hd.open("cylinder") as s:
+        name = s.name
+        assert name in hd.sessions()
+    assert s.deleted and name not in hd.sessions()
+    with pytest.raises(hdeform.NotFound):
+        hd.session(name)
+    kept = hd.open("cylinder").keep()
+    with hdeform.connect(hd.address, token=hd.token) as other:
+        created = other.open("cylinder")
+        assert created.name in hd.sessions()
+    assert created.name not in hd.sessions() and kept.name in hd.sessions()
+    kept.delete()
+
+
+def test_server_start_failure_reports_log(tmp_path):
+    bad = tmp_path / "hdeform-server"
+    bad.write_text("#!/bin/sh\necho 'boom: cannot start' >&2\nexit 3\n")
+    bad.chmod(0o755)
+    with pytest.raises(hdeform.ServerStartError) as e:
+        hdeform.connect(server=str(bad), timeout=10)
+    assert "boom: cannot start" in str(e.value) and "status 3" in str(e.value)
+
+
+@pytest.mark.parametrize("script,args", [
+    ("beta_study.py", ["--csv", "study.csv", "--betas", "0,0.1"]),
+    ("batch.py", [BENCH, "out"]),
+])
+def test_examples(tmp_path, script, args):
+    path = os.path.join(HERE, "..", "examples", script)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        [os.path.join(HERE, "..")] + [p for p in sys.path if p]))
+    r = subprocess.run([sys.executable, path] + args, cwd=tmp_path, env=env,
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    if script == "beta_study.py":
+        lines = (tmp_path / "study.csv").read_text().splitlines()
+        assert lines[0].startswith("beta,e,") and len(lines) == 3
+    else:
+        assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [
+            "bar.glb", "cactus.glb", "cylinder.glb", "measures.csv", "plane.glb"]
+        assert (tmp_path / "out" / "cactus.glb").read_bytes()[:4] == b"glTF"
