@@ -3,6 +3,7 @@ import * as THREE from "three";
 import { Code, ConnectError } from "@connectrpc/connect";
 import { tokens } from "./api";
 import type { App } from "./app";
+import type { FrameApply } from "./frame_apply";
 import { shareLink } from "./links";
 import type { SelectionTools } from "./selection/tools";
 import { verticesInBox } from "./selection/pick";
@@ -20,6 +21,7 @@ declare global {
 
 export interface HookParts {
   sync: Sync;
+  frameApply: FrameApply;
   viewport: Viewport;
   gizmo: HandleGizmo;
   tools: SelectionTools;
@@ -53,8 +55,9 @@ export function installTestHook({ state, client, banner, status }: App, parts: H
     get lastError() {
       return banner.shown;
     },
+    /** This page's own edit is not yet shown, or a frame is still being decoded. */
     get busy() {
-      return sync.busy;
+      return sync.busy || parts.frameApply.pending > 0;
     },
     bbox(): number[][] {
       const b = new THREE.Box3().setFromArray(state.mesh!.rest);

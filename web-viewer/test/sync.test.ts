@@ -4,21 +4,22 @@ import assert from "node:assert/strict";
 import { create } from "@bufbuild/protobuf";
 import { Code, ConnectError } from "@connectrpc/connect";
 import { afterEach, describe, it } from "node:test";
-import { SessionSchema } from "../src/gen/hdeform/v1/deform_pb";
-import { Sync, type SyncEvents } from "../src/sync/sync";
+import { FrameEncoding, SessionSchema } from "../src/gen/hdeform/v1/deform_pb";
+import { Sync, type SyncEvents, type SyncOptions } from "../src/sync/sync";
 import { deletedEvent, FakeClient, frame, frameEvent, settle, until } from "./fake_client";
 
 const FAST = { reconnectFirstMs: 1, reconnectMaxMs: 4, lostBannerAfterMs: 60_000, editRetryWaitMs: 1000 };
 const opened: Sync[] = [];
 
 /** A Sync on session "sessions/s" whose pose is `x` (the first handle's translation). */
-function setup(window = 1) {
+function setup(window = 1, format?: SyncOptions["format"]) {
   const fake = new FakeClient();
   const pose = { x: 0 };
   const sync = new Sync({
     client: fake.client,
     pose: () => ({ transforms: [{ translation: { x: pose.x, y: 0, z: 0 } }], energies: false }),
     window,
+    format,
     timing: FAST,
   });
   const events: { [K in keyof SyncEvents]: SyncEvents[K][] } = { link: [], frame: [], state: [], error: [], clearError: [] };
@@ -46,6 +47,18 @@ describe("sync, one update in flight (window 1)", () => {
     assert.equal(fake.updates[0].request.name, "sessions/s");
     assert.equal(fake.updates[0].request.coalesce, false);
     assert.equal(fake.updates[0].request.omitBuffers, false);
+  });
+
+  it("asks for its frame format on UpdateHandles and WatchSession", async () => {
+    const { fake, sync } = setup(1, { encoding: FrameEncoding.MESHOPT, exactAsFloat32: true });
+    sync.watch();
+    await until(() => fake.streams.length === 1, "the watch stream");
+    sync.request();
+    sync.tick();
+    for (const format of [fake.updates[0].request.format, fake.watchRequests[0].format]) {
+      assert.equal(format?.encoding, FrameEncoding.MESHOPT);
+      assert.equal(format?.exactAsFloat32, true);
+    }
   });
 
   it("keeps at most one update in flight and sends the newest pose next", async () => {

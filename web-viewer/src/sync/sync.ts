@@ -17,6 +17,7 @@ import { describeError, isAbort, isTransient } from "../api";
 import { Emitter } from "../events";
 import type {
   Frame,
+  FrameFormatSchema,
   HandleTransformSchema,
   Session,
   SessionEvent,
@@ -57,6 +58,8 @@ export interface SyncOptions {
   refreshShape?: (name: string, session: Session, signal: AbortSignal) => Promise<void>;
   /** UpdateHandles calls in flight at most. */
   window?: number;
+  /** How UpdateHandles answers and WatchSession frames are to be encoded (unset: FLOAT32). */
+  format?: MessageInitShape<typeof FrameFormatSchema>;
   timing?: Partial<SyncTiming>;
 }
 
@@ -69,6 +72,7 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
   readonly link: LinkState;
   readonly timing: SyncTiming;
   readonly window: number;
+  readonly format: MessageInitShape<typeof FrameFormatSchema> | undefined;
   /** Completed reconnects. */
   reconnects = 0;
   /** WatchSession events received (frames and states). */
@@ -94,6 +98,7 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
     this.pose = options.pose;
     this.refreshShape = options.refreshShape ?? (async () => {});
     this.window = Math.max(1, options.window ?? 1);
+    this.format = options.format;
     this.timing = { ...DEFAULT_TIMING, ...options.timing };
     this.link = new LinkState((link, why) => this.emit("link", { link, why }));
   }
@@ -170,6 +175,7 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
         dragging: this.held,
         coalesce,
         omitBuffers: this.pipelined,
+        format: this.format,
       });
     })
       .then((frame) => {
