@@ -115,7 +115,8 @@ function startServer({ grpcPort = 0, httpPort = 0, tag = "server" } = {}) {
   const extra = process.env.HDEFORM_SERVER_ARGS ? process.env.HDEFORM_SERVER_ARGS.split(" ").filter(Boolean) : [];
   const proc = spawn(
     serverBin,
-    ["--port", String(grpcPort), "--http-port", String(httpPort), "--state-dir", stateDir, ...extra],
+    // --web-root: the viewer under test (by default a server serves its own source tree's).
+    ["--port", String(grpcPort), "--http-port", String(httpPort), "--state-dir", stateDir, "--web-root", join(viewerDir, "dist"), ...extra],
     { stdio: ["ignore", "pipe", "pipe"] },
   );
   const output = [];
