@@ -49,6 +49,11 @@ if (frameFormat.error) banner.show(frameFormat.error);
 const sync: Sync = new Sync({
   client,
   format: frameFormat.format,
+  // Pipelined: a second update is sent while the first is solved (coalesce: the server skips
+  // one a newer overtook; omit_buffers: frames come once, on the WatchSession stream), so the
+  // server has the next pose as soon as it finishes one. Sync keeps the drag's last update
+  // solved and its exact frame shown (sync/sync.ts).
+  window: 2,
   pose: () => ({ transforms: toProtoTransforms(state.handles, state.pivots), energies: state.energyMapping !== "off" }),
   refreshShape: (name, s, signal) => loader.refreshShape(name, s, signal),
 });
