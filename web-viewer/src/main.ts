@@ -112,6 +112,7 @@ if (link.session) void loader.openByName(link.session, link.edit, link.view);
 installTestHook(app, {
   sync,
   frameApply,
+  display,
   viewport,
   gizmo,
   tools,
