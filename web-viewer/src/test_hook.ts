@@ -63,10 +63,6 @@ export function installTestHook({ state, client, banner, status }: App, parts: H
     get lastError() {
       return banner.shown;
     },
-    /** Frames received and not yet shown (being decoded). */
-    get decoding() {
-      return parts.frameApply.pending;
-    },
     /** This page's own edit is not yet shown, or a frame is still being decoded. */
     get busy() {
       return sync.busy || parts.frameApply.pending > 0;

@@ -103,6 +103,11 @@ export function frameEvent(f: Frame): SessionEvent {
   return create(SessionEventSchema, { event: { case: "frame", value: f } });
 }
 
+/** What the server sends a new watcher first: the session's state. */
+export function stateEvent(): SessionEvent {
+  return create(SessionEventSchema, { event: { case: "state", value: create(SessionSchema, { name: "sessions/s" }) } });
+}
+
 export function deletedEvent(name: string): SessionEvent {
   return create(SessionEventSchema, { event: { case: "deleted", value: name } });
 }

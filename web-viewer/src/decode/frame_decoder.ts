@@ -1,6 +1,7 @@
 // The page's frame decoder: FLOAT32 frames are views of the received bytes and decode on the
-// main thread (which so never loads the meshopt WebAssembly); QUANTIZED / MESHOPT frames go to the decode worker (one, which answers in
-// order). Callers that need frames in order chain the promises (frame_apply.ts).
+// main thread (which so never loads the meshopt WebAssembly); QUANTIZED / MESHOPT frames go
+// to the decode worker (one, which answers in order). Callers that need frames in order
+// chain the promises (frame_apply.ts).
 import { FrameEncoding, type Frame } from "../gen/hdeform/v1/deform_pb";
 import { FrameDecodeError, type DecodedFrame } from "./decoded_frame";
 import { decodeFloat32 } from "./float32";
