@@ -9,7 +9,10 @@
 // click and drag the TransformControls gizmo with real mouse events; check the mesh moved
 // (handle moved, fixed region still) and the measures changed; open the share link in a
 // second page and compare positions; drag again and check the second page follows live
-// (WatchSession); open the watch-only link (no editing tools); upload a broken file and
+// (WatchSession); open the watch-only link (no editing tools); the display is indexed, and
+// split into 3 corners per triangle while the energy map is on; reopen the editor with
+// ?encoding=float32, quantized and meshopt and drag on each: it ends on exactly the shape
+// GetMesh returns (the drag's last frame is float32); upload a broken file and
 // check the error banner; upload a glTF split at a seam and check that regions picked in its
 // base GLB are accepted and shown where they were picked (base_ids / base_constraints);
 // check the gateway's 413 for an oversized body.
