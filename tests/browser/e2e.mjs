@@ -9,7 +9,10 @@
 // click and drag the TransformControls gizmo with real mouse events; check the mesh moved
 // (handle moved, fixed region still) and the measures changed; open the share link in a
 // second page and compare positions; drag again and check the second page follows live
-// (WatchSession); open the watch-only link (no editing tools); upload a broken file and
+// (WatchSession); open the watch-only link (no editing tools); the display is indexed, and
+// split into 3 corners per triangle while the energy map is on; reopen the editor with
+// ?encoding=float32, quantized and meshopt and drag on each: it ends on exactly the shape
+// GetMesh returns (the drag's last frame is float32); upload a broken file and
 // check the error banner; upload a glTF split at a seam and check that regions picked in its
 // base GLB are accepted and shown where they were picked (base_ids / base_constraints);
 // check the gateway's 413 for an oversized body.
@@ -115,7 +118,8 @@ function startServer({ grpcPort = 0, httpPort = 0, tag = "server" } = {}) {
   const extra = process.env.HDEFORM_SERVER_ARGS ? process.env.HDEFORM_SERVER_ARGS.split(" ").filter(Boolean) : [];
   const proc = spawn(
     serverBin,
-    ["--port", String(grpcPort), "--http-port", String(httpPort), "--state-dir", stateDir, ...extra],
+    // --web-root: the viewer under test (by default a server serves its own source tree's).
+    ["--port", String(grpcPort), "--http-port", String(httpPort), "--state-dir", stateDir, "--web-root", join(viewerDir, "dist"), ...extra],
     { stdio: ["ignore", "pipe", "pipe"] },
   );
   const output = [];
@@ -410,6 +414,9 @@ try {
   const measuresText = await page1.textContent("#m-e");
   check(measuresText && measuresText !== "–", `measures panel shows E = ${measuresText}`);
   await shot(page1, "03-after-drag");
+  // The display is indexed while the energy map is off: each vertex drawn once.
+  const drawnIndexed = await page1.evaluate(() => window.hdeform.displayVertices);
+  check(drawnIndexed === labels.length, `indexed display draws ${drawnIndexed} vertices (the mesh has ${labels.length}); status "${await page1.evaluate(() => window.hdeform.status)}"`);
 
   // 4. The share link opens the same session with the same positions.
   const share = await page1.evaluate(() => window.hdeform.shareLink(false));
@@ -498,6 +505,9 @@ try {
   await waitIdle(page1);
   await sleep(300);
   check(await page1.isVisible("#legend"), "energy legend shown");
+  // Energy map on: three corners per triangle, so per-triangle colours are exact.
+  const drawnSplit = await page1.evaluate(() => window.hdeform.displayVertices);
+  check(drawnSplit > labels.length && drawnSplit % 3 === 0, `with the energy map the display draws ${drawnSplit} vertices (3 per triangle)`);
   await page1.click("#sweep");
   await page1.waitForFunction(() => document.querySelector("#sweep").textContent === "Sweep β", null, { timeout: 120_000 });
   check((await page1.evaluate(() => window.hdeform.lastError)) === "", "sweep and energies without errors");
@@ -513,6 +523,36 @@ try {
   check(m3 && m2 && Math.abs(m3.e - m2.e) <= 1e-9 * Math.max(1, Math.abs(m2.e)), `the watch-only page shows the same measures (E ${m3?.e} vs ${m2?.e})`);
   await page1.locator("#chart").scrollIntoViewIfNeeded();
   await page1.locator("#chart").screenshot({ path: join(artifacts, "07b-sweep-chart.png") });
+
+  // 7c. Each frame encoding (?encoding=…): drag frames come encoded, the frame that ends the
+  // drag as float32 (exactAsFloat32), so the page ends on the server's exact shape (GetMesh).
+  await page1.selectOption("#energy-map", "off");
+  await waitIdle(page1);
+  check((await page1.evaluate(() => window.hdeform.displayVertices)) === labels.length, "energy map off: the display is indexed again");
+  const editorLink = await page1.evaluate(() => window.hdeform.shareLink(false));
+  for (const [i, encoding] of ["float32", "quantized", "meshopt"].entries()) {
+    const url = new URL(editorLink);
+    url.searchParams.set("encoding", encoding);
+    await page1.goto(url.toString());
+    await waitLoaded(page1, `editor ?encoding=${encoding}`);
+    await waitIdle(page1);
+    await page1.click('button[data-mode="move"]');
+    await sleep(200);
+    const before = await positions(page1);
+    // The longer horizontal arrow (the up arrow's tip may be off the canvas), back and forth.
+    const [ex, ez] = [await arrow(page1, "x"), await arrow(page1, "z")];
+    const [hAxis, a] = ex.len >= ez.len ? ["x", ex] : ["z", ez];
+    const sign = i % 2 === 0 ? -1 : 1;
+    await dragGizmo(page1, hAxis, sign * 60 * a.x, sign * 60 * a.y);
+    const shown = await positions(page1);
+    const exact = await page1.evaluate(() => window.hdeform.serverPositions());
+    const sizes = await page1.evaluate(() => window.hdeform.status);
+    check(
+      maxDiff(before, shown) > 1e-3 && maxDiff(shown, exact) === 0 && (await page1.evaluate(() => window.hdeform.lastError)) === "",
+      `?encoding=${encoding}: the drag ends on the server's exact shape (max |Δ| = ${maxDiff(shown, exact).toExponential(2)}; status "${sizes}")`,
+    );
+    if (encoding !== "float32") check(sizes.includes(`${encoding} `), `?encoding=${encoding}: drag frames came ${encoding}`);
+  }
 
   // 8. A bad upload shows its error in the banner.
   await page1.setInputFiles("#upload-input", {

@@ -1,14 +1,31 @@
-// Shows the frames sync lets through: shape, energies, measures, β, version. Frames carry no
-// transforms, so after another editor's frames the session is re-read once the stream goes
-// quiet, to bring the gizmo (transforms) and regions up to date.
+// Shows the frames sync lets through: shape, energies, measures, β, version. Decoding may be
+// asynchronous (QUANTIZED / MESHOPT in the decode worker), so frames are applied through a
+// promise chain in the order sync gave them: an older drag frame never lands after the exact
+// one. Frames carry no transforms, so after another editor's frames the session is re-read
+// once the stream goes quiet, to bring the gizmo (transforms) and regions up to date.
 import type { App } from "./app";
-import { decodeFrame } from "./decode/frame_decode";
-import type { Frame } from "./gen/hdeform/v1/deform_pb";
+import { FrameDecoder } from "./decode/frame_decoder";
+import { FrameEncoding, type Frame } from "./gen/hdeform/v1/deform_pb";
 import type { Sync } from "./sync/sync";
 
 const RESYNC_QUIET_MS = 250;
 
-export function setupFrameApply({ state, client, banner }: App, sync: Sync): void {
+/** Bytes of a frame's buffers (what the encoding changes); 0 for a frame without them. */
+function bufferBytes(f: Frame): number {
+  return f.positions.byteLength + f.normals.byteLength + f.vertices.byteLength + f.energies.byteLength;
+}
+
+export interface FrameApply {
+  /** Frames given by sync and not yet shown (decoding). */
+  readonly pending: number;
+}
+
+export function setupFrameApply({ state, client, banner, status }: App, sync: Sync): FrameApply {
+  const decoder = new FrameDecoder();
+  let chain: Promise<void> = Promise.resolve();
+  let pending = 0;
+  // Newest buffer size per encoding, for the status line (drag frames vs exact float32 ones).
+  const sizes = new Map<FrameEncoding, number>();
   let resyncTimer: ReturnType<typeof setTimeout> | undefined;
   const scheduleResync = () => {
     if (state.watchOnly) return;
@@ -27,20 +44,34 @@ export function setupFrameApply({ state, client, banner }: App, sync: Sync): voi
   sync.on("frame", ({ frame, source }) => {
     const mesh = state.mesh;
     if (!mesh) return;
-    let decoded;
-    try {
-      decoded = decodeFrame(frame, mesh.n, mesh.m);
-    } catch (err) {
-      banner.show((err as Error).message);
-      return;
-    }
-    if (decoded.positions) {
-      state.setShape(decoded.positions, decoded.normals);
-      if (source === "watch") scheduleResync();
-    }
-    if (decoded.energies) state.setEnergies(decoded.energies);
-    showFrameInfo(frame);
+    const decoding = decoder.decode(frame, mesh.n, mesh.m); // starts now, shown in turn
+    pending++;
+    chain = chain.then(async () => {
+      try {
+        const decoded = await decoding;
+        if (state.mesh !== mesh) return; // another session opened meanwhile
+        if (decoded.positions) {
+          state.setShape(decoded.positions, decoded.normals);
+          if (source === "watch") scheduleResync();
+        }
+        if (decoded.energies) state.setEnergies(decoded.energies);
+        showFrameInfo(frame);
+        showFrameSize(frame);
+      } catch (err) {
+        banner.show((err as Error).message);
+      } finally {
+        pending--;
+      }
+    });
   });
+
+  function showFrameSize(frame: Frame): void {
+    const bytes = bufferBytes(frame);
+    if (bytes === 0) return;
+    sizes.set(frame.encoding, bytes);
+    const parts = [...sizes].map(([enc, b]) => `${FrameEncoding[enc].toLowerCase()} ${(b / 1024).toFixed(1)} KiB`);
+    status.setFrameSizes(`frames: ${parts.join(", ")}`);
+  }
 
   function showFrameInfo(frame: Frame): void {
     if (frame.version > state.frameVersion) {
@@ -52,4 +83,10 @@ export function setupFrameApply({ state, client, banner }: App, sync: Sync): voi
       state.setBeta(frame.beta.value, frame.beta.units);
     }
   }
+
+  return {
+    get pending() {
+      return pending;
+    },
+  };
 }

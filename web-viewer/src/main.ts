@@ -4,6 +4,7 @@ import { describeError, makeClient } from "./api";
 import type { App } from "./app";
 import { $ } from "./dom";
 import { setupFrameApply } from "./frame_apply";
+import { frameFormatFromQuery } from "./frame_format";
 import { readPageLink } from "./links";
 import { Banner } from "./panels/banner";
 import { setupBetaPanel } from "./panels/beta";
@@ -43,8 +44,16 @@ try {
 
 const state = new SessionState(link.watchOnly);
 const client = makeClient();
+const frameFormat = frameFormatFromQuery(window.location.search);
+if (frameFormat.error) banner.show(frameFormat.error);
 const sync: Sync = new Sync({
   client,
+  format: frameFormat.format,
+  // Pipelined: a second update is sent while the first is solved (coalesce: the server skips
+  // one a newer overtook; omit_buffers: frames come once, on the WatchSession stream), so the
+  // server has the next pose as soon as it finishes one. Sync keeps the drag's last update
+  // solved and its exact frame shown (sync/sync.ts).
+  window: 2,
   pose: () => ({ transforms: toProtoTransforms(state.handles, state.pivots), energies: state.energyMapping !== "off" }),
   refreshShape: (name, s, signal) => loader.refreshShape(name, s, signal),
 });
@@ -71,7 +80,7 @@ sync.on("state", ({ session, source, adoptTransforms }) => {
   if (source === "resync") state.frameVersion = 0n; // the server's version is the truth now
   state.adoptSession(session, { labels: true, transforms: adoptTransforms });
 });
-setupFrameApply(app, sync);
+const frameApply = setupFrameApply(app, sync);
 
 const display = new MeshDisplay(viewport, state);
 const gizmo = new HandleGizmo(viewport, state, {
@@ -102,6 +111,8 @@ if (link.session) void loader.openByName(link.session, link.edit, link.view);
 
 installTestHook(app, {
   sync,
+  frameApply,
+  display,
   viewport,
   gizmo,
   tools,

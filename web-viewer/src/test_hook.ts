@@ -1,15 +1,19 @@
 // The page's test hook (tests/browser/e2e.mjs): state, and the same code paths the UI uses.
 import * as THREE from "three";
 import { Code, ConnectError } from "@connectrpc/connect";
-import { tokens } from "./api";
+import { fetchMesh, tokens } from "./api";
 import type { App } from "./app";
+import { MeshFormat } from "./gen/hdeform/v1/deform_pb";
+import type { FrameApply } from "./frame_apply";
 import { shareLink } from "./links";
 import type { SelectionTools } from "./selection/tools";
 import { verticesInBox } from "./selection/pick";
 import type { Mode } from "./state";
 import type { Sync } from "./sync/sync";
 import { toProtoTransforms } from "./transforms";
+import { parseGlb } from "./viewport/glb";
 import type { HandleGizmo } from "./viewport/handle_gizmo";
+import type { MeshDisplay } from "./viewport/mesh_display";
 import type { Viewport } from "./viewport/viewport";
 
 declare global {
@@ -20,6 +24,8 @@ declare global {
 
 export interface HookParts {
   sync: Sync;
+  frameApply: FrameApply;
+  display: MeshDisplay;
   viewport: Viewport;
   gizmo: HandleGizmo;
   tools: SelectionTools;
@@ -41,6 +47,10 @@ export function installTestHook({ state, client, banner, status }: App, parts: H
     get version() {
       return state.version;
     },
+    /** Vertices the mesh display draws (indexed: the mesh's; energy map on: 3 per triangle). */
+    get displayVertices() {
+      return parts.display.vertexCount;
+    },
     get framesApplied() {
       return sync.framesApplied;
     },
@@ -53,8 +63,9 @@ export function installTestHook({ state, client, banner, status }: App, parts: H
     get lastError() {
       return banner.shown;
     },
+    /** This page's own edit is not yet shown, or a frame is still being decoded. */
     get busy() {
-      return sync.busy;
+      return sync.busy || parts.frameApply.pending > 0;
     },
     bbox(): number[][] {
       const b = new THREE.Box3().setFromArray(state.mesh!.rest);
@@ -75,6 +86,8 @@ export function installTestHook({ state, client, banner, status }: App, parts: H
     /** Client coordinates of a model-space point. */
     screenPoint: (x: number, y: number, z: number) => viewport.toClient(viewport.root.localToWorld(new THREE.Vector3(x, y, z))),
     positions: () => (state.mesh ? Array.from(state.mesh.cur) : []),
+    /** The session's current shape as the server has it (GetMesh current GLB: exact float32). */
+    serverPositions: async () => Array.from((await parseGlb(await fetchMesh(client, state.sessionName, false, MeshFormat.GLB))).positions),
     restPositions: () => (state.mesh ? Array.from(state.mesh.rest) : []),
     labels: () => (state.mesh ? Array.from(state.mesh.labels) : []),
     measures: () => (state.measures ? { ...state.measures } : null),

@@ -10,6 +10,7 @@ import {
   type Session,
   type SessionEvent,
   type UpdateHandlesRequest,
+  type WatchSessionRequest,
 } from "../src/gen/hdeform/v1/deform_pb";
 import type { SyncClient } from "../src/sync/client";
 
@@ -56,6 +57,7 @@ export class FakeStream {
 export class FakeClient {
   updates: Call<UpdateHandlesRequest, Frame>[] = [];
   streams: FakeStream[] = [];
+  watchRequests: WatchSessionRequest[] = [];
   /** What the next GetSession answers (a Session, or an error to throw). */
   session: () => Session = () => create(SessionSchema, { name: "sessions/s" });
   getSessionCalls = 0;
@@ -75,7 +77,8 @@ export class FakeClient {
       this.getSessionCalls++;
       return this.session();
     },
-    watchSession: (_request: unknown, options?: { signal?: AbortSignal }) => {
+    watchSession: (request: WatchSessionRequest, options?: { signal?: AbortSignal }) => {
+      this.watchRequests.push(request);
       const stream = new FakeStream();
       this.streams.push(stream);
       return stream.events(options?.signal);
@@ -98,6 +101,11 @@ export function frame(init: { version: number; sequence?: number; positions?: nu
 
 export function frameEvent(f: Frame): SessionEvent {
   return create(SessionEventSchema, { event: { case: "frame", value: f } });
+}
+
+/** What the server sends a new watcher first: the session's state. */
+export function stateEvent(): SessionEvent {
+  return create(SessionEventSchema, { event: { case: "state", value: create(SessionSchema, { name: "sessions/s" }) } });
 }
 
 export function deletedEvent(name: string): SessionEvent {

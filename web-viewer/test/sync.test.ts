@@ -4,21 +4,22 @@ import assert from "node:assert/strict";
 import { create } from "@bufbuild/protobuf";
 import { Code, ConnectError } from "@connectrpc/connect";
 import { afterEach, describe, it } from "node:test";
-import { SessionSchema } from "../src/gen/hdeform/v1/deform_pb";
-import { Sync, type SyncEvents } from "../src/sync/sync";
-import { deletedEvent, FakeClient, frame, frameEvent, settle, until } from "./fake_client";
+import { FrameEncoding, SessionSchema } from "../src/gen/hdeform/v1/deform_pb";
+import { Sync, type SyncEvents, type SyncOptions } from "../src/sync/sync";
+import { deletedEvent, FakeClient, frame, frameEvent, settle, stateEvent, until } from "./fake_client";
 
 const FAST = { reconnectFirstMs: 1, reconnectMaxMs: 4, lostBannerAfterMs: 60_000, editRetryWaitMs: 1000 };
 const opened: Sync[] = [];
 
 /** A Sync on session "sessions/s" whose pose is `x` (the first handle's translation). */
-function setup(window = 1) {
+function setup(window = 1, format?: SyncOptions["format"]) {
   const fake = new FakeClient();
   const pose = { x: 0 };
   const sync = new Sync({
     client: fake.client,
     pose: () => ({ transforms: [{ translation: { x: pose.x, y: 0, z: 0 } }], energies: false }),
     window,
+    format,
     timing: FAST,
   });
   const events: { [K in keyof SyncEvents]: SyncEvents[K][] } = { link: [], frame: [], state: [], error: [], clearError: [] };
@@ -46,6 +47,18 @@ describe("sync, one update in flight (window 1)", () => {
     assert.equal(fake.updates[0].request.name, "sessions/s");
     assert.equal(fake.updates[0].request.coalesce, false);
     assert.equal(fake.updates[0].request.omitBuffers, false);
+  });
+
+  it("asks for its frame format on UpdateHandles and WatchSession", async () => {
+    const { fake, sync } = setup(1, { encoding: FrameEncoding.MESHOPT, exactAsFloat32: true });
+    sync.watch();
+    await until(() => fake.streams.length === 1, "the watch stream");
+    sync.request();
+    sync.tick();
+    for (const format of [fake.updates[0].request.format, fake.watchRequests[0].format]) {
+      assert.equal(format?.encoding, FrameEncoding.MESHOPT);
+      assert.equal(format?.exactAsFloat32, true);
+    }
   });
 
   it("keeps at most one update in flight and sends the newest pose next", async () => {
@@ -235,9 +248,35 @@ describe("sync, connection", () => {
   });
 });
 
+/** Starts the watch stream and lets it bring its first event (the server's initial state). */
+async function goLive(fake: FakeClient, sync: Sync): Promise<void> {
+  sync.watch();
+  await until(() => fake.streams.length === 1, "the watch stream");
+  fake.stream.push(stateEvent());
+  await until(() => sync.watchEvents === 1, "the stream's first event");
+}
+
 describe("sync, pipelined (window > 1)", () => {
-  it("sends one update per tick without waiting, up to the window", () => {
+  it("asks for omit_buffers only once the stream is live (a connecting one could miss the frame)", async () => {
+    const { fake, sync } = setup(2);
+    sync.watch();
+    await until(() => fake.streams.length === 1, "the watch stream");
+    sync.request();
+    sync.tick();
+    assert.equal(fake.updates[0].request.omitBuffers, false);
+    fake.updates[0].resolve(frame({ version: 1, sequence: 1, positions: [1, 0, 0] }));
+    await settle();
+    assert.equal(sync.busy, false);
+    fake.stream.push(stateEvent());
+    await until(() => sync.watchEvents === 1, "the stream's first event");
+    sync.request();
+    sync.tick();
+    assert.equal(fake.updates[1].request.omitBuffers, true);
+  });
+
+  it("sends one update per tick without waiting, up to the window", async () => {
     const { fake, pose, sync, sentX } = setup(3);
+    await goLive(fake, sync);
     sync.setDragging(true);
     for (let x = 1; x <= 5; x++) {
       pose.x = x;
@@ -270,8 +309,7 @@ describe("sync, pipelined (window > 1)", () => {
 
   it("applies frames in version order, buffers from the stream, and stays busy until they come", async () => {
     const { fake, sync, events } = setup(4);
-    sync.watch();
-    await until(() => fake.streams.length === 1, "the watch stream");
+    await goLive(fake, sync);
     sync.setDragging(true);
     sync.request();
     sync.tick();
@@ -290,7 +328,7 @@ describe("sync, pipelined (window > 1)", () => {
     assert.equal(sync.busy, true); // the final pose's shape has not arrived
     fake.stream.push(frameEvent(frame({ version: 3, sequence: 3, positions: [3, 0, 0] })));
     fake.stream.push(frameEvent(frame({ version: 1, sequence: 1, positions: [1, 0, 0] }))); // late: older
-    await until(() => sync.watchEvents === 2, "two watch events");
+    await until(() => sync.watchEvents === 3, "two more watch events");
     assert.equal(sync.busy, false);
     const shown = events.frame.map((e) => [e.frame.version, e.source, e.frame.positions.byteLength > 0]);
     assert.deepEqual(shown, [
@@ -302,12 +340,11 @@ describe("sync, pipelined (window > 1)", () => {
 
   it("a stream frame that arrives before its answer is not waited for", async () => {
     const { fake, sync } = setup(2);
-    sync.watch();
-    await until(() => fake.streams.length === 1, "the watch stream");
+    await goLive(fake, sync);
     sync.request();
     sync.tick();
     fake.stream.push(frameEvent(frame({ version: 1, sequence: 1, positions: [1, 0, 0] })));
-    await until(() => sync.watchEvents === 1, "the watch event");
+    await until(() => sync.watchEvents === 2, "the watch event");
     fake.updates[0].resolve(frame({ version: 1, sequence: 1 }));
     await settle();
     assert.equal(sync.busy, false);

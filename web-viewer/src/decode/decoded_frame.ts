@@ -1,4 +1,8 @@
-// What every frame decoder returns, whatever the wire encoding.
+// What frame decoders read and return, whatever the wire encoding.
+import type { Frame } from "../gen/hdeform/v1/deform_pb";
+
+/** The part of a Frame that decoding reads (all the decode worker is sent). */
+export type FrameBuffers = Pick<Frame, "encoding" | "positions" | "normals" | "energies" | "vertices" | "positionBox" | "energiesMax">;
 
 /**
  * A frame's buffers as float32, in the base GLB's vertex and triangle order; null when the

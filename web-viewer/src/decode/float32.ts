@@ -1,7 +1,6 @@
 // FRAME_ENCODING_FLOAT32: positions / normals as 3 × float32 LE per vertex, energies as one
 // float32 LE per triangle.
-import type { Frame } from "../gen/hdeform/v1/deform_pb";
-import { FrameDecodeError, type DecodedFrame } from "./decoded_frame";
+import { FrameDecodeError, type DecodedFrame, type FrameBuffers } from "./decoded_frame";
 
 /** float32 LE bytes → Float32Array (copies only when the bytes are not 4-aligned). */
 function floats(bytes: Uint8Array): Float32Array {
@@ -24,7 +23,7 @@ function buffer(bytes: Uint8Array, width: number, count: number, what: string, u
   return floats(bytes);
 }
 
-export function decodeFloat32(frame: Frame, vertexCount: number, triangleCount: number): DecodedFrame {
+export function decodeFloat32(frame: Pick<FrameBuffers, "positions" | "normals" | "energies">, vertexCount: number, triangleCount: number): DecodedFrame {
   return {
     positions: buffer(frame.positions, 3, vertexCount, "positions", "vertices"),
     normals: buffer(frame.normals, 3, vertexCount, "normals", "vertices"),

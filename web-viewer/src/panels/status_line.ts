@@ -1,9 +1,11 @@
-// The status line: what the page is doing, or "reconnecting…" while the server is away.
+// The status line: what the page is doing and the size of the frames it receives, or
+// "reconnecting…" while the server is away.
 import { $ } from "../dom";
 
 export class StatusLine {
   private text = "";
   private reconnect = "";
+  private frameSizes = "";
 
   get shown(): string {
     return $("status").textContent ?? "";
@@ -11,6 +13,12 @@ export class StatusLine {
 
   set(text: string): void {
     this.text = text;
+    this.render();
+  }
+
+  /** E.g. "frames: meshopt 20.1 KiB, float32 120.3 KiB" (the newest frame of each encoding). */
+  setFrameSizes(text: string): void {
+    this.frameSizes = text;
     this.render();
   }
 
@@ -22,7 +30,7 @@ export class StatusLine {
 
   private render(): void {
     const el = $("status");
-    el.textContent = this.reconnect || this.text;
+    el.textContent = this.reconnect || [this.text, this.frameSizes].filter(Boolean).join(" · ");
     el.classList.toggle("warn", this.reconnect !== "");
   }
 }

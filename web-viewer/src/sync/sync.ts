@@ -9,14 +9,17 @@
 // window = 1 (the default): each reply brings its frame; WatchSession frames are ignored while
 // this page's own edit is pending (they are older).
 // window > 1 (pipelined): requests carry `coalesce` (the server skips an update a newer one
-// overtook, answering `superseded`) and `omit_buffers` (the frame comes on the WatchSession
-// stream); frames apply in version order from wherever they come. The update after a
+// overtook, answering `superseded`) and, once the WatchSession stream is live (it has brought
+// its first event: the server registers a watcher before that), `omit_buffers` (the frame
+// comes on the stream; a stream still connecting would miss it); frames apply in version
+// order from wherever they come. The update after a
 // non-dragging one never coalesces, so a drag's last update is always solved.
 import type { MessageInitShape } from "@bufbuild/protobuf";
 import { describeError, isAbort, isTransient } from "../api";
 import { Emitter } from "../events";
 import type {
   Frame,
+  FrameFormatSchema,
   HandleTransformSchema,
   Session,
   SessionEvent,
@@ -57,6 +60,8 @@ export interface SyncOptions {
   refreshShape?: (name: string, session: Session, signal: AbortSignal) => Promise<void>;
   /** UpdateHandles calls in flight at most. */
   window?: number;
+  /** How UpdateHandles answers and WatchSession frames are to be encoded (unset: FLOAT32). */
+  format?: MessageInitShape<typeof FrameFormatSchema>;
   timing?: Partial<SyncTiming>;
 }
 
@@ -69,6 +74,7 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
   readonly link: LinkState;
   readonly timing: SyncTiming;
   readonly window: number;
+  readonly format: MessageInitShape<typeof FrameFormatSchema> | undefined;
   /** Completed reconnects. */
   reconnects = 0;
   /** WatchSession events received (frames and states). */
@@ -87,6 +93,8 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
   private lastSentDragging = false;
   /** Pipelined: version of an answered update whose buffers are still to come (0 = none). */
   private awaitingBuffers = 0n;
+  /** The WatchSession stream has brought an event, so it receives every frame from now on. */
+  private streamLive = false;
 
   constructor(options: SyncOptions) {
     super();
@@ -94,6 +102,7 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
     this.pose = options.pose;
     this.refreshShape = options.refreshShape ?? (async () => {});
     this.window = Math.max(1, options.window ?? 1);
+    this.format = options.format;
     this.timing = { ...DEFAULT_TIMING, ...options.timing };
     this.link = new LinkState((link, why) => this.emit("link", { link, why }));
   }
@@ -127,6 +136,7 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
     this.name = name;
     this.dirty = false;
     this.awaitingBuffers = 0n;
+    this.streamLive = false;
     this.order.reset();
   }
 
@@ -156,8 +166,10 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
     this.inFlight++;
     const name = this.name;
     let seq = 0;
+    let omitBuffers = false;
     this.edit(() => {
       seq = ++this.sequence;
+      omitBuffers = this.pipelined && this.streamLive;
       const { transforms, energies } = this.pose();
       const coalesce = this.pipelined && this.lastSentDragging;
       this.lastSentDragging = this.held;
@@ -169,7 +181,8 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
         // While the gizmo is held the server may answer with a drag frame (float32 factor).
         dragging: this.held,
         coalesce,
-        omitBuffers: this.pipelined,
+        omitBuffers,
+        format: this.format,
       });
     })
       .then((frame) => {
@@ -177,7 +190,7 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
         if (seq === this.sequence) this.emit("clearError", "rejected");
         if (frame.superseded) return; // acknowledged, not solved: a newer update was waiting
         // omit_buffers: the shape comes on the stream (unless it came first).
-        if (this.pipelined && !carriesShape(frame) && frame.version > this.order.newest) {
+        if (omitBuffers && !carriesShape(frame) && frame.version > this.order.newest) {
           this.awaitingBuffers = frame.version;
         }
         this.offer(frame, "reply");
@@ -236,6 +249,7 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
 
   setStream(stream: AbortController): void {
     this.stream = stream;
+    this.streamLive = false;
   }
 
   async resynced(name: string, session: Session, signal: AbortSignal): Promise<void> {
@@ -248,6 +262,7 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
   }
 
   event(ev: SessionEvent): void {
+    this.streamLive = true;
     if (ev.event.case === "frame") this.offer(ev.event.value, "watch");
     else if (ev.event.case === "state") {
       this.emit("state", { session: ev.event.value, source: "watch", adoptTransforms: !this.busy });

@@ -6,7 +6,8 @@
 import { Code, ConnectError } from "@connectrpc/connect";
 import { describeError, isAbort, isTransient } from "../api";
 import { accessError } from "../access_error";
-import type { Session, SessionEvent } from "../gen/hdeform/v1/deform_pb";
+import type { MessageInitShape } from "@bufbuild/protobuf";
+import type { FrameFormatSchema, Session, SessionEvent } from "../gen/hdeform/v1/deform_pb";
 import type { SyncClient } from "./client";
 import type { LinkState } from "./link";
 
@@ -29,6 +30,8 @@ export interface WatchHost {
   readonly client: SyncClient;
   readonly link: LinkState;
   readonly timing: SyncTiming;
+  /** The encoding the stream's frames are to come in. */
+  readonly format: MessageInitShape<typeof FrameFormatSchema> | undefined;
   /** The current stream, which an edit that finds the server away aborts. */
   setStream(stream: AbortController): void;
   /** The session as re-read after an outage: adopt it and its shape. */
@@ -73,7 +76,7 @@ export async function watchLoop(host: WatchHost, name: string, signal: AbortSign
         link.set("connected");
         host.clearError();
       }
-      for await (const ev of client.watchSession({ name }, { signal: stream.signal })) {
+      for await (const ev of client.watchSession({ name, format: host.format }, { signal: stream.signal })) {
         if (ev.event.case === "deleted") {
           // Deleted, expired — or the server is stopping: the re-read below tells which.
           sawDeleted = true;

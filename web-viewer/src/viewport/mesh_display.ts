@@ -1,6 +1,8 @@
-// The mesh on screen. The display geometry is non-indexed (3 corners per triangle) so
-// per-triangle energy colours are exact; the state's per-vertex arrays are expanded through
-// the index on every change.
+// The mesh on screen. Indexed (the base GLB's triangles over its vertices: each vertex once)
+// while the energy map is off; while it is on, split into three corners per triangle so that
+// per-triangle energy colours are exact (a shared vertex cannot carry its triangles' different
+// colours), and back to indexed when it goes off. The state's per-vertex arrays are copied
+// (indexed) or expanded through the index (split) on every change.
 import * as THREE from "three";
 import { ramp } from "../colormap";
 import { energyTop } from "../energy_scale";
@@ -25,6 +27,8 @@ export class MeshDisplay {
   object: THREE.Mesh | null = null;
   private wire: THREE.Mesh | null = null;
   private geometry: THREE.BufferGeometry | null = null;
+  /** Three corners per triangle (energy map on) rather than indexed. */
+  private split = false;
   private wireframe = false;
   private readonly material = new THREE.MeshStandardMaterial({
     vertexColors: true,
@@ -38,9 +42,21 @@ export class MeshDisplay {
   private readonly wireMaterial = new THREE.MeshBasicMaterial({ color: 0x000000, wireframe: true, transparent: true, opacity: 0.25 });
 
   constructor(private readonly viewport: Viewport, private readonly state: SessionState) {
-    state.on("mesh", (mesh) => this.build(mesh));
-    state.on("shape", () => this.expandPositions());
-    state.on("colours", () => this.updateColours());
+    state.on("mesh", (mesh) => {
+      this.build(mesh);
+      this.viewport.fitCamera(new THREE.Box3().setFromArray(mesh.rest));
+    });
+    state.on("shape", () => this.updatePositions());
+    state.on("colours", () => {
+      const mesh = this.state.mesh;
+      if (mesh && this.split !== (energyTop(this.state) !== null)) this.build(mesh);
+      else this.updateColours();
+    });
+  }
+
+  /** Vertices the GPU is given per draw (split: 3 per triangle; indexed: the mesh's). */
+  get vertexCount(): number {
+    return this.geometry?.getAttribute("position").count ?? 0;
   }
 
   setWireframe(on: boolean): void {
@@ -55,21 +71,23 @@ export class MeshDisplay {
       root.remove(this.object, this.wire);
       this.geometry.dispose();
     }
+    this.split = energyTop(this.state) !== null;
+    const count = this.split ? 3 * mesh.m : mesh.n;
     const geometry = new THREE.BufferGeometry();
     for (const name of ["position", "normal", "color"]) {
-      geometry.setAttribute(name, new THREE.BufferAttribute(new Float32Array(9 * mesh.m), 3));
+      geometry.setAttribute(name, new THREE.BufferAttribute(new Float32Array(3 * count), 3));
     }
+    if (!this.split) geometry.setIndex(new THREE.BufferAttribute(mesh.index, 1));
     this.geometry = geometry;
     this.object = new THREE.Mesh(geometry, this.material);
     this.wire = new THREE.Mesh(geometry, this.wireMaterial);
     this.wire.visible = this.wireframe;
     root.add(this.object, this.wire);
-    this.expandPositions();
+    this.updatePositions();
     this.updateColours();
-    this.viewport.fitCamera(new THREE.Box3().setFromArray(mesh.rest));
   }
 
-  private expandPositions(): void {
+  private updatePositions(): void {
     const mesh = this.state.mesh;
     if (!mesh || !this.geometry) return;
     const pos = this.geometry.getAttribute("position") as THREE.BufferAttribute;
@@ -77,15 +95,20 @@ export class MeshDisplay {
     const P = pos.array as Float32Array;
     const N = nor.array as Float32Array;
     const { index, cur, normals } = mesh;
-    for (let c = 0; c < index.length; c++) {
-      const v = index[c] * 3;
-      const o = c * 3;
-      P[o] = cur[v];
-      P[o + 1] = cur[v + 1];
-      P[o + 2] = cur[v + 2];
-      N[o] = normals[v];
-      N[o + 1] = normals[v + 1];
-      N[o + 2] = normals[v + 2];
+    if (!this.split) {
+      P.set(cur);
+      N.set(normals);
+    } else {
+      for (let c = 0; c < index.length; c++) {
+        const v = index[c] * 3;
+        const o = c * 3;
+        P[o] = cur[v];
+        P[o + 1] = cur[v + 1];
+        P[o + 2] = cur[v + 2];
+        N[o] = normals[v];
+        N[o + 1] = normals[v + 1];
+        N[o + 2] = normals[v + 2];
+      }
     }
     pos.needsUpdate = true;
     nor.needsUpdate = true;
@@ -101,15 +124,17 @@ export class MeshDisplay {
     const C = col.array as Float32Array;
     const { index, labels, energies } = mesh;
     const top = energyTop(this.state);
-    for (let c = 0; c < index.length; c++) {
+    // Indexed: one colour per vertex; split: one per corner (vertex index[c], triangle c / 3).
+    const corners = this.split ? index.length : mesh.n;
+    for (let c = 0; c < corners; c++) {
       const o = c * 3;
-      const label = labels[index[c]];
+      const label = labels[this.split ? index[c] : c];
       if (label >= 0) {
         const k = regionColour(label);
         C[o] = k.r;
         C[o + 1] = k.g;
         C[o + 2] = k.b;
-      } else if (top !== null) {
+      } else if (this.split && top !== null) {
         ramp(energies![(c / 3) | 0] / top, C, o);
       } else {
         C[o] = BASE_COLOUR.r;

@@ -1,0 +1,68 @@
+// The page's frame decoder: FLOAT32 frames are views of the received bytes and decode on the
+// main thread (which so never loads the meshopt WebAssembly); QUANTIZED / MESHOPT frames go
+// to the decode worker (one, which answers in order). Callers that need frames in order
+// chain the promises (frame_apply.ts).
+import { FrameEncoding, type Frame } from "../gen/hdeform/v1/deform_pb";
+import { FrameDecodeError, type DecodedFrame } from "./decoded_frame";
+import { decodeFloat32 } from "./float32";
+import type { DecodeReply, DecodeRequest } from "./worker_messages";
+
+export class FrameDecoder {
+  private worker: Worker | null = null;
+  private nextId = 0;
+  private readonly waiting = new Map<number, { resolve: (d: DecodedFrame) => void; reject: (e: Error) => void }>();
+
+  decode(frame: Frame, vertexCount: number, triangleCount: number): Promise<DecodedFrame> {
+    if (frame.encoding !== FrameEncoding.FLOAT32) return this.inWorker(frame, vertexCount, triangleCount);
+    try {
+      return Promise.resolve(decodeFloat32(frame, vertexCount, triangleCount));
+    } catch (err) {
+      return Promise.reject(err);
+    }
+  }
+
+  private inWorker(frame: Frame, vertexCount: number, triangleCount: number): Promise<DecodedFrame> {
+    const worker = (this.worker ??= this.start());
+    const id = ++this.nextId;
+    // Own copies of the bytes (they are views into the whole response) to transfer.
+    const vertices = frame.vertices.slice();
+    const energies = frame.energies.slice();
+    const request: DecodeRequest = {
+      id,
+      frame: {
+        encoding: frame.encoding,
+        vertices,
+        energies,
+        positionBox: frame.positionBox,
+        energiesMax: frame.energiesMax,
+        positions: new Uint8Array(0),
+        normals: new Uint8Array(0),
+      },
+      vertexCount,
+      triangleCount,
+    };
+    return new Promise((resolve, reject) => {
+      this.waiting.set(id, { resolve, reject });
+      worker.postMessage(request, [vertices.buffer, energies.buffer]);
+    });
+  }
+
+  private start(): Worker {
+    const worker = new Worker(new URL("./decode_worker.ts", import.meta.url), { type: "module" });
+    worker.onmessage = ({ data }: MessageEvent<DecodeReply>) => {
+      const w = this.waiting.get(data.id);
+      if (!w) return;
+      this.waiting.delete(data.id);
+      if ("error" in data) w.reject(new FrameDecodeError(data.error));
+      else w.resolve(data.decoded);
+    };
+    worker.onerror = (e) => {
+      // The worker failed to load or crashed: every frame it holds fails, the next starts anew.
+      for (const w of this.waiting.values()) w.reject(new FrameDecodeError(`Frame decode worker failed: ${e.message}`));
+      this.waiting.clear();
+      worker.terminate();
+      this.worker = null;
+    };
+    return worker;
+  }
+}

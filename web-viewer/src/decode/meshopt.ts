@@ -1,0 +1,30 @@
+// FRAME_ENCODING_MESHOPT: the QUANTIZED vertex buffer through meshoptimizer's vertex codec
+// (vertex size 8, count = the mesh's vertices); energies as QUANTIZED. The decoder is
+// WebAssembly: await `meshoptReady` once before the first decode.
+import { MeshoptDecoder } from "meshoptimizer/decoder";
+import { FrameDecodeError, type DecodedFrame } from "./decoded_frame";
+import { dequantizeEnergies, dequantizeVertices, QUANTIZED_VERTEX_BYTES, type QuantizedFrame } from "./quantized";
+
+export const meshoptReady: Promise<void> = MeshoptDecoder.ready;
+let ready = false;
+void meshoptReady.then(() => (ready = true));
+
+/** meshopt vertex stream → the 8-byte quantized vertices it packs. */
+export function unpackMeshopt(source: Uint8Array, vertexCount: number): Uint8Array {
+  if (!ready) throw new FrameDecodeError("The meshopt decoder is not loaded yet (await meshoptReady)");
+  const target = new Uint8Array(QUANTIZED_VERTEX_BYTES * vertexCount);
+  try {
+    MeshoptDecoder.decodeVertexBuffer(target, vertexCount, QUANTIZED_VERTEX_BYTES, source);
+  } catch (err) {
+    throw new FrameDecodeError(
+      `Frame vertices are not a meshopt vertex buffer of ${vertexCount} vertices of ${QUANTIZED_VERTEX_BYTES} bytes (${(err as Error).message})`,
+    );
+  }
+  return target;
+}
+
+export function decodeMeshopt(frame: QuantizedFrame, vertexCount: number, triangleCount: number): DecodedFrame {
+  const energies = dequantizeEnergies(frame, triangleCount);
+  if (frame.vertices.byteLength === 0) return { positions: null, normals: null, energies };
+  return { ...dequantizeVertices(unpackMeshopt(frame.vertices, vertexCount), vertexCount, frame), energies };
+}

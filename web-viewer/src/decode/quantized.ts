@@ -1,0 +1,90 @@
+// FRAME_ENCODING_QUANTIZED (deform.proto, FrameEncoding): 8 bytes per vertex — 3 × uint16 LE
+// position in Frame.position_box, 2 × int8 octahedral normal — and uint16 LE energies scaled
+// by Frame.energies_max. The byte layout is the server's (server/service/frame_encoding.cpp);
+// the arithmetic mirrors the C++ reference decoder (client-cli/frame_decode.cpp).
+import type { Frame } from "../gen/hdeform/v1/deform_pb";
+import { FrameDecodeError, type DecodedFrame } from "./decoded_frame";
+
+export const QUANTIZED_VERTEX_BYTES = 8;
+
+/** The part of a Frame a quantized decode reads (what the worker is sent). */
+export type QuantizedFrame = Pick<Frame, "vertices" | "positionBox" | "energies" | "energiesMax">;
+
+/** Octahedral normal (Cigolle et al. 2014) of two int8 → unit vector at out[o..o+2]. */
+export function octahedralDecode(qu: number, qv: number, out: Float32Array, o: number): void {
+  let u = Math.max(qu / 127, -1);
+  let v = Math.max(qv / 127, -1);
+  const z = 1 - Math.abs(u) - Math.abs(v);
+  if (z < 0) {
+    const fu = (1 - Math.abs(v)) * (u >= 0 ? 1 : -1);
+    const fv = (1 - Math.abs(u)) * (v >= 0 ? 1 : -1);
+    u = fu;
+    v = fv;
+  }
+  const len = Math.hypot(u, v, z);
+  out[o] = u / len;
+  out[o + 1] = v / len;
+  out[o + 2] = z / len;
+}
+
+/** Box corner arrays, checked: a box that is not one would place vertices anywhere. */
+function boxOf(frame: QuantizedFrame): { lo: number[]; step: number[] } {
+  const b = frame.positionBox;
+  if (!b?.min || !b.max) throw new FrameDecodeError("Frame has quantized vertices but no position_box");
+  const lo = [b.min.x, b.min.y, b.min.z];
+  const hi = [b.max.x, b.max.y, b.max.z];
+  for (let k = 0; k < 3; k++) {
+    if (!Number.isFinite(lo[k]) || !Number.isFinite(hi[k]) || hi[k] < lo[k]) {
+      throw new FrameDecodeError("Frame position_box is not a box (min > max or not finite)");
+    }
+  }
+  return { lo, step: lo.map((l, k) => (hi[k] - l) / 65535) };
+}
+
+/** 8-byte quantized vertices (already unpacked from MESHOPT if need be) → positions, normals. */
+export function dequantizeVertices(
+  bytes: Uint8Array,
+  vertexCount: number,
+  frame: QuantizedFrame,
+): { positions: Float32Array; normals: Float32Array } {
+  if (bytes.byteLength !== QUANTIZED_VERTEX_BYTES * vertexCount) {
+    throw new FrameDecodeError(
+      `Frame has quantized vertices for ${bytes.byteLength / QUANTIZED_VERTEX_BYTES} vertices; the mesh has ${vertexCount} (${bytes.byteLength} bytes, expected ${QUANTIZED_VERTEX_BYTES * vertexCount})`,
+    );
+  }
+  const { lo, step } = boxOf(frame);
+  const view = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
+  const positions = new Float32Array(3 * vertexCount);
+  const normals = new Float32Array(3 * vertexCount);
+  for (let i = 0, b = 0; i < vertexCount; i++, b += QUANTIZED_VERTEX_BYTES) {
+    positions[3 * i] = lo[0] + view.getUint16(b, true) * step[0];
+    positions[3 * i + 1] = lo[1] + view.getUint16(b + 2, true) * step[1];
+    positions[3 * i + 2] = lo[2] + view.getUint16(b + 4, true) * step[2];
+    octahedralDecode(view.getInt8(b + 6), view.getInt8(b + 7), normals, 3 * i);
+  }
+  return { positions, normals };
+}
+
+/** uint16 LE energies → float32, e = q · energies_max / 65535; null when absent. */
+export function dequantizeEnergies(frame: QuantizedFrame, triangleCount: number): Float32Array | null {
+  const bytes = frame.energies;
+  if (bytes.byteLength === 0) return null;
+  if (bytes.byteLength !== 2 * triangleCount) {
+    throw new FrameDecodeError(
+      `Frame has quantized energies for ${bytes.byteLength / 2} triangles; the mesh has ${triangleCount} (${bytes.byteLength} bytes, expected ${2 * triangleCount})`,
+    );
+  }
+  const top = frame.energiesMax;
+  if (!Number.isFinite(top) || top < 0) throw new FrameDecodeError("Frame energies_max must be finite and not negative");
+  const view = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
+  const out = new Float32Array(triangleCount);
+  const scale = top / 65535;
+  for (let l = 0; l < triangleCount; l++) out[l] = view.getUint16(2 * l, true) * scale;
+  return out;
+}
+
+export function decodeQuantized(frame: QuantizedFrame, vertexCount: number, triangleCount: number): DecodedFrame {
+  const energies = dequantizeEnergies(frame, triangleCount);
+  if (frame.vertices.byteLength === 0) return { positions: null, normals: null, energies };
+  return { ...dequantizeVertices(frame.vertices, vertexCount, frame), energies };
+}

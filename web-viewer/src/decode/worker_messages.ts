@@ -1,0 +1,12 @@
+// What the page and the decode worker send each other.
+import type { DecodedFrame, FrameBuffers } from "./decoded_frame";
+
+export interface DecodeRequest {
+  id: number;
+  /** Only what a QUANTIZED / MESHOPT decode reads, with buffers of its own (transferred). */
+  frame: FrameBuffers;
+  vertexCount: number;
+  triangleCount: number;
+}
+
+export type DecodeReply = { id: number; decoded: DecodedFrame } | { id: number; error: string };
