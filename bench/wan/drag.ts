@@ -252,7 +252,7 @@ async function main() {
     // Watch stream bytes during the drag per event (almost all frames; a state event is tiny).
     wire_bytes_per_frame: watchEventsDrag ? Math.round(watchBytesDrag / watchEventsDrag) : null,
     watch_mbit_s: r1((watchBytesDrag * 8) / seconds / 1e6),
-    decode_p50_ms: r1(pct(decodeMs, 0.5) * 100) / 100,
+    decode_p50_ms: Math.round(pct(decodeMs, 0.5) * 1000) / 1000,
     decoder,
     final_ok: !!final && final.decodedOk && final.frame.exact && final.frame.encoding === FrameEncoding.FLOAT32,
     final_exact: final?.frame.exact ?? null,
