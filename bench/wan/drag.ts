@@ -87,7 +87,16 @@ function move(t: number) {
   };
 }
 
+// Where the run is, for the watchdog's message: a hang must end the run with a reason, not
+// stall the whole table (the first factorization at 100K takes seconds, hence the margin).
+let phase = "start";
+const watchdog = setTimeout(() => {
+  console.error(`drag: stuck in phase "${phase}" after ${seconds + 600} s; giving up`);
+  process.exit(1);
+}, (seconds + 600) * 1000);
+
 async function main() {
+  phase = "upload";
   // --- session: upload, constrain -------------------------------------------------------
   const mesh = capsule(N);
   const id = newSessionId();
@@ -109,6 +118,7 @@ async function main() {
   const name = session.name;
   const vc = session.vertexCount;
   const tc = session.triangleCount;
+  phase = "SetConstraints";
   const ids = (v: number[]) => ({ selectors: [{ kind: { case: "ids" as const, value: { ids: v } } }] });
   await client.setConstraints({ name, constraints: { fixed: ids(mesh.base), handles: [ids(mesh.cap)] } }, { timeoutMs: 600_000 });
 
@@ -118,6 +128,7 @@ async function main() {
       { name, sequence: BigInt(++seq), transforms: [move(t)], dragging, coalesce: true, omitBuffers: true, format },
       { timeoutMs: 120_000 },
     );
+  phase = "warm-up";
   await update(0, false); // warm-up: first exact frame
   await update(0, true); // warm-up: first drag frame (float32 copy of the factor)
 
@@ -173,6 +184,7 @@ async function main() {
   })().catch((e) => {
     if (!abort.signal.aborted) console.error(`watch: ${describeError(e)}`);
   });
+  phase = "WatchSession open";
   await opened;
 
   // --- the drag --------------------------------------------------------------------------
@@ -186,6 +198,7 @@ async function main() {
   const bytesBefore = watchBytes;
   const eventsBefore = events;
   const ticks = Math.round(seconds * hz);
+  phase = "drag";
   t0 = now();
   for (let k = 0; k < ticks; ++k) {
     await sleep(t0 + (k * 1000) / hz - now());
@@ -214,6 +227,7 @@ async function main() {
 
   // The last update ends the drag: without `dragging`, so exact, and (exact_as_float32)
   // FLOAT32 whatever the stream's encoding. Wait for room in the window like any tick.
+  phase = "final update";
   while (inflight >= windowSize) await sleep(1);
   const tFinal = now();
   finalSeq = BigInt(seq + 1);
@@ -222,9 +236,12 @@ async function main() {
   const final = await Promise.race([finalFrame, new Promise<null>((r) => (timer = setTimeout(() => r(null), 60_000)))]);
   clearTimeout(timer); // or the pending timer alone keeps node alive for a minute
   const finalMs = now() - tFinal;
+  phase = "closing";
   abort.abort();
-  await watching;
-  await client.deleteSession({ name }).catch(() => {});
+  // Bounded: the report must not depend on how fast an aborted stream unwinds.
+  await Promise.race([watching, sleep(2000)]);
+  await client.deleteSession({ name }, { timeoutMs: 10_000 }).catch(() => {});
+  clearTimeout(watchdog);
 
   const result = {
     encoding: opt.encoding,
@@ -271,7 +288,11 @@ async function main() {
   );
 }
 
-main().catch((e) => {
-  console.error(`drag: ${describeError(e)}`);
-  process.exit(1);
-});
+main().then(
+  // Exit explicitly: a stream that has not unwound yet must not keep node alive.
+  () => process.exit(0),
+  (e) => {
+    console.error(`drag: ${describeError(e)} (phase "${phase}")`);
+    process.exit(1);
+  },
+);
