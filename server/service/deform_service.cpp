@@ -329,11 +329,13 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
     }
     current_ = std::move(pending_.front());
     pending_.pop_front();
-    if (current_->event_case() == v1::SessionEvent::kFrame) {
-      // Encoded here, not at broadcast: only frames that are written cost an encoding.
+    // Encoded here, not at broadcast: only frames that are written cost an encoding. A
+    // FLOAT32 watcher writes the shared event as it is.
+    if (current_->event_case() == v1::SessionEvent::kFrame &&
+        encoding_for(current_->frame(), format_) != v1::FRAME_ENCODING_FLOAT32) {
       auto encoded = std::make_shared<v1::SessionEvent>();
-      if (encode_frame_to(current_->frame(), format_, false, encoded->mutable_frame()))
-        current_ = std::move(encoded);
+      encode_frame_to(current_->frame(), format_, false, encoded->mutable_frame());
+      current_ = std::move(encoded);
     }
     writing_ = true;
     StartWrite(current_.get());
