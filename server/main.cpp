@@ -144,6 +144,15 @@ int main(int argc, char** argv) {
       ->envname("HDEFORM_MAX_LEASE_MS")
       ->check(CLI::Range(std::int64_t{100}, std::int64_t{3'600'000}))
       ->default_str("60000");
+  app.add_option("--max-history", request.max_history,
+                 "history steps kept per session (the oldest go first)")
+      ->envname("HDEFORM_MAX_HISTORY")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--max-snapshots", request.max_snapshots, "named snapshots per session")
+      ->envname("HDEFORM_MAX_SNAPSHOTS")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   app.add_option("--max-upload-inflight-mb", max_upload_inflight_mb,
                  "upload bytes held by unfinished uploads, all clients together (MiB)")
       ->envname("HDEFORM_MAX_UPLOAD_INFLIGHT_MB")

@@ -8,6 +8,7 @@
 #include <malloc.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <deque>
 #include <mutex>
 #include <optional>
@@ -252,6 +253,8 @@ class MeshWriter final : public grpc::ServerWriteReactor<v1::MeshChunk> {
 // WatchSession: the session's state and frames. A slow reader never has more than one
 // frame (the newest) and one state (the newest) waiting.
 class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
+  static constexpr long kMaxPendingSteps = 32;
+
  public:
   // `client_id`: the watcher joined the session's presence under it (empty: anonymous).
   WatchReactor(std::shared_ptr<Session> session, const v1::FrameFormat& format,
@@ -312,6 +315,19 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
         kind == v1::SessionEvent::kPresence) {
       for (auto it = pending_.begin(); it != pending_.end(); ++it)
         if ((*it)->event_case() == kind) {
+          pending_.erase(it);
+          ++skipped_;
+          break;
+        }
+    }
+    // History steps all count, but a stalled watcher keeps only the newest few (ListHistory
+    // has them all): its memory stays bounded.
+    if (kind == v1::SessionEvent::kStep &&
+        std::count_if(pending_.begin(), pending_.end(), [](const auto& e) {
+          return e->event_case() == v1::SessionEvent::kStep;
+        }) >= kMaxPendingSteps) {
+      for (auto it = pending_.begin(); it != pending_.end(); ++it)
+        if ((*it)->event_case() == v1::SessionEvent::kStep) {
           pending_.erase(it);
           ++skipped_;
           break;
@@ -790,7 +806,7 @@ grpc::ServerUnaryReactor* DeformService::SetConstraints(grpc::CallbackServerCont
                            [this, request, response](Session& s) {
                              *response = s.set_constraints(
                                  request->constraints(), request->expected_version(),
-                                 request->expected_config_version());
+                                 request->expected_config_version(), request->client_id());
                              store_.save(s);
                            });
 }
@@ -801,7 +817,8 @@ grpc::ServerUnaryReactor* DeformService::SetBeta(grpc::CallbackServerContext* ct
   return finish_on_session(ctx, "SetBeta", request->name(), Access::kEdit,
                            [this, request, response](Session& s) {
                              *response = s.set_beta(request->beta(), request->expected_version(),
-                                                    request->expected_config_version());
+                                                    request->expected_config_version(),
+                                                    request->client_id());
                              store_.save(s);
                            });
 }
@@ -1037,6 +1054,75 @@ grpc::ServerUnaryReactor* DeformService::ImportSession(grpc::CallbackServerConte
     response->set_edit_token(tokens.edit);
     response->set_view_token(tokens.view);
   });
+}
+
+// History and snapshots: on the session's strand, ordered with the changes they revert.
+grpc::ServerUnaryReactor* DeformService::Undo(grpc::CallbackServerContext* ctx,
+                                              const v1::UndoRequest* request,
+                                              v1::Session* response) {
+  return finish_on_session(ctx, "Undo", request->name(), Access::kEdit,
+                           [this, request, response](Session& s) {
+                             *response = s.undo(*request);
+                             store_.save(s);
+                           });
+}
+
+grpc::ServerUnaryReactor* DeformService::Redo(grpc::CallbackServerContext* ctx,
+                                              const v1::UndoRequest* request,
+                                              v1::Session* response) {
+  return finish_on_session(ctx, "Redo", request->name(), Access::kEdit,
+                           [this, request, response](Session& s) {
+                             *response = s.redo(*request);
+                             store_.save(s);
+                           });
+}
+
+grpc::ServerUnaryReactor* DeformService::ListHistory(grpc::CallbackServerContext* ctx,
+                                                     const v1::ListHistoryRequest* request,
+                                                     v1::ListHistoryResponse* response) {
+  return finish_inline(ctx, "ListHistory", [&] {
+    *response =
+        session_for(*ctx, request->name(), Access::kView, "ListHistory")->list_history(*request);
+  });
+}
+
+grpc::ServerUnaryReactor* DeformService::SaveSnapshot(grpc::CallbackServerContext* ctx,
+                                                      const v1::SaveSnapshotRequest* request,
+                                                      v1::NamedSnapshot* response) {
+  return finish_on_session(ctx, "SaveSnapshot", request->name(), Access::kEdit,
+                           [this, request, response](Session& s) {
+                             *response = s.save_snapshot(*request);
+                             store_.save(s);
+                           });
+}
+
+grpc::ServerUnaryReactor* DeformService::ListSnapshots(grpc::CallbackServerContext* ctx,
+                                                       const v1::ListSnapshotsRequest* request,
+                                                       v1::ListSnapshotsResponse* response) {
+  return finish_inline(ctx, "ListSnapshots", [&] {
+    *response = session_for(*ctx, request->name(), Access::kView, "ListSnapshots")
+                    ->list_snapshots();
+  });
+}
+
+grpc::ServerUnaryReactor* DeformService::RestoreSnapshot(
+    grpc::CallbackServerContext* ctx, const v1::RestoreSnapshotRequest* request,
+    v1::Session* response) {
+  return finish_on_session(ctx, "RestoreSnapshot", request->name(), Access::kEdit,
+                           [this, request, response](Session& s) {
+                             *response = s.restore_snapshot(*request);
+                             store_.save(s);
+                           });
+}
+
+grpc::ServerUnaryReactor* DeformService::DeleteSnapshot(grpc::CallbackServerContext* ctx,
+                                                        const v1::DeleteSnapshotRequest* request,
+                                                        v1::DeleteSnapshotResponse*) {
+  return finish_on_session(ctx, "DeleteSnapshot", request->name(), Access::kEdit,
+                           [this, request](Session& s) {
+                             s.delete_snapshot(request->snapshot());
+                             store_.save(s);
+                           });
 }
 
 // Grabs run on the session's strand: they are ordered with SetConstraints, which renumbers

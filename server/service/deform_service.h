@@ -83,6 +83,25 @@ class DeformService final : public v1::Deformation::CallbackService {
   grpc::ServerUnaryReactor* ReleaseHandles(grpc::CallbackServerContext* ctx,
                                            const v1::ReleaseHandlesRequest* request,
                                            v1::GrabHandlesResponse* response) override;
+  grpc::ServerUnaryReactor* Undo(grpc::CallbackServerContext* ctx, const v1::UndoRequest* request,
+                                 v1::Session* response) override;
+  grpc::ServerUnaryReactor* Redo(grpc::CallbackServerContext* ctx, const v1::UndoRequest* request,
+                                 v1::Session* response) override;
+  grpc::ServerUnaryReactor* ListHistory(grpc::CallbackServerContext* ctx,
+                                        const v1::ListHistoryRequest* request,
+                                        v1::ListHistoryResponse* response) override;
+  grpc::ServerUnaryReactor* SaveSnapshot(grpc::CallbackServerContext* ctx,
+                                         const v1::SaveSnapshotRequest* request,
+                                         v1::NamedSnapshot* response) override;
+  grpc::ServerUnaryReactor* ListSnapshots(grpc::CallbackServerContext* ctx,
+                                          const v1::ListSnapshotsRequest* request,
+                                          v1::ListSnapshotsResponse* response) override;
+  grpc::ServerUnaryReactor* RestoreSnapshot(grpc::CallbackServerContext* ctx,
+                                            const v1::RestoreSnapshotRequest* request,
+                                            v1::Session* response) override;
+  grpc::ServerUnaryReactor* DeleteSnapshot(grpc::CallbackServerContext* ctx,
+                                           const v1::DeleteSnapshotRequest* request,
+                                           v1::DeleteSnapshotResponse* response) override;
   grpc::ServerUnaryReactor* RotateTokens(grpc::CallbackServerContext* ctx,
                                          const v1::RotateTokensRequest* request,
                                          v1::Session* response) override;

@@ -19,6 +19,8 @@ struct RequestLimits {
   std::size_t max_pending_updates = 16;      // --max-pending-updates: coalescing UpdateHandles
                                              // waiting per session
   std::chrono::milliseconds max_lease{60'000};  // --max-lease-ms: longest GrabHandles lease
+  std::size_t max_history = 1000;            // --max-history: steps kept per session
+  std::size_t max_snapshots = 64;            // --max-snapshots: named snapshots per session
 };
 
 // Throws ServiceError RESOURCE_EXHAUSTED "WHAT: COUNT exceeds the limit of LIMIT (FLAG)".

@@ -10,7 +10,7 @@ namespace hdeform::service {
 
 namespace {
 
-constexpr std::size_t kMaxClientId = 64, kMaxNameChars = 64;
+constexpr std::size_t kMaxClientId = 64, kMaxNameChars = 64, kMaxSeenNames = 256;
 
 // Colours for clients that name none: distinct on a grey mesh, picked by client id.
 constexpr const char* kPalette[] = {"#e6194b", "#3cb44b", "#4363d8", "#f58231",
@@ -73,6 +73,8 @@ Roster::Member& Roster::member_locked(const pb::Participant& who, bool editor) {
   }
   Member& m = it->second;
   m.name = who.display_name().empty() ? "anonymous" : who.display_name();
+  if (seen_names_.size() >= kMaxSeenNames) seen_names_.clear();  // bounded; names only
+  seen_names_[who.client_id()] = m.name;
   m.color = !who.color().empty()
                 ? who.color()
                 : kPalette[std::hash<std::string>{}(who.client_id()) % std::size(kPalette)];
@@ -225,6 +227,13 @@ void Roster::describe(pb::Presence* out) const {
     p->set_watching(m.streams > 0);
     for (const auto& [h, lease] : m.held) p->add_held_handles(h);
   }
+}
+
+std::string Roster::name_of(const std::string& client_id) const {
+  std::lock_guard lock(mutex_);
+  if (auto it = members_.find(client_id); it != members_.end()) return it->second.name;
+  auto seen = seen_names_.find(client_id);
+  return seen == seen_names_.end() ? "anonymous" : seen->second;
 }
 
 bool Roster::empty() const {

@@ -52,6 +52,8 @@ class Roster {
   bool release_all();
 
   void describe(pb::Presence* out) const;
+  // The display name `client_id` goes by, or went by lately ("anonymous" if unknown).
+  std::string name_of(const std::string& client_id) const;
   bool empty() const;
 
  private:
@@ -73,6 +75,8 @@ class Roster {
   mutable std::mutex mutex_;
   std::map<std::string, Member> members_;  // by client_id
   std::map<int, std::string> holder_;      // handle → client_id
+  // Names of clients seen lately, kept after they leave: history steps name their authors.
+  std::map<std::string, std::string> seen_names_;  // at most kMaxSeenNames
 };
 
 }  // namespace hdeform::service

@@ -8,6 +8,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <set>
@@ -78,6 +79,7 @@ Session::Session(std::string id, std::shared_ptr<const MeshRef> mesh, WorkerPool
       limits_(limits),
       cache_(cache),
       strand_(std::make_shared<Strand>(pool)),
+      history_(History::Limits{limits.max_history, 64u << 20}),
       roster_(Roster::Limits{limits.max_watchers, std::chrono::milliseconds(5000),
                              limits.max_lease}) {
   create_ms_ = update_ms_ = unix_ms_now();
@@ -220,73 +222,136 @@ hdeform::Frame Session::solve(const ConstraintSet& cs,
 
 pb::Session Session::set_constraints(const pb::Constraints& constraints,
                                      std::int64_t expected_version,
-                                     std::int64_t expected_config_version) {
+                                     std::int64_t expected_config_version,
+                                     const std::string& client_id) {
   touch();
-  SessionBeta beta;
   {
     std::lock_guard lock(mutex_);
     check_version_locked(expected_version);
     check_config_version_locked(expected_config_version);
-    beta = beta_;
   }
-  const Constraints resolved = resolve_constraints(constraints, mesh_->prepared->mesh().V,
-                                                   mesh_->layout->base_to_engine(), limits_);
-  const std::string key = "cs/" + mesh_->hash + "/" + constraints_digest(resolved);
-  auto cs = constraint_set_for(resolved, key);
-  // ConstraintSet is shared: prepare() is thread-safe (it builds each β once). An automatic
-  // β keeps its pick (the new handles are at rest: nothing to pick from yet).
-  prepare_beta(*cs, beta);
-  cache_.update_size(key, cs->memory_bytes());
-  pb::Session out;
+  std::string key;
+  auto cs = constraint_set_of(constraints, &key);
+  EditState target;
   {
     std::lock_guard lock(mutex_);
+    target = edit_state_locked();
+  }
+  target.cs_key = key;
+  target.given = std::make_shared<const pb::Constraints>(constraints);
+  target.transforms.assign(cs->num_handles(), HandleTransform{});
+  Step step;
+  step.info.set_kind(pb::STEP_KIND_CONSTRAINTS);
+  step.info.set_client_id(client_id);
+  step.info.set_summary("constraints: " + std::to_string(cs->constraints().fixed.size()) +
+                        " fixed vertices, " + std::to_string(cs->num_handles()) + " handle(s)");
+  step.constraints = true;
+  return commit_edit(std::move(target), std::move(cs), std::move(step), false);
+}
+
+std::shared_ptr<const ConstraintSet> Session::constraint_set_of(const pb::Constraints& given,
+                                                                std::string* key) {
+  const Constraints resolved = resolve_constraints(given, mesh_->prepared->mesh().V,
+                                                   mesh_->layout->base_to_engine(), limits_);
+  *key = "cs/" + mesh_->hash + "/" + constraints_digest(resolved);
+  return constraint_set_for(resolved, *key);
+}
+
+EditState Session::edit_state_locked() const {
+  return EditState{cs_key_, given_, beta_, transforms_};
+}
+
+std::string Session::author_of(const std::string& client_id) const {
+  return client_id.empty() ? "anonymous" : roster_.name_of(client_id);
+}
+
+pb::Session Session::commit_edit(EditState target, std::shared_ptr<const ConstraintSet> cs,
+                                 Step step, bool send_frame) {
+  std::string current_key;
+  {
+    std::lock_guard lock(mutex_);
+    current_key = cs_key_;
+    if (!cs && target.cs_key == cs_key_) cs = cs_;
+  }
+  if (!cs && !target.cs_key.empty()) {
+    std::string key;
+    cs = constraint_set_of(*target.given, &key);
+    target.cs_key = key;
+  }
+  // ConstraintSet is shared: prepare() is thread-safe (it builds each β once). An automatic
+  // β keeps its pick.
+  if (cs) {
+    prepare_beta(*cs, target.beta);
+    cache_.update_size(target.cs_key, cs->memory_bytes());
+  }
+  const bool constraints_changed = target.cs_key != current_key;
+  pb::Session out;
+  pb::HistoryStep info;
+  {
+    std::lock_guard lock(mutex_);
+    step.before = edit_state_locked();
+    const bool config_changed = constraints_changed || !beta_.same_as(target.beta);
+    step.beta = step.beta || !beta_.same_as(target.beta);
+    if (step.constraints || constraints_changed) {
+      step.constraints = true;
+      step.handles.clear();
+      for (int j = 0; j < (cs ? cs->num_handles() : 0); ++j) step.handles.push_back(j);
+      history_.forget_drags();
+    }
     cs_ = cs;
-    cs_key_ = key;
-    given_ = constraints;
-    transforms_.assign(cs->num_handles(), HandleTransform{});
-    ++config_version_;
+    cs_key_ = target.cs_key;
+    given_ = target.given;
+    beta_ = target.beta;
+    transforms_ = target.transforms;
+    step.after = std::move(target);
+    if (config_changed) ++config_version_;
     changed_locked(&out);
+    step.info.set_version(version_);
+    step.info.set_time_unix_ms(update_ms_);
+    step.info.set_author(author_of(step.info.client_id()));
+    step.info.set_beta_changed(step.beta);
+    step.info.mutable_handles()->Assign(step.handles.begin(), step.handles.end());
+    info = history_.record(std::move(step));
   }
   broadcast_state();
-  if (roster_.release_all()) broadcast_presence();  // handle i is another region now
+  broadcast_step(info);
+  if (constraints_changed && roster_.release_all()) broadcast_presence();  // renumbered
+  if (send_frame) broadcast_frame(info.client_id());
   return out;
 }
 
 pb::Session Session::set_beta(const pb::Beta& beta_msg, std::int64_t expected_version,
-                              std::int64_t expected_config_version) {
+                              std::int64_t expected_config_version,
+                              const std::string& client_id) {
   touch();
   SessionBeta beta = parse_beta(beta_msg);
+  EditState target;
   std::shared_ptr<const ConstraintSet> cs;
-  std::vector<HandleTransform> transforms;
-  std::string key;
   {
     std::lock_guard lock(mutex_);
     check_version_locked(expected_version);
     check_config_version_locked(expected_config_version);
     cs = cs_;
-    transforms = transforms_;
-    key = cs_key_;
+    target = edit_state_locked();
   }
   if (beta.automatic) {
     if (!cs)
       fail(grpc::StatusCode::FAILED_PRECONDITION,
            "automatic beta is picked at the session's handle transforms: call SetConstraints "
            "first");
-    pick_beta(beta, *cs, transforms);
+    pick_beta(beta, *cs, target.transforms);
   }
-  if (cs) {
-    prepare_beta(*cs, beta);
-    cache_.update_size(key, cs->memory_bytes());
-  }
-  pb::Session out;
-  {
-    std::lock_guard lock(mutex_);
-    beta_ = std::move(beta);
-    ++config_version_;
-    changed_locked(&out);
-  }
-  broadcast_state();
-  return out;
+  Step step;
+  step.info.set_kind(pb::STEP_KIND_BETA);
+  step.info.set_client_id(client_id);
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "beta %.6g -> %.6g (%s)%s", target.beta.uniform.value,
+                beta.uniform.value, beta.uniform.units == BetaUnits::raw ? "raw" : "area",
+                beta.automatic ? ", automatic" : "");
+  step.info.set_summary(buf);
+  step.beta = true;
+  target.beta = std::move(beta);
+  return commit_edit(std::move(target), std::move(cs), std::move(step), false);
 }
 
 std::vector<int> Session::handle_indices(
@@ -328,9 +393,9 @@ Session::Move Session::begin_move(const Update& u) {
   if (keep) return m;
   static const google::protobuf::RepeatedPtrField<pb::HandleTransform> kNone;
   static const google::protobuf::RepeatedField<std::int32_t> kAll;
-  const std::vector<int> moved = apply_handle_update(
-      u.handles ? *u.handles : kAll, u.transforms ? *u.transforms : kNone, *m.cs, m.transforms);
-  roster_.check_move(u.client_id, moved, Roster::Clock::now());
+  m.moved = apply_handle_update(u.handles ? *u.handles : kAll,
+                                u.transforms ? *u.transforms : kNone, *m.cs, m.transforms);
+  roster_.check_move(u.client_id, m.moved, Roster::Clock::now());
   return m;
 }
 
@@ -339,6 +404,7 @@ pb::Frame Session::supersede(const Update& u) {
   Move m = begin_move(u);
   std::lock_guard lock(mutex_);
   if (cs_ == m.cs) {
+    history_.drag_moved(u.client_id, m.moved, transforms_);  // the newer update ends the step
     transforms_ = std::move(m.transforms);
     ++version_;  // the newer update's frame follows at once
     last_frame_.reset();
@@ -371,6 +437,7 @@ std::shared_ptr<pb::Frame> Session::update(const Update& u) {
   if (beta_changed) cache_.update_size(key, cs->memory_bytes());
 
   auto out = std::make_shared<pb::Frame>();
+  pb::HistoryStep recorded;
   mesh_->layout->fill(*frame, out.get());
   out->set_session(name_);
   out->set_sequence(u.sequence);
@@ -382,6 +449,32 @@ std::shared_ptr<pb::Frame> Session::update(const Update& u) {
     if (cs_ != cs) {
       // SetConstraints cannot interleave (same strand); this guards against misuse.
       fail(grpc::StatusCode::ABORTED, "constraints changed during the update");
+    }
+    // History: a drag is one step, from its first frame's before to its last frame.
+    history_.drag_moved(u.client_id, m.moved, transforms_);
+    std::map<int, HandleTransform> started;
+    if (!u.dragging) started = history_.end_drag(u.client_id);
+    if (!started.empty() || beta_changed) {
+      Step step;
+      step.before = edit_state_locked();
+      for (const auto& [h, t] : started) {
+        step.before.transforms[static_cast<std::size_t>(h)] = t;
+        step.handles.push_back(h);
+      }
+      step.beta = beta_changed;
+      step.after = EditState{cs_key_, given_, beta, transforms};
+      step.info.set_kind(step.handles.empty() ? pb::STEP_KIND_BETA : pb::STEP_KIND_MOVE);
+      step.info.set_client_id(u.client_id);
+      step.info.set_author(author_of(u.client_id));
+      std::string summary;
+      for (int h : step.handles) summary += (summary.empty() ? "moved handle " : ", ") + std::to_string(h);
+      if (beta_changed) summary += std::string(summary.empty() ? "" : "; ") + "beta changed";
+      step.info.set_summary(summary);
+      step.info.set_version(version_ + 1);
+      step.info.set_time_unix_ms(unix_ms_now());
+      step.info.set_beta_changed(beta_changed);
+      step.info.mutable_handles()->Assign(step.handles.begin(), step.handles.end());
+      recorded = history_.record(std::move(step));
     }
     transforms_ = std::move(transforms);
     beta_ = beta;
@@ -400,6 +493,7 @@ std::shared_ptr<pb::Frame> Session::update(const Update& u) {
   out->set_solve_ms(
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
   if (beta_changed) broadcast_state();
+  if (recorded.id() != 0) broadcast_step(recorded);
   if (observers() > 0) {
     auto event = std::make_shared<pb::SessionEvent>();
     *event->mutable_frame() = *out;
@@ -507,7 +601,7 @@ pb::Snapshot Session::export_snapshot(bool include_mesh, std::int64_t* version) 
   if (include_mesh && mesh_->file_bytes) s.set_mesh_bytes(*mesh_->file_bytes);
   std::lock_guard lock(mutex_);
   if (version) *version = version_;
-  if (cs_) *s.mutable_constraints() = given_;
+  if (cs_ && given_) *s.mutable_constraints() = *given_;
   beta_to_proto(beta_, s.mutable_beta());
   for (const auto& t : transforms_) to_proto(t, s.add_transforms());
   return s;
@@ -551,6 +645,7 @@ void Session::adopt(std::int64_t version, const SessionTokens& tokens, std::int6
   // Not stored: a client's config_version from before the restart is refused (it reloads).
   config_version_ = version;
   tokens_ = tokens;
+  history_.clear();  // not stored: the restored session starts a new history
   create_ms_ = create_ms;
   update_ms_ = update_ms;
 }
@@ -632,6 +727,273 @@ void Session::broadcast_state() {
   broadcast(std::move(event));
 }
 
+// ---- history and snapshots ----
+
+namespace {
+
+// What `side` (a step's before or after) holds for what `step` changed, laid over `state`.
+void apply_side(EditState& state, const Step& step, const EditState& side) {
+  if (step.constraints) {
+    state.cs_key = side.cs_key;
+    state.given = side.given;
+    state.transforms = side.transforms;
+  } else {
+    for (int h : step.handles)
+      state.transforms[static_cast<std::size_t>(h)] = side.transforms[static_cast<std::size_t>(h)];
+  }
+  if (step.beta) state.beta = side.beta;
+}
+
+void check_snapshot_name(const std::string& name, const char* op) {
+  const auto chars = std::count_if(name.begin(), name.end(), [](char c) {
+    return (static_cast<unsigned char>(c) & 0xC0) != 0x80;
+  });
+  if (name.empty() || chars > 64)
+    fail(grpc::StatusCode::INVALID_ARGUMENT,
+         std::string(op) + ": the snapshot name must have 1–64 characters, got " +
+             std::to_string(chars));
+  if (std::any_of(name.begin(), name.end(), [](char c) {
+        const auto u = static_cast<unsigned char>(c);
+        return u < 0x20 || u == 0x7f;
+      }))
+    fail(grpc::StatusCode::INVALID_ARGUMENT,
+         std::string(op) + ": the snapshot name has control characters");
+}
+
+}  // namespace
+
+void Session::close_drag(const std::string& client_id) {
+  pb::HistoryStep info;
+  {
+    std::lock_guard lock(mutex_);
+    auto started = history_.end_drag(client_id);
+    if (started.empty()) return;
+    Step step;
+    step.before = edit_state_locked();
+    step.after = edit_state_locked();
+    std::string summary;
+    for (const auto& [h, t] : started) {
+      step.before.transforms[static_cast<std::size_t>(h)] = t;
+      step.handles.push_back(h);
+      summary += (summary.empty() ? "moved handle " : ", ") + std::to_string(h);
+    }
+    step.info.set_kind(pb::STEP_KIND_MOVE);
+    step.info.set_client_id(client_id);
+    step.info.set_author(author_of(client_id));
+    step.info.set_summary(summary);
+    step.info.set_version(version_);
+    step.info.set_time_unix_ms(unix_ms_now());
+    step.info.mutable_handles()->Assign(step.handles.begin(), step.handles.end());
+    info = history_.record(std::move(step));
+  }
+  broadcast_step(info);
+}
+
+pb::Session Session::undo(const pb::UndoRequest& request) {
+  touch();
+  close_drag(request.client_id());  // an unfinished drag is the step to undo
+  EditState target;
+  Step step;
+  std::int64_t undone = 0;
+  {
+    std::lock_guard lock(mutex_);
+    const Step& t = history_.undo_target(request.client_id(), request.step());
+    const EditState current = edit_state_locked();
+    history_.check_unchanged(t, current, t.after, "Undo");
+    target = current;
+    apply_side(target, t, t.before);
+    step.constraints = t.constraints;
+    step.beta = t.beta;
+    step.handles = t.handles;
+    step.info.set_target(t.info.id());
+    step.info.set_summary("undo step " + std::to_string(t.info.id()) + " (" + t.info.author() +
+                          ": " + t.info.summary() + ")");
+    undone = t.info.id();
+  }
+  step.info.set_kind(pb::STEP_KIND_UNDO);
+  step.info.set_client_id(request.client_id());
+  pb::Session out = commit_edit(std::move(target), nullptr, std::move(step), true);
+  std::lock_guard lock(mutex_);
+  history_.mark_undone(undone, request.client_id());
+  return out;
+}
+
+pb::Session Session::redo(const pb::UndoRequest& request) {
+  touch();
+  EditState target;
+  Step step;
+  std::int64_t redone = 0;
+  {
+    std::lock_guard lock(mutex_);
+    const Step& t = history_.redo_target(request.client_id(), request.step());
+    const EditState current = edit_state_locked();
+    history_.check_unchanged(t, current, t.before, "Redo");
+    target = current;
+    apply_side(target, t, t.after);
+    step.constraints = t.constraints;
+    step.beta = t.beta;
+    step.handles = t.handles;
+    step.info.set_target(t.info.id());
+    step.info.set_summary("redo step " + std::to_string(t.info.id()) + " (" + t.info.author() +
+                          ": " + t.info.summary() + ")");
+    redone = t.info.id();
+  }
+  step.info.set_kind(pb::STEP_KIND_REDO);
+  step.info.set_client_id(request.client_id());
+  pb::Session out = commit_edit(std::move(target), nullptr, std::move(step), true);
+  std::lock_guard lock(mutex_);
+  history_.mark_redone(redone, request.client_id());
+  return out;
+}
+
+pb::ListHistoryResponse Session::list_history(const pb::ListHistoryRequest& request) const {
+  if (request.page_size() < 0 || request.page_size() > 500)
+    fail(grpc::StatusCode::INVALID_ARGUMENT,
+         "ListHistory: page_size must be 0 (50) to 500, got " +
+             std::to_string(request.page_size()));
+  std::int64_t before = 0;
+  if (!request.page_token().empty()) {
+    const auto& t = request.page_token();
+    auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), before);
+    if (ec != std::errc() || end != t.data() + t.size() || before <= 0)
+      fail(grpc::StatusCode::INVALID_ARGUMENT,
+           "ListHistory: page_token is not one this server gave (\"" + t.substr(0, 32) + "\")");
+  }
+  const std::size_t size = request.page_size() == 0 ? 50 : static_cast<std::size_t>(request.page_size());
+  pb::ListHistoryResponse out;
+  std::lock_guard lock(mutex_);
+  auto steps = history_.page(before, size + 1);
+  const bool more = steps.size() > size;
+  if (more) steps.pop_back();
+  for (auto& st : steps) *out.add_steps() = std::move(st);
+  if (more) out.set_next_page_token(std::to_string(out.steps(out.steps_size() - 1).id()));
+  out.set_total(history_.size());
+  return out;
+}
+
+pb::NamedSnapshot Session::save_snapshot(const pb::SaveSnapshotRequest& request) {
+  touch();
+  check_snapshot_name(request.snapshot(), "SaveSnapshot");
+  pb::NamedSnapshot named;
+  named.set_name(request.snapshot());
+  named.set_author(author_of(request.client_id()));
+  named.set_time_unix_ms(unix_ms_now());
+  std::int64_t version = 0;
+  *named.mutable_snapshot() = export_snapshot(false, &version);
+  named.set_version(version);
+  std::lock_guard lock(mutex_);
+  if (!snapshots_.count(request.snapshot()))
+    check_limit(snapshots_.size() + 1, limits_.max_snapshots, "named snapshots of " + name_,
+                "--max-snapshots");
+  snapshots_[request.snapshot()] = named;
+  return named;
+}
+
+pb::ListSnapshotsResponse Session::list_snapshots() const {
+  pb::ListSnapshotsResponse out;
+  std::lock_guard lock(mutex_);
+  for (const auto& [name, snap] : snapshots_) *out.add_snapshots() = snap;
+  return out;
+}
+
+void Session::delete_snapshot(const std::string& snapshot) {
+  touch();
+  std::lock_guard lock(mutex_);
+  if (snapshots_.erase(snapshot) == 0)
+    fail(grpc::StatusCode::NOT_FOUND, "DeleteSnapshot: " + name_ + " has no snapshot named '" +
+                                          snapshot.substr(0, 64) + "'");
+}
+
+void Session::adopt_snapshots(
+    const google::protobuf::RepeatedPtrField<pb::NamedSnapshot>& snapshots) {
+  std::lock_guard lock(mutex_);
+  for (const auto& s : snapshots) snapshots_[s.name()] = s;
+}
+
+pb::Session Session::restore_snapshot(const pb::RestoreSnapshotRequest& request) {
+  touch();
+  pb::NamedSnapshot named;
+  EditState target;
+  {
+    std::lock_guard lock(mutex_);
+    check_config_version_locked(request.expected_config_version());
+    auto it = snapshots_.find(request.snapshot());
+    if (it == snapshots_.end())
+      fail(grpc::StatusCode::NOT_FOUND, "RestoreSnapshot: " + name_ + " has no snapshot named '" +
+                                            request.snapshot().substr(0, 64) + "'");
+    named = it->second;
+    target = edit_state_locked();
+  }
+  const pb::Snapshot& snap = named.snapshot();
+  std::shared_ptr<const ConstraintSet> cs;
+  target.cs_key.clear();
+  target.given.reset();
+  target.transforms.clear();
+  if (snap.has_constraints() &&
+      (snap.constraints().fixed().selectors_size() > 0 || snap.constraints().handles_size() > 0)) {
+    cs = constraint_set_of(snap.constraints(), &target.cs_key);
+    target.given = std::make_shared<const pb::Constraints>(snap.constraints());
+    target.transforms = snap.transforms_size() > 0
+                            ? from_proto(snap.transforms(), *cs)
+                            : std::vector<HandleTransform>(cs->num_handles());
+  }
+  target.beta = snap.has_beta() ? parse_beta(snap.beta(), true) : SessionBeta{};
+  Step step;
+  step.info.set_kind(pb::STEP_KIND_RESTORE);
+  step.info.set_client_id(request.client_id());
+  step.info.set_snapshot(named.name());
+  step.info.set_summary("restored snapshot '" + named.name() + "'");
+  step.constraints = true;
+  step.beta = true;
+  return commit_edit(std::move(target), std::move(cs), std::move(step), true);
+}
+
+void Session::broadcast_step(const pb::HistoryStep& step) {
+  if (observers() == 0) return;
+  auto event = std::make_shared<pb::SessionEvent>();
+  *event->mutable_step() = step;
+  broadcast(std::move(event));
+}
+
+void Session::broadcast_frame(const std::string& client_id) {
+  std::shared_ptr<const ConstraintSet> cs;
+  SessionBeta beta;
+  std::vector<HandleTransform> transforms;
+  std::int64_t version = 0;
+  {
+    std::lock_guard lock(mutex_);
+    cs = cs_;
+    beta = beta_;
+    transforms = transforms_;
+    version = version_;
+  }
+  if (!cs) return;
+  const auto t0 = std::chrono::steady_clock::now();
+  Update u;
+  u.energies = true;
+  std::shared_ptr<hdeform::Frame> frame = solve_move(*cs, transforms, beta, u);
+  auto out = std::make_shared<pb::Frame>();
+  mesh_->layout->fill(*frame, out.get());
+  out->set_session(name_);
+  out->set_version(version);
+  out->set_client_id(client_id);
+  for (const auto& t : transforms) to_proto(t, out->add_transforms());
+  beta_to_proto(beta, out->mutable_beta(), false);
+  out->set_solve_ms(
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+  {
+    std::lock_guard lock(mutex_);
+    if (version == version_ && cs == cs_) {
+      last_frame_ = frame;
+      last_frame_version_ = version;
+    }
+  }
+  if (observers() == 0) return;
+  auto event = std::make_shared<pb::SessionEvent>();
+  *event->mutable_frame() = *out;
+  broadcast(std::move(event));
+}
+
 pb::Presence Session::presence() const {
   pb::Presence out;
   roster_.describe(&out);
@@ -653,6 +1015,7 @@ void Session::join(const pb::Participant& who, bool editor) {
 
 void Session::leave(const std::string& client_id) {
   if (roster_.leave(client_id) && !closed_) broadcast_presence();
+  close_drag(client_id);  // a vanished client's drag ends where it stopped
 }
 
 pb::GrabHandlesResponse Session::grab(const pb::GrabHandlesRequest& request, bool editor) {
@@ -679,6 +1042,7 @@ pb::GrabHandlesResponse Session::release(const pb::ReleaseHandlesRequest& reques
   Roster::check_participant(who, "ReleaseHandles");
   const std::vector<int> handles = handle_indices(request.handles(), "ReleaseHandles");
   if (roster_.release(request.client_id(), handles)) broadcast_presence();
+  close_drag(request.client_id());
   pb::GrabHandlesResponse out;
   *out.mutable_presence() = presence();
   return out;

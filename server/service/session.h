@@ -9,6 +9,7 @@
 #include "deformer.h"
 #include "hdeform/v1/deform.pb.h"
 #include "mesh_library.h"
+#include "history.h"
 #include "request_limits.h"
 #include "roster.h"
 #include "worker_pool.h"
@@ -18,6 +19,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -38,22 +40,6 @@ class EventSink {
   virtual void close() = 0;  // the session is gone (after a `deleted` event)
 };
 
-// β as a session holds it: the uniform value (the pick, when automatic) and the local
-// regularization entries, as given (for Session/Frame/Snapshot) and resolved on the rest
-// mesh to a per-triangle field.
-struct SessionBeta {
-  Beta uniform;
-  bool automatic = false;
-  google::protobuf::RepeatedPtrField<pb::LocalBeta> local;  // as given
-  // Per triangle, the largest local entry covering it (in uniform.units); null: no entries.
-  std::shared_ptr<const Eigen::VectorXd> local_max;
-  // max(uniform.value, local_max) per triangle; null: no entries (a uniform β).
-  std::shared_ptr<const LocalBeta> field;
-
-  bool has_local() const { return local_max != nullptr; }
-  bool same_as(const SessionBeta& other) const;
-};
-
 class Session : public std::enable_shared_from_this<Session> {
  public:
   Session(std::string id, std::shared_ptr<const MeshRef> mesh, WorkerPool& pool, Cache& cache,
@@ -68,10 +54,26 @@ class Session : public std::enable_shared_from_this<Session> {
 
   // ---- blocking: call on the strand. Throw ServiceError / InvalidInput. ----
   // expected_config_version (0: any): ABORTED unless no constraint or β change came since.
+  // `client_id`: the author recorded in the history (empty: anonymous).
   pb::Session set_constraints(const pb::Constraints& constraints, std::int64_t expected_version,
-                              std::int64_t expected_config_version = 0);
+                              std::int64_t expected_config_version = 0,
+                              const std::string& client_id = "");
   pb::Session set_beta(const pb::Beta& beta, std::int64_t expected_version,
-                       std::int64_t expected_config_version = 0);
+                       std::int64_t expected_config_version = 0,
+                       const std::string& client_id = "");
+
+  // History and named snapshots (history.h; docs/api.md "History and snapshots"). Each
+  // change is a new step that every watcher sees; undo and redo are refused (ABORTED) when a
+  // later change touched what they would revert.
+  pb::Session undo(const pb::UndoRequest& request);
+  pb::Session redo(const pb::UndoRequest& request);
+  pb::ListHistoryResponse list_history(const pb::ListHistoryRequest& request) const;
+  pb::NamedSnapshot save_snapshot(const pb::SaveSnapshotRequest& request);
+  pb::ListSnapshotsResponse list_snapshots() const;
+  pb::Session restore_snapshot(const pb::RestoreSnapshotRequest& request);
+  void delete_snapshot(const std::string& snapshot);
+  // Durable state: the named snapshots as stored (a fresh session only).
+  void adopt_snapshots(const google::protobuf::RepeatedPtrField<pb::NamedSnapshot>& snapshots);
 
   struct Update {
     std::int64_t sequence = 0;
@@ -184,11 +186,26 @@ class Session : public std::enable_shared_from_this<Session> {
     SessionBeta beta;
     std::string key;
     std::vector<HandleTransform> transforms;
+    std::vector<int> moved;  // the handles the update changes
   };
   Move begin_move(const Update& u);
   std::vector<int> handle_indices(const google::protobuf::RepeatedField<std::int32_t>& handles,
                                   const char* op) const;
   void broadcast_presence();
+  void broadcast_step(const pb::HistoryStep& step);
+  // A frame of the current state to every watcher (after undo, redo, restore).
+  void broadcast_frame(const std::string& client_id);
+  EditState edit_state_locked() const;
+  // The constraint set `given` resolves to, from the cache or built; `key` gets its key.
+  std::shared_ptr<const ConstraintSet> constraint_set_of(const pb::Constraints& given,
+                                                         std::string* key);
+  // Makes `target` the session's state as one history step (`step`: kind, what changed,
+  // author): builds what it needs first (constraint set `cs`, or resolved when null and the
+  // key differs; the β factorization), then commits, records and tells the watchers.
+  pb::Session commit_edit(EditState target, std::shared_ptr<const ConstraintSet> cs, Step step,
+                          bool send_frame);
+  std::string author_of(const std::string& client_id) const;
+  void close_drag(const std::string& client_id);  // an open drag becomes its step
   void describe_locked(pb::Session* out) const;
   // A state change under the lock: new version, stale frame dropped, `out` describes it.
   void changed_locked(pb::Session* out);
@@ -221,7 +238,10 @@ class Session : public std::enable_shared_from_this<Session> {
   mutable std::mutex mutex_;  // guards everything below
   std::shared_ptr<const ConstraintSet> cs_;
   std::string cs_key_;
-  pb::Constraints given_;  // constraints as the client gave them (for snapshots)
+  // Constraints as the client gave them (snapshots, history).
+  std::shared_ptr<const pb::Constraints> given_;
+  History history_;
+  std::map<std::string, pb::NamedSnapshot> snapshots_;  // by name
   SessionBeta beta_;
   std::vector<HandleTransform> transforms_;
   std::int64_t version_ = 1;

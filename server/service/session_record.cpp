@@ -16,6 +16,8 @@ hdeform::state::StoredSession make_record(const Session& session, const std::str
   r.set_edit_token_sha256(t.edit.data(), t.edit.size());
   r.set_view_token_sha256(t.view.data(), t.view.size());
   *r.mutable_described() = session.describe();
+  pb::ListSnapshotsResponse named = session.list_snapshots();
+  r.mutable_snapshots()->Swap(named.mutable_snapshots());
   r.set_create_time_unix_ms(r.described().create_time_unix_ms());
   r.set_update_time_unix_ms(r.described().update_time_unix_ms());
   r.set_last_used_unix_ms(last_used_unix_ms);

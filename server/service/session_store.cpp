@@ -202,6 +202,7 @@ std::shared_ptr<Session> SessionStore::restore(const std::string& id) const {
     auto mesh = persistence_.load_mesh(record.snapshot(), record.mesh_key());
     s = std::make_shared<Session>(id, std::move(mesh), pool_, cache_, limits_.request);
     s->restore(record.snapshot());
+    s->adopt_snapshots(record.snapshots());
   } catch (const StateError& e) {
     spdlog::error("restoring sessions/{}: {}", id, e.what());
     fail(grpc::StatusCode::UNAVAILABLE, "sessions/" + id + " cannot be restored: " + e.what());

@@ -1,8 +1,8 @@
 // Several editors in one session (docs/api.md "Several editors"): updates that name their
 // handles, grabs with leases, presence on the watch stream, and stale constraint / β changes
 // refused. A real server over loopback; the clients present real session tokens.
+#include "editors_fixture.h"
 #include "handle_update.h"
-#include "service_fixture.h"
 
 #include <condition_variable>
 #include <map>
@@ -12,89 +12,6 @@
 using namespace hdeform::testing;
 
 namespace {
-
-std::unique_ptr<grpc::ClientContext> as(const std::string& token) {
-  auto ctx = std::make_unique<grpc::ClientContext>();
-  ctx->AddMetadata("authorization", "Bearer " + token);
-  return ctx;
-}
-
-pb::Participant who(const std::string& id, const std::string& name) {
-  pb::Participant p;
-  p.set_client_id(id);
-  p.set_display_name(name);
-  return p;
-}
-
-pb::Selector box(double x0, double y0, double x1, double y1) {
-  pb::Selector s;
-  auto* b = s.mutable_box();
-  b->mutable_min()->set_x(x0);
-  b->mutable_min()->set_y(y0);
-  b->mutable_min()->set_z(-1);
-  b->mutable_max()->set_x(x1);
-  b->mutable_max()->set_y(y1);
-  b->mutable_max()->set_z(1);
-  return s;
-}
-
-// A 12×12 grid (x in [0, π], y in [0, e]) fixed along y = 0 with two handles at the far
-// corners: two editors can each drag their own.
-struct TwoHandles {
-  TestServer t;
-  pb::Session s;
-  TwoHandles() {
-    EXPECT_TRUE(t.upload(grid_off(12), "grid.off", &s).ok());
-    pb::Constraints c;
-    *c.mutable_fixed()->add_selectors() = box(-1, -0.01, 4, 0.01);
-    *c.add_handles()->add_selectors() = box(-0.01, 2.6, 0.3, 3);
-    *c.add_handles()->add_selectors() = box(2.9, 2.6, 3.2, 3);
-    pb::Session out;
-    const auto st = t.set_constraints(s.name(), c, &out);
-    EXPECT_TRUE(st.ok()) << st.error_message();
-    out.set_edit_token(s.edit_token());
-    out.set_view_token(s.view_token());
-    s = out;
-  }
-  grpc::Status update(const std::string& client, std::vector<int> handles,
-                      std::vector<pb::HandleTransform> ts, pb::Frame* out = nullptr,
-                      bool coalesce = false) {
-    pb::UpdateHandlesRequest r;
-    r.set_name(s.name());
-    r.set_client_id(client);
-    r.set_coalesce(coalesce);
-    for (int h : handles) r.add_handles(h);
-    for (auto& tr : ts) *r.add_transforms() = tr;
-    pb::Frame f;
-    return t.bare_stub->UpdateHandles(as(s.edit_token()).get(), r, out ? out : &f);
-  }
-  grpc::Status grab(const pb::Participant& p, std::vector<int> handles, int lease_ms = 0,
-                    pb::GrabHandlesResponse* out = nullptr, const std::string& token = "") {
-    pb::GrabHandlesRequest r;
-    r.set_name(s.name());
-    *r.mutable_client() = p;
-    for (int h : handles) r.add_handles(h);
-    r.set_lease_ms(lease_ms);
-    pb::GrabHandlesResponse resp;
-    return t.bare_stub->GrabHandles(as(token.empty() ? s.edit_token() : token).get(), r,
-                                    out ? out : &resp);
-  }
-  grpc::Status release(const std::string& client, std::vector<int> handles = {}) {
-    pb::ReleaseHandlesRequest r;
-    r.set_name(s.name());
-    r.set_client_id(client);
-    for (int h : handles) r.add_handles(h);
-    pb::GrabHandlesResponse resp;
-    return t.bare_stub->ReleaseHandles(as(s.edit_token()).get(), r, &resp);
-  }
-  pb::Session state() {
-    pb::Session now;
-    EXPECT_TRUE(t.get_session(s.name(), &now).ok());
-    return now;
-  }
-};
-
-double tz(const pb::Session& s, int handle) { return s.transforms(handle).translation().z(); }
 
 // Collects one client's WatchSession stream (presence and frames) on its own thread.
 struct PresenceWatcher {

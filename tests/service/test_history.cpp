@@ -1,0 +1,293 @@
+// History and named snapshots (docs/api.md "History and snapshots"): a drag is one step,
+// undo and redo are new visible steps that never silently lose another editor's later
+// change, snapshots are kept with the session (durably). Real server over loopback.
+#include "editors_fixture.h"
+
+#include <filesystem>
+
+using namespace hdeform::testing;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Editor {
+  TwoHandles& e;
+  std::string id;
+  grpc::Status undo(pb::Session* out = nullptr, std::int64_t step = 0) {
+    pb::UndoRequest r;
+    r.set_name(e.s.name());
+    r.set_client_id(id);
+    r.set_step(step);
+    pb::Session s;
+    return e.t.bare_stub->Undo(as(e.s.edit_token()).get(), r, out ? out : &s);
+  }
+  grpc::Status redo(pb::Session* out = nullptr) {
+    pb::UndoRequest r;
+    r.set_name(e.s.name());
+    r.set_client_id(id);
+    pb::Session s;
+    return e.t.bare_stub->Redo(as(e.s.edit_token()).get(), r, out ? out : &s);
+  }
+  // A drag of `handle` to z = `to` in three frames: one step.
+  void drag(int handle, double to) {
+    for (int i = 1; i <= 3; ++i)
+      ASSERT_TRUE(e.update(id, {handle}, {translation(0, 0, to * i / 3)}, nullptr, false, i < 3)
+                      .ok());
+  }
+};
+
+pb::ListHistoryResponse history(TwoHandles& e, int page_size = 0, const std::string& token = "") {
+  pb::ListHistoryRequest r;
+  r.set_name(e.s.name());
+  r.set_page_size(page_size);
+  r.set_page_token(token);
+  pb::ListHistoryResponse out;
+  const auto st = e.t.bare_stub->ListHistory(as(e.s.view_token()).get(), r, &out);
+  EXPECT_TRUE(st.ok()) << st.error_message();
+  return out;
+}
+
+grpc::Status save(TwoHandles& e, const std::string& name) {
+  pb::SaveSnapshotRequest r;
+  r.set_name(e.s.name());
+  r.set_snapshot(name);
+  r.set_client_id("alice");
+  pb::NamedSnapshot out;
+  return e.t.bare_stub->SaveSnapshot(as(e.s.edit_token()).get(), r, &out);
+}
+
+grpc::Status restore(TwoHandles& e, const std::string& name) {
+  pb::RestoreSnapshotRequest r;
+  r.set_name(e.s.name());
+  r.set_snapshot(name);
+  r.set_client_id("alice");
+  pb::Session out;
+  return e.t.bare_stub->RestoreSnapshot(as(e.s.edit_token()).get(), r, &out);
+}
+
+}  // namespace
+
+TEST(History, ADragIsOneStepWithItsAuthorAndUndoRedoAreStepsToo) {
+  TwoHandles e;
+  ASSERT_TRUE(e.grab(who("alice", "Alice"), {0}).ok());  // names her
+  Editor alice{e, "alice"};
+  alice.drag(0, 0.6);
+  auto h = history(e);
+  ASSERT_EQ(h.steps_size(), 2);  // the constraints, then the whole drag
+  EXPECT_EQ(h.steps(0).kind(), pb::STEP_KIND_MOVE);
+  EXPECT_EQ(h.steps(0).author(), "Alice");
+  EXPECT_EQ(h.steps(0).summary(), "moved handle 0");
+  EXPECT_GT(h.steps(0).time_unix_ms(), 0);
+  EXPECT_EQ(h.steps(1).kind(), pb::STEP_KIND_CONSTRAINTS);
+
+  pb::Session after;
+  auto st = alice.undo(&after);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_DOUBLE_EQ(tz(after, 0), 0.0);  // back to before the drag's first frame
+  h = history(e);
+  EXPECT_EQ(h.steps(0).kind(), pb::STEP_KIND_UNDO);
+  EXPECT_EQ(h.steps(0).target(), h.steps(1).id());
+  EXPECT_TRUE(h.steps(1).undone());
+
+  ASSERT_TRUE(alice.redo(&after).ok());
+  EXPECT_DOUBLE_EQ(tz(after, 0), 0.6);
+  EXPECT_EQ(history(e).steps(0).kind(), pb::STEP_KIND_REDO);
+  EXPECT_EQ(alice.redo().error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+  // Undo then a new change: the redo list is gone.
+  ASSERT_TRUE(alice.undo().ok());
+  alice.drag(0, 0.2);
+  EXPECT_EQ(alice.redo().error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+}
+
+TEST(History, UndoKeepsAnotherEditorsIndependentChange) {
+  TwoHandles e;
+  Editor alice{e, "alice"}, bob{e, "bob"};
+  alice.drag(0, 0.5);
+  bob.drag(1, -0.5);
+  pb::Session after;
+  ASSERT_TRUE(alice.undo(&after).ok());
+  EXPECT_DOUBLE_EQ(tz(after, 0), 0.0);
+  EXPECT_DOUBLE_EQ(tz(after, 1), -0.5);  // Bob's later move of another handle stays
+}
+
+TEST(History, UndoThatWouldLoseALaterChangeIsRefusedNamingIt) {
+  TwoHandles e;
+  ASSERT_TRUE(e.grab(who("bob", "Bob"), {1}).ok());
+  ASSERT_TRUE(e.release("bob").ok());
+  Editor alice{e, "alice"}, bob{e, "bob"};
+  alice.drag(1, 0.5);
+  bob.drag(1, 0.9);  // Bob moved the same handle after her
+  const auto before = e.state();
+  const auto st = alice.undo();
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::ABORTED);
+  EXPECT_NE(st.error_message().find("handle 1 changed since"), std::string::npos)
+      << st.error_message();
+  EXPECT_NE(st.error_message().find("Bob: moved handle 1"), std::string::npos)
+      << st.error_message();
+  EXPECT_EQ(e.state().version(), before.version());  // nothing changed
+  EXPECT_DOUBLE_EQ(tz(e.state(), 1), 0.9);
+  // Bob undoes his, then Alice's undo goes through.
+  ASSERT_TRUE(bob.undo().ok());
+  ASSERT_TRUE(alice.undo().ok());
+  EXPECT_DOUBLE_EQ(tz(e.state(), 1), 0.0);
+}
+
+TEST(History, BetaAndConstraintChangesUndo) {
+  TwoHandles e;
+  Editor alice{e, "alice"};
+  pb::SetBetaRequest b;
+  b.set_name(e.s.name());
+  b.mutable_beta()->set_value(0.25);
+  b.set_client_id("alice");
+  pb::Session out;
+  ASSERT_TRUE(e.t.bare_stub->SetBeta(as(e.s.edit_token()).get(), b, &out).ok());
+  const auto config = out.config_version();
+  EXPECT_EQ(history(e).steps(0).kind(), pb::STEP_KIND_BETA);
+  ASSERT_TRUE(alice.undo(&out).ok());
+  EXPECT_DOUBLE_EQ(out.beta().value(), 0.0);
+  EXPECT_GT(out.config_version(), config);  // a β change like any other
+  // Undo of the constraints (step 1, anonymous) by id: back to no constraints.
+  const auto h = history(e);
+  const std::int64_t first = h.steps(h.steps_size() - 1).id();
+  ASSERT_TRUE(alice.undo(&out, first).ok());
+  EXPECT_FALSE(out.constrained());
+  ASSERT_TRUE(alice.redo(&out).ok());
+  EXPECT_TRUE(out.constrained());
+  EXPECT_EQ(out.constraints().handles_size(), 2);
+}
+
+TEST(History, WatchersSeeStepsAndTheUndoneFrame) {
+  TwoHandles e;
+  Editor alice{e, "alice"};
+  alice.drag(0, 0.5);
+  grpc::ClientContext ctx;
+  ctx.AddMetadata("authorization", "Bearer " + e.s.view_token());
+  pb::WatchSessionRequest wr;
+  wr.set_name(e.s.name());
+  auto reader = e.t.bare_stub->WatchSession(&ctx, wr);
+  ASSERT_TRUE(alice.undo().ok());
+  pb::SessionEvent ev;
+  bool step = false, frame = false;
+  while ((!step || !frame) && reader->Read(&ev)) {
+    if (ev.has_step() && ev.step().kind() == pb::STEP_KIND_UNDO) step = true;
+    if (ev.has_frame() && step) {
+      frame = true;
+      ASSERT_EQ(ev.frame().transforms_size(), 2);
+      EXPECT_DOUBLE_EQ(ev.frame().transforms(0).translation().z(), 0.0);
+      EXPECT_FALSE(ev.frame().positions().empty());
+    }
+  }
+  EXPECT_TRUE(step && frame);
+  ctx.TryCancel();
+}
+
+TEST(History, PagesNewestFirstAndBadRequestsAreRefused) {
+  TwoHandles e;
+  Editor alice{e, "alice"};
+  for (int i = 1; i <= 4; ++i) ASSERT_TRUE(e.update("alice", {0}, {translation(0, 0, i)}).ok());
+  auto p1 = history(e, 2);
+  ASSERT_EQ(p1.steps_size(), 2);
+  EXPECT_EQ(p1.total(), 5);
+  EXPECT_GT(p1.steps(0).id(), p1.steps(1).id());
+  auto p2 = history(e, 2, p1.next_page_token());
+  ASSERT_EQ(p2.steps_size(), 2);
+  EXPECT_LT(p2.steps(0).id(), p1.steps(1).id());
+  auto p3 = history(e, 2, p2.next_page_token());
+  EXPECT_EQ(p3.steps_size(), 1);
+  EXPECT_TRUE(p3.next_page_token().empty());
+  for (const auto& [size, token] : std::vector<std::pair<int, std::string>>{
+           {501, ""}, {-1, ""}, {2, "abc"}, {2, "-3"}}) {
+    pb::ListHistoryRequest r;
+    r.set_name(e.s.name());
+    r.set_page_size(size);
+    r.set_page_token(token);
+    pb::ListHistoryResponse out;
+    EXPECT_EQ(e.t.bare_stub->ListHistory(as(e.s.view_token()).get(), r, &out).error_code(),
+              grpc::StatusCode::INVALID_ARGUMENT)
+        << size << " " << token;
+  }
+  Editor nobody{e, "nobody"};
+  const auto st = nobody.undo();
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+  EXPECT_NE(st.error_message().find("nothing to undo"), std::string::npos);
+  EXPECT_EQ(nobody.undo(nullptr, 999).error_code(), grpc::StatusCode::NOT_FOUND);
+  // The view token reads the history but cannot undo.
+  pb::UndoRequest r;
+  r.set_name(e.s.name());
+  pb::Session out;
+  EXPECT_EQ(e.t.bare_stub->Undo(as(e.s.view_token()).get(), r, &out).error_code(),
+            grpc::StatusCode::PERMISSION_DENIED);
+}
+
+TEST(Snapshots, SaveListRestoreDeleteAndRestoreIsUndoable) {
+  hdeform::service::ServerOptions o;
+  o.request.max_snapshots = 2;
+  TwoHandles e(o);
+  ASSERT_TRUE(e.update("alice", {0}, {translation(0, 0, 0.4)}).ok());
+  ASSERT_TRUE(save(e, "pose A").ok());
+  ASSERT_TRUE(e.update("alice", {0, 1}, {translation(0, 0, 1), translation(0, 0, 1)}).ok());
+  auto st = restore(e, "pose A");
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_DOUBLE_EQ(tz(e.state(), 0), 0.4);
+  EXPECT_DOUBLE_EQ(tz(e.state(), 1), 0.0);
+  EXPECT_EQ(history(e).steps(0).kind(), pb::STEP_KIND_RESTORE);
+  EXPECT_EQ(history(e).steps(0).snapshot(), "pose A");
+  Editor alice{e, "alice"};
+  ASSERT_TRUE(alice.undo().ok());
+  EXPECT_DOUBLE_EQ(tz(e.state(), 1), 1.0);
+
+  pb::ListSnapshotsRequest lr;
+  lr.set_name(e.s.name());
+  pb::ListSnapshotsResponse list;
+  ASSERT_TRUE(e.t.bare_stub->ListSnapshots(as(e.s.view_token()).get(), lr, &list).ok());
+  ASSERT_EQ(list.snapshots_size(), 1);
+  EXPECT_EQ(list.snapshots(0).name(), "pose A");
+  EXPECT_TRUE(list.snapshots(0).snapshot().mesh_bytes().empty());
+
+  ASSERT_TRUE(save(e, "pose B").ok());
+  ASSERT_TRUE(save(e, "pose B").ok());  // replacing is not a new one
+  st = save(e, "pose C");
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_NE(st.error_message().find("--max-snapshots"), std::string::npos) << st.error_message();
+  EXPECT_EQ(save(e, "").error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(save(e, std::string(65, 'x')).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(save(e, "a\nb").error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(restore(e, "nope").error_code(), grpc::StatusCode::NOT_FOUND);
+
+  pb::DeleteSnapshotRequest d;
+  d.set_name(e.s.name());
+  d.set_snapshot("pose A");
+  pb::DeleteSnapshotResponse dr;
+  ASSERT_TRUE(e.t.bare_stub->DeleteSnapshot(as(e.s.edit_token()).get(), d, &dr).ok());
+  EXPECT_EQ(e.t.bare_stub->DeleteSnapshot(as(e.s.edit_token()).get(), d, &dr).error_code(),
+            grpc::StatusCode::NOT_FOUND);
+  EXPECT_EQ(restore(e, "pose A").error_code(), grpc::StatusCode::NOT_FOUND);
+}
+
+TEST(Snapshots, AreDurableWithTheSession) {
+  char tmpl[] = "/tmp/hdeform-snapshots-XXXXXX";
+  const fs::path dir = ::mkdtemp(tmpl);
+  hdeform::service::ServerOptions o;
+  o.state_dir = (dir / "state").string();
+  std::string name, edit, view;
+  {
+    TwoHandles e(o);
+    name = e.s.name();
+    edit = e.s.edit_token();
+    view = e.s.view_token();
+    ASSERT_TRUE(e.update("alice", {1}, {translation(0, 0, 0.7)}).ok());
+    ASSERT_TRUE(save(e, "kept").ok());
+  }
+  {
+    TestServer t(o);  // a restarted server on the same state
+    pb::ListSnapshotsRequest lr;
+    lr.set_name(name);
+    pb::ListSnapshotsResponse list;
+    const auto st = t.bare_stub->ListSnapshots(as(view).get(), lr, &list);
+    ASSERT_TRUE(st.ok()) << st.error_message();
+    ASSERT_EQ(list.snapshots_size(), 1);
+    EXPECT_EQ(list.snapshots(0).name(), "kept");
+    EXPECT_DOUBLE_EQ(list.snapshots(0).snapshot().transforms(1).translation().z(), 0.7);
+  }
+  fs::remove_all(dir);
+}
