@@ -65,13 +65,13 @@ Command add_deform_command(CLI::App& app, const GlobalOptions& global) {
                 << info.vertex_count() << " vertices, " << info.triangle_count()
                 << " triangles, " << info.constraints().fixed().ids_size() << " fixed, "
                 << info.constraints().handles_size() << " handle(s); beta "
-                << g6(frame.beta().value()) << " (" << units_name
+                << shortest(frame.beta().value()) << " (" << units_name
                 << (frame.beta().automatic() ? ", automatic" : "") << ")";
       if (!o.c.local_betas.empty())
         std::cout << " + " << o.c.local_betas.size() << " local beta region(s)";
       std::cout << "; solve " << g6(frame.solve_ms()) << " ms\n";
       if (frame.beta().automatic())
-        std::cout << "automatic beta: picked " << g6(frame.beta().value()) << " (" << units_name
+        std::cout << "automatic beta: picked " << shortest(frame.beta().value()) << " (" << units_name
                   << " units)\n";
       print_measures(std::cout, frame.measures());
       if (!o.output.empty()) {

@@ -19,7 +19,7 @@ Command add_list_command(CLI::App& app, const GlobalOptions& global) {
       std::cout << s.name() << " mesh=" << s.mesh_name() << " vertices=" << s.vertex_count()
                 << " triangles=" << s.triangle_count() << " version=" << s.version()
                 << " handles=" << s.constraints().handles_size()
-                << " beta=" << g6(s.beta().value())
+                << " beta=" << shortest(s.beta().value())
                 << (s.beta().units() == pb::BETA_UNITS_RAW ? "(raw)" : "")
                 << " observers=" << s.observers() << "\n";
     std::cout.flush();

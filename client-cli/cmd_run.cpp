@@ -204,10 +204,10 @@ Command add_run_command(CLI::App& app, const GlobalOptions& global) {
       const bool picked = is_auto(beta) && frame;
       std::vector<std::string> row{
           shown(m.name), shown(c.name), shown(t.name),
-          picked ? g17(frame->beta().value()) : is_auto(beta) ? "auto" : g17(beta)};
+          picked ? shortest(frame->beta().value()) : is_auto(beta) ? "auto" : shortest(beta)};
       std::vector<std::string> trow{
           shown(m.name), shown(c.name), shown(t.name),
-          picked ? "auto=" + g6(frame->beta().value()) : beta_tag(beta)};
+          picked ? "auto=" + shortest(frame->beta().value()) : beta_tag(beta)};
       for (const auto& col : measure_columns()) {
         if (!frame) {
           row.emplace_back("");
@@ -294,23 +294,25 @@ Command add_run_command(CLI::App& app, const GlobalOptions& global) {
               const pb::Frame frame = is_auto(beta) ? s->deform(r.transforms[ti], seq, b)
                                                     : s->update(r.transforms[ti], seq);
               check_frame_finite(frame, t.where + " '" + shown(t.name) + "'");
-              std::string output;
+              std::string output, wrote;
               if (write_meshes) {
                 // A plain file name (names sanitized, collisions rejected by parse_job),
                 // checked again to land inside the output folder.
                 const std::string file = item_file_name(job, m, c, t, beta);
                 const fs::path path = output_path_inside(job.output_dir, file);
                 output = (fs::path(job.output_dir) / file).string();
-                s->download(path.string(), format);
+                const std::size_t bytes = s->download(path.string(), format);
+                wrote = "wrote " + output + " (" + std::to_string(bytes) + " bytes)";
               }
               const double ms = ms_since(start);
               record(m, c, t, beta, &frame, ms, output, "ok");
               std::string outcome = "ok " + std::to_string(std::lround(ms)) + " ms";
-              if (is_auto(beta)) outcome += " (picked \u03b2=" + g6(frame.beta().value()) + ")";
+              if (is_auto(beta)) outcome += " (picked \u03b2=" + shortest(frame.beta().value()) + ")";
               if (setup_ms > 0.5)
                 outcome += " (+" + std::to_string(std::lround(setup_ms)) + " ms constraints/\u03b2 setup)";
               setup_ms = 0;
               progress(m, c, t, beta, outcome);
+              if (!wrote.empty()) std::cerr << wrote << std::endl;
             } catch (const CliError& e) {
               ++failed;
               record(m, c, t, beta, nullptr, ms_since(start), "", e.what());
@@ -332,6 +334,7 @@ Command add_run_command(CLI::App& app, const GlobalOptions& global) {
     }
     const std::string summary_path = (fs::path(job.output_dir) / job.summary).string();
     write_file(output_path_inside(job.output_dir, job.summary).string(), csv);
+    std::cerr << "wrote " << summary_path << " (" << csv.size() << " bytes)" << std::endl;
 
     print_table(std::cout, table, 3);
     std::cout << "summary: " << summary_path << "\n";

@@ -55,23 +55,33 @@ Command add_sweep_command(CLI::App& app, const GlobalOptions& global) {
       if (spec) s.set_constraints(spec->constraints);
       // --local-beta: the session's local entries, applied at every swept β.
       if (!o.c.local_betas.empty()) s.set_beta(local);
-      const auto transforms = transforms_for(o.c, s, spec.get());
+      // An existing session without transform options sweeps at its current pose: no
+      // transforms in the request (SweepRequest: empty = the session's current transforms).
+      const auto transforms = keeps_pose(o.c, spec.get())
+                                  ? std::vector<pb::HandleTransform>{}
+                                  : transforms_for(o.c, s, spec.get());
       const pb::SweepResponse resp = s.sweep(betas, units, transforms);
       for (const auto& r : resp.rows()) rows.push_back({r.beta(), r.measures()});
     });
 
     const pb::Session& info = w.client->info();
     const std::string mesh_name = info.mesh_name().empty() ? o.mesh : info.mesh_name();
+    // "wrote FILE" goes to stderr: stdout is the table or the CSV, for scripts to read.
+    auto write = [](const std::string& path, const std::string& bytes) {
+      write_file(path, bytes);
+      std::cerr << "wrote " << path << " (" << bytes.size() << " bytes)\n";
+    };
     if (o.csv == "-") {
       std::cout << sweep_csv(rows);
     } else {
       print_sweep_table(std::cout, rows);
-      if (!o.csv.empty()) write_file(o.csv, sweep_csv(rows));
+      std::cout.flush();
+      if (!o.csv.empty()) write(o.csv, sweep_csv(rows));
     }
     if (!o.svg.empty()) {
       const std::string title =
           !o.title.empty() ? o.title : mesh_name + ": measures against \u03b2";
-      write_file(o.svg, sweep_svg(rows, title, o.c.beta_units));
+      write(o.svg, sweep_svg(rows, title, o.c.beta_units));
     }
     std::cout.flush();
     return 0;

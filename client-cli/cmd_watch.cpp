@@ -39,7 +39,7 @@ std::string frame_encoding_name(pb::FrameEncoding e) {
 
 std::string frame_line(const pb::Frame& f) {
   std::ostringstream s;
-  s << "frame seq=" << f.sequence() << " version=" << f.version() << " beta=" << g6(f.beta().value())
+  s << "frame seq=" << f.sequence() << " version=" << f.version() << " beta=" << shortest(f.beta().value())
     << (f.beta().units() == pb::BETA_UNITS_RAW ? "(raw)" : "");
   for (const auto& c : measure_columns()) {
     const double v = c.get(f.measures());
@@ -55,7 +55,7 @@ std::string state_line(const pb::Session& st) {
   s << "state " << st.name() << " version=" << st.version() << " mesh=" << st.mesh_name()
     << " vertices=" << st.vertex_count() << " triangles=" << st.triangle_count()
     << " fixed=" << st.constraints().fixed().ids_size()
-    << " handles=" << st.constraints().handles_size() << " beta=" << g6(st.beta().value())
+    << " handles=" << st.constraints().handles_size() << " beta=" << shortest(st.beta().value())
     << (st.beta().units() == pb::BETA_UNITS_RAW ? "(raw)" : "") << " observers=" << st.observers();
   return s.str();
 }

@@ -17,5 +17,7 @@ Command add_sweep_command(CLI::App& app, const GlobalOptions& global);
 Command add_run_command(CLI::App& app, const GlobalOptions& global);
 Command add_watch_command(CLI::App& app, const GlobalOptions& global);
 Command add_list_command(CLI::App& app, const GlobalOptions& global);
+Command add_sessions_command(CLI::App& app, const GlobalOptions& global);
+Command add_meshes_command(CLI::App& app, const GlobalOptions& global);
 
 }  // namespace hdeform::cli

@@ -144,8 +144,10 @@ class SessionClient {
  private:
   SessionClient(Connection& conn, std::string name, std::string key, pb::Session info);
   double timeout() const { return conn_->options().call_timeout_s; }
-  // One call on this session with the retry policy; throws RpcError on failure.
-  void call(const char* rpc, const Connection::Attempt& attempt, double timeout_s);
+  // One call on this session with the retry policy; throws RpcError on failure. `doing`
+  // describes the work for the terminal's status line (progress.h).
+  void call(const char* rpc, const Connection::Attempt& attempt, double timeout_s,
+            const std::string& doing = "");
 
   Connection* conn_;
   std::string name_;

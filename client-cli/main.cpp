@@ -1,6 +1,6 @@
 // hdeform — the command-line client of hdeform.v1 (docs/cli.md).
 //
-//   hdeform [--server HOST:PORT] [--token T] [--tls-ca F] [--log-level L] deform|sweep|run|watch|list …
+//   hdeform [--server HOST:PORT] [--token T] [--tls-ca F] [--log-level L] deform|sweep|run|watch|list|sessions|meshes …
 //
 // Without --server the same service runs in-process (hdeform::service::Server with no TCP
 // port) and the commands talk to it over its in-process channel.
@@ -77,6 +77,8 @@ int main(int argc, char** argv) {
   reg(add_run_command);
   reg(add_watch_command);
   reg(add_list_command);
+  reg(add_sessions_command);
+  reg(add_meshes_command);
 
   try {
     app.parse(argc, argv);

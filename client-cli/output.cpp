@@ -1,6 +1,7 @@
 #include "output.h"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
@@ -25,6 +26,12 @@ std::string g17(double v) {
   char buf[64];
   std::snprintf(buf, sizeof buf, "%.17g", v);
   return buf;
+}
+
+std::string shortest(double v) {
+  char buf[64];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, r.ptr);
 }
 
 std::string g6(double v) {
@@ -64,7 +71,7 @@ std::string sweep_csv_header() {
 std::string sweep_csv(const std::vector<SweepPoint>& rows) {
   std::string s = sweep_csv_header() + "\n";
   for (const auto& r : rows) {
-    s += g17(r.beta);
+    s += shortest(r.beta);
     for (const auto& c : measure_columns()) {
       const double v = c.get(r.measures);
       s += ",";
@@ -100,7 +107,7 @@ void print_sweep_table(std::ostream& out, const std::vector<SweepPoint>& rows) {
   for (const auto& c : measure_columns()) header.emplace_back(c.label);
   t.push_back(header);
   for (const auto& r : rows) {
-    std::vector<std::string> row{g6(r.beta)};
+    std::vector<std::string> row{shortest(r.beta)};
     for (const auto& c : measure_columns()) {
       const double v = c.get(r.measures);
       row.push_back(c.integer ? std::to_string(static_cast<long long>(v)) : g6(v));
@@ -261,7 +268,7 @@ std::string sweep_svg(const std::vector<SweepPoint>& rows, const std::string& ti
       const double v = c.get(p.measures);
       if (!std::isfinite(v)) continue;
       s << "<circle cx=\"" << num(X(p.beta)) << "\" cy=\"" << num(Y(v))
-        << "\" r=\"2.8\" fill=\"#1f77b4\"><title>\u03b2=" << g6(p.beta) << ": " << g6(v)
+        << "\" r=\"2.8\" fill=\"#1f77b4\"><title>\u03b2=" << shortest(p.beta) << ": " << g6(v)
         << "</title></circle>\n";
     }
     s << "</g>\n";

@@ -20,6 +20,9 @@ const std::vector<MeasureColumn>& measure_columns();
 
 // "%.17g"
 std::string g17(double v);
+// The shortest text that reads back as exactly v (std::to_chars): 0.1, not
+// 0.10000000000000001. For β, which people type and compare.
+std::string shortest(double v);
 // A short human form ("%.6g").
 std::string g6(double v);
 // RFC 4180 quoting when needed.

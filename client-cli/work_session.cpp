@@ -68,13 +68,24 @@ void check_mesh_or_session(const std::string& mesh, const ConstraintOptions& c,
   }
 }
 
-// Transforms for the session's handles: the spec's when regions were given, else the
-// options' transform for each of the existing session's handles.
+bool has_transform_options(const ConstraintOptions& c) {
+  return !c.rotate.empty() || !c.translate.empty() || !c.scale.empty() || !c.pivot.empty() ||
+         !c.def_file.empty();
+}
+
+bool keeps_pose(const ConstraintOptions& c, const ConstraintSpec* spec) {
+  return !spec && !has_transform_options(c);
+}
+
 std::vector<pb::HandleTransform> transforms_for(const ConstraintOptions& c, SessionClient& s,
                                                 const ConstraintSpec* spec) {
   if (spec) return spec->transforms;
   const int handles = s.info().constraints().handles_size();
   if (handles == 0) throw CliError(s.name() + " has no constraints: give --sel or --handle");
+  // No transform options on an existing session: its current pose, not the rest pose.
+  if (!has_transform_options(c) && s.info().transforms_size() == handles)
+    return {s.info().transforms().begin(), s.info().transforms().end()};
+  // Transform options replace the session's transforms (they do not compose with them).
   TransformText text{c.rotate, c.translate, c.scale, c.pivot, c.def_file};
   return std::vector<pb::HandleTransform>(static_cast<std::size_t>(handles),
                                           parse_transform(text, "transform"));

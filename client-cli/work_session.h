@@ -32,9 +32,14 @@ std::unique_ptr<ConstraintSpec> constraint_spec_for(const ConstraintOptions& c);
 // throws, the created session is removed (unless keep) and the exception goes on.
 void run_in_work_session(const Connection& conn, WorkSession& w, bool keep,
                          std::ostream& keep_out, const std::function<void(SessionClient&)>& body);
-// One transform per handle: the spec's when regions were given (spec != nullptr), else the
-// options' transform for each handle the existing session already has.
+// One transform per handle: the spec's when regions were given (spec != nullptr); else, on an
+// existing session, the transform options' transform for each of its handles (replacing its
+// current ones), or its current transforms when no transform option was given.
 std::vector<pb::HandleTransform> transforms_for(const ConstraintOptions& c, SessionClient& s,
                                                 const ConstraintSpec* spec);
+// Any of --rotate/--translate/--scale/--pivot/--def given?
+bool has_transform_options(const ConstraintOptions& c);
+// True when an existing session is used as it stands: no regions, no transform options.
+bool keeps_pose(const ConstraintOptions& c, const ConstraintSpec* spec);
 
 }  // namespace hdeform::cli

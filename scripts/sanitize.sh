@@ -2,7 +2,7 @@
 # AddressSanitizer + UBSan pass over the engine, service and security suites, and the
 # libFuzzer smoke runs (tests/fuzz: every reader, .sel/.def, job files, gRPC-Web frames over
 # their seed corpora) in the same build (clang++: g++ with sanitizers compiles the
-# template-heavy code several times slower, TOOLCHAIN.md).
+# template-heavy code several times slower).
 #   HDEFORM_FUZZ_SMOKE_SECONDS (default 10): seconds per fuzz target.
 source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 BUILD="${HDEFORM_ASAN_BUILD_DIR:-$ROOT/build-asan}"

@@ -5,6 +5,6 @@ source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 install_deps
 configure -DHDEFORM_BUILD_TESTS=ON -DHDEFORM_BUILD_BENCH=ON
 build
-bash "$ROOT/scripts/check-suites.sh" "$BUILD" engine service security cli gateway routing browser python bench-smoke
+bash "$ROOT/scripts/check-suites.sh" "$BUILD" engine service security cli docs gateway routing browser python bench-smoke
 cd "$BUILD"
 ctest --output-on-failure -j "$JOBS" --timeout 600 "$@"

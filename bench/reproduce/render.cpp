@@ -2,7 +2,7 @@
 
 #include <Eigen/Geometry>
 
-#include <stb/stb_image_write.h>
+#include "write_if_changed.h"
 
 #include <algorithm>
 #include <cmath>
@@ -70,8 +70,7 @@ void render_png(const std::string& path, const Vertices& V, const Triangles& F,
           rgb[3 * i + c] = static_cast<unsigned char>(std::clamp(colour[c], 0.f, 1.f) * 255.f + 0.5f);
       }
   }
-  if (!stbi_write_png(path.c_str(), N, N, 3, rgb.data(), N * 3))
-    throw std::runtime_error("cannot write " + path);
+  write_png_if_changed(path, N, N, rgb.data());
 }
 
 }  // namespace hdeform::report

@@ -20,7 +20,8 @@ struct View {
 // truncate = max value gives the linear mapping (LM), smaller the truncated one (TLM).
 Eigen::Vector3f energy_colour(double value, double truncate);
 
-// Renders V/F with per-triangle colours (m×3, in [0, 1]) and writes a PNG.
+// Renders V/F with per-triangle colours (m×3, in [0, 1]) and writes a PNG (unless the file
+// already has these pixels: write_if_changed.h).
 void render_png(const std::string& path, const Vertices& V, const Triangles& F,
                 const Eigen::MatrixX3f& colours, const View& view);
 

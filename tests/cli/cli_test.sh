@@ -7,7 +7,9 @@
 # --server, and watch), run-sessions (a job with 3 meshes on a --max-sessions 1 server),
 # tokens (a kept session's edit/view tokens used by later runs), tls (--tls-ca against a
 # server with a certificate made here with openssl) and restart (a session survives kill -9
-# of a server with --state-dir; watch and an in-flight call retry).
+# of a server with --state-dir; watch and an in-flight call retry), sessions (sessions
+# list/get/delete/export/import and meshes against a real server, sweep --session at a moved
+# pose, their bad inputs) and progress (the status line only when stderr is a terminal).
 # Every server started here gets --no-state (or a --state-dir in $TMP): never the user's
 # ~/.local/share/hdeform.
 set -uo pipefail
@@ -145,8 +147,19 @@ deform)
   ;;
 sweep)
   "$HDEFORM" sweep cactus --sel "$BS/cactus.sel" --def "$BS/cactus.def" --betas 0,0.1,0.25 \
-    --csv "$TMP/sweep.csv" --svg "$TMP/sweep.svg" >"$TMP/out" || fail "sweep exited $?"
-  cat "$TMP/out"
+    --csv "$TMP/sweep.csv" --svg "$TMP/sweep.svg" >"$TMP/out" 2>"$TMP/err" || fail "sweep exited $?"
+  cat "$TMP/out" "$TMP/err"
+  # every output file is announced (on stderr: stdout is the table)
+  grep -qx "wrote $TMP/sweep.csv ([0-9]* bytes)" "$TMP/err" || fail "no 'wrote …sweep.csv'"
+  grep -qx "wrote $TMP/sweep.svg ([0-9]* bytes)" "$TMP/err" || fail "no 'wrote …sweep.svg'"
+  # β without float noise: 0.1 is "0.1" in the CSV and the table, never 0.10000000000000001
+  [ "$(cut -d, -f1 "$TMP/sweep.csv" | tr '\n' ' ')" = "beta 0 0.1 0.25 " ] \
+    || fail "CSV beta column: $(cut -d, -f1 "$TMP/sweep.csv" | tr '\n' ' ')"
+  [ "$(awk 'NR > 1 { print $1 }' "$TMP/out" | tr '\n' ' ')" = "0 0.1 0.25 " ] || fail "table beta column"
+  "$HDEFORM" sweep cactus --sel "$BS/cactus.sel" --betas 0.3,0.7,0.123456789 --csv - >"$TMP/b.csv" \
+    || fail "sweep exited $?"
+  [ "$(cut -d, -f1 "$TMP/b.csv" | tr '\n' ' ')" = "beta 0.3 0.7 0.123456789 " ] \
+    || fail "CSV beta column: $(cut -d, -f1 "$TMP/b.csv" | tr '\n' ' ')"
   [ "$(wc -l <"$TMP/out")" -eq 4 ] || fail "table: expected a header and 3 rows"
   head -1 "$TMP/out" | grep -q 'beta.*E_iso^N.*flips' || fail "table header"
   $CHECK sweep-csv "$TMP/sweep.csv" 0,0.1,0.25 || fail "bad CSV"
@@ -164,6 +177,12 @@ run)
     || fail "expected 8 progress lines ending in 'ok N ms'"
   $CHECK summary "$TMP/out-small/summary.csv" 8 || fail "bad summary"
   [ "$(ls "$TMP"/out-small/*.glb | wc -l)" -eq 8 ] || fail "expected 8 GLB files"
+  # every file written is announced on stderr; β in the summary without float noise
+  for f in "$TMP"/out-small/*.glb "$TMP/out-small/summary.csv"; do
+    grep -qx "wrote $f ([0-9]* bytes)" "$TMP/progress" || fail "no 'wrote $f'"
+  done
+  [ "$(cut -d, -f4 "$TMP/out-small/summary.csv" | sort -u | tr '\n' ' ')" = "0 0.1 beta " ] \
+    || fail "summary beta column: $(cut -d, -f4 "$TMP/out-small/summary.csv" | sort -u | tr '\n' ' ')"
   # More meshes than the in-process service's 64 sessions: each session is deleted when its
   # items are done.
   "$PY" -c 'import json, sys; json.dump({"format": "none", "meshes": [{"name": "m%d" % i, "library": "cactus"} for i in range(65)], "constraints": [{"fixed": "half:0,0,-1,-0.15", "handles": ["half:0,0,1,0.8"]}], "transforms": [{"translate": [0, 0, 0.01]}]}, sys.stdout)' \
@@ -480,6 +499,163 @@ restart)
   kill "$WATCH_PID" 2>/dev/null; wait "$WATCH_PID" 2>/dev/null; WATCH_PID=""
   # the tokens were never printed by the CLI's logs
   if grep -qF -- "$EDIT" "$TMP/watch.err" "$TMP/sweep.err" "$TMP/err"; then fail "a token in a log"; fi
+  ;;
+sessions)
+  start_server
+  cd "$TMP" || exit 1
+  R=(--server "$ADDR")
+  "$HDEFORM" "${R[@]}" deform cactus --sel "$BS/cactus.sel" --keep >kept || fail "deform --keep exited $?"
+  keep_session kept
+  # Move the kept session away from its rest pose.
+  MOVE=(--translate 0,0.05,0.02 --rotate x,25)
+  "$HDEFORM" "${R[@]}" --token "$EDIT" deform --session "$SESSION" "${MOVE[@]}" >/dev/null \
+    || fail "deform --session exited $?"
+  # sweep --session without transform options: at the session's current (moved) pose. It
+  # equals a sweep with the same transforms given explicitly, and differs from the rest pose.
+  "$HDEFORM" "${R[@]}" --token "$EDIT" sweep --session "$SESSION" --betas 0,0.1 --csv current.csv \
+    >/dev/null 2>err || { cat err >&2; fail "sweep --session exited $?"; }
+  grep -qx "wrote current.csv ([0-9]* bytes)" err || fail "sweep: no 'wrote current.csv'"
+  "$HDEFORM" "${R[@]}" --token "$EDIT" sweep --session "$SESSION" --betas 0,0.1 "${MOVE[@]}" \
+    --csv explicit.csv >/dev/null 2>&1 || fail "sweep --session with transforms exited $?"
+  "$HDEFORM" "${R[@]}" --token "$EDIT" sweep --session "$SESSION" --betas 0,0.1 --translate 0,0,0 \
+    --csv rest.csv >/dev/null 2>&1 || fail "sweep --session at identity exited $?"
+  cat current.csv rest.csv
+  $CHECK sweep-csv current.csv 0,0.1 || fail "bad CSV"
+  diff current.csv explicit.csv >/dev/null || fail "sweep at the current pose != sweep with its transforms given"
+  [ "$(sed -n 2p current.csv)" != "$(sed -n 2p rest.csv)" ] || fail "sweep --session swept at the rest pose"
+  # the sweeps left the session's pose as it was (transform options replace, for the sweep only)
+  "$HDEFORM" "${R[@]}" --token "$EDIT" sweep --session "$SESSION" --betas 0,0.1 --csv again.csv \
+    >/dev/null 2>&1 || fail "sweep exited $?"
+  diff current.csv again.csv >/dev/null || fail "a sweep with transform options moved the session"
+
+  # sessions list / get (the view token is enough), text and JSON
+  "$HDEFORM" "${R[@]}" --token "$VIEW" sessions list >list || fail "sessions list exited $?"
+  cat list
+  head -1 list | grep -Eq '^name +mesh +vertices +version +observers +updated$' || fail "sessions list header"
+  [ "$(wc -l <list)" -eq 2 ] || fail "sessions list: expected one row"
+  grep -Eq "^$SESSION +cactus +5261 +[0-9]+ +0 +20[0-9]{2}-[0-9]{2}-[0-9]{2}T[0-9:]{8}Z$" list \
+    || fail "sessions list row"
+  "$HDEFORM" "${R[@]}" --token "$VIEW" sessions list --json >list.json || fail "sessions list --json exited $?"
+  "$PY" - "$SESSION" <<'PY' || fail "sessions list --json"
+import json, sys
+a = json.load(open("list.json"))
+assert len(a) == 1 and a[0]["name"] == sys.argv[1], a
+assert a[0]["vertices"] == 5261 and a[0]["handles"] == 1 and a[0]["mesh"] == "cactus", a
+assert "edit_token" not in json.dumps(a) and len(a[0]["transforms"]) == 1, a
+PY
+  "$HDEFORM" "${R[@]}" --token "$VIEW" sessions list --json | grep -qF -- "$EDIT" && fail "a token in list --json"
+  "$HDEFORM" "${R[@]}" --token "$VIEW" sessions get "$SESSION" >get || fail "sessions get exited $?"
+  cat get
+  grep -qx "name: *$SESSION" get || fail "sessions get: name"
+  grep -qx "constraints: 446 fixed, 1 handle(s)" get || fail "sessions get: constraints"
+  grep -q '^handle 0: .*"translation"' get || fail "sessions get: the handle's transform"
+  "$HDEFORM" "${R[@]}" --token "$VIEW" sessions get "${SESSION#sessions/}" --json >get.json \
+    || fail "sessions get ID --json exited $?"
+  "$PY" -c 'import json,sys; s=json.load(open("get.json")); assert s["name"]==sys.argv[1] and s["beta"]["units"]=="area" and s["triangles"]==10518, s' \
+    "$SESSION" || fail "sessions get --json"
+
+  # export: JSON and binary, from the moved session; --include-mesh of an upload
+  "$HDEFORM" "${R[@]}" --token "$EDIT" sessions export "$SESSION" -o snap.json >out \
+    || fail "sessions export (JSON) exited $?"
+  grep -qx "wrote snap.json ([0-9]* bytes, JSON Snapshot)" out || { cat out >&2; fail "export: wrote line"; }
+  "$PY" -c 'import json; s=json.load(open("snap.json")); assert s["library_mesh"]=="cactus" and len(s["transforms"])==1 and "constraints" in s, s' \
+    || fail "snap.json is not the session's snapshot"
+  "$HDEFORM" "${R[@]}" --token "$EDIT" sessions export "$SESSION" -o snap.pb >out \
+    || fail "sessions export (binary) exited $?"
+  grep -qx "wrote snap.pb ([0-9]* bytes, binary Snapshot)" out || fail "export: binary wrote line"
+  # delete: gone afterwards
+  "$HDEFORM" "${R[@]}" --token "$EDIT" sessions delete "$SESSION" >out || fail "sessions delete exited $?"
+  grep -qx "deleted $SESSION" out || fail "delete: no 'deleted' line"
+  expect_fail "get a deleted session" "hdeform: GetSession: NOT_FOUND: " -- \
+    "$HDEFORM" "${R[@]}" --token "$EDIT" sessions get "$SESSION"
+  # import (JSON, then binary): new sessions with new tokens, at the exported pose
+  for f in snap.json snap.pb; do
+    "$HDEFORM" "${R[@]}" sessions import "$f" >imported || fail "sessions import $f exited $?"
+    cat imported
+    OLD_EDIT=$EDIT
+    keep_session imported
+    [ "$EDIT" != "$OLD_EDIT" ] || fail "import: the old token again"
+    "$HDEFORM" "${R[@]}" --token "$EDIT" sweep --session "$SESSION" --betas 0,0.1 --csv imported.csv \
+      >/dev/null 2>&1 || fail "sweep of the imported session exited $?"
+    diff current.csv imported.csv >/dev/null || fail "the session imported from $f is not at the exported pose"
+  done
+  "$HDEFORM" "${R[@]}" sessions import snap.pb --session-id chosen-id-1 >imported \
+    || fail "import --session-id exited $?"
+  grep -qx "session sessions/chosen-id-1" imported || fail "import --session-id: name"
+  # --include-mesh: an uploaded mesh travels in the snapshot
+  "$HDEFORM" "${R[@]}" deform "$BS/bar.off" --sel "$BS/bar.sel" --keep >kept2 || fail "upload --keep exited $?"
+  keep_session kept2
+  "$HDEFORM" "${R[@]}" --token "$EDIT" sessions export "$SESSION" -o bar.json --include-mesh >out \
+    || fail "export --include-mesh exited $?"
+  grep -q ", with the mesh)$" out || fail "export --include-mesh: no mesh"
+  "$HDEFORM" "${R[@]}" --token "$EDIT" sessions export "$SESSION" -o bar-hash.pb >/dev/null \
+    || fail "export exited $?"
+  "$HDEFORM" "${R[@]}" --token "$EDIT" sessions delete "$SESSION" >/dev/null || fail "delete exited $?"
+  "$HDEFORM" "${R[@]}" sessions import bar.json >imported || fail "import --include-mesh snapshot exited $?"
+  grep -q "^session sessions/" imported || fail "import of bar.json"
+
+  # meshes, remote and in-process
+  "$HDEFORM" "${R[@]}" meshes >meshes || fail "meshes exited $?"
+  cat meshes
+  grep -Eq '^cactus +botsch-sorkine/cactus\.off +yes$' meshes || fail "meshes: cactus row"
+  grep -Eq '^bunny +models/bunny\.off +no$' meshes || fail "meshes: bunny row"
+  "$HDEFORM" meshes --json >meshes.json || fail "meshes --json (in-process) exited $?"
+  "$PY" -c 'import json; a=json.load(open("meshes.json")); assert {"name":"cactus","path":"botsch-sorkine/cactus.off","benchmark":True} in a, a' \
+    || fail "meshes --json"
+
+  # bad inputs: one stderr line each, exit 1
+  expect_fail "unknown session" "hdeform: GetSession: NOT_FOUND: " -- \
+    "$HDEFORM" "${R[@]}" --token "$VIEW" sessions get sessions/doesnotexist
+  expect_fail "delete an unknown session" "hdeform: DeleteSession: NOT_FOUND: " -- \
+    "$HDEFORM" "${R[@]}" --token "$VIEW" sessions delete sessions/doesnotexist
+  "$HDEFORM" "${R[@]}" deform cactus --sel "$BS/cactus.sel" --keep >kept3 || fail "deform --keep exited $?"
+  keep_session kept3
+  expect_fail "get without a token" "hdeform: GetSession: UNAUTHENTICATED: " -- \
+    "$HDEFORM" "${R[@]}" sessions get "$SESSION"
+  expect_fail "delete without a token" "hdeform: DeleteSession: UNAUTHENTICATED: " -- \
+    "$HDEFORM" "${R[@]}" sessions delete "$SESSION"
+  expect_fail "export without a token" "hdeform: ExportSession: UNAUTHENTICATED: " -- \
+    "$HDEFORM" "${R[@]}" sessions export "$SESSION" -o x.json
+  expect_fail "export with the view token" "hdeform: ExportSession: PERMISSION_DENIED: " -- \
+    "$HDEFORM" "${R[@]}" --token "$VIEW" sessions export "$SESSION" -o x.json
+  expect_fail "delete with the view token" "hdeform: DeleteSession: PERMISSION_DENIED: " -- \
+    "$HDEFORM" "${R[@]}" --token "$VIEW" sessions delete "$SESSION"
+  [ ! -e x.json ] || fail "a failed export wrote x.json"
+  printf 'hello, not a snapshot\n' >bad.pb
+  expect_fail "bad snapshot (binary)" "hdeform: bad\.pb: not a session snapshot \(neither a binary Snapshot nor JSON" -- \
+    "$HDEFORM" "${R[@]}" sessions import bad.pb
+  printf '{"library_mesh": "cactus", "bogus": 1}\n' >bad.json
+  expect_fail "bad snapshot (JSON)" "hdeform: bad\.json: not a session snapshot \(JSON: .*bogus" -- \
+    "$HDEFORM" "${R[@]}" sessions import bad.json
+  : >empty.pb
+  expect_fail "empty snapshot" "hdeform: empty\.pb: not a session snapshot \(it names no mesh\)" -- \
+    "$HDEFORM" "${R[@]}" sessions import empty.pb
+  expect_fail "missing snapshot file" "hdeform: .*nope\.json" -- "$HDEFORM" "${R[@]}" sessions import nope.json
+  # a snapshot naming an upload by its hash alone opens it only with a live session's token
+  expect_fail "hash-only snapshot without a token" "hdeform: ImportSession: [A-Z_]+: " -- \
+    "$HDEFORM" "${R[@]}" sessions import bar-hash.pb
+  expect_fail "sessions without --server" "hdeform: sessions list needs --server" -- \
+    "$HDEFORM" sessions list
+  expect_fail "sessions without a subcommand" "hdeform: " -- "$HDEFORM" "${R[@]}" sessions
+  ;;
+progress)
+  # The status line (progress.h) is drawn only when stderr is a terminal.
+  PLANE=(sweep plane --sel "$BS/plane.sel" --def "$BS/plane.def" --betas 0,0.1,0.25)
+  "$HDEFORM" "${PLANE[@]}" --csv "$TMP/p.csv" >/dev/null 2>"$TMP/err" || fail "sweep exited $?"
+  if grep -q "$(printf '\r')" "$TMP/err" || grep -q 'Sweep: ' "$TMP/err"; then
+    cat -A "$TMP/err" >&2; fail "a status line although stderr is a file"
+  fi
+  grep -qx "wrote $TMP/p.csv ([0-9]* bytes)" "$TMP/err" || fail "no 'wrote' line"
+  if command -v script >/dev/null; then
+    # script(1) gives the command a terminal; the plane's 3 factorizations take > 0.5 s.
+    script -qec "$(printf '%q ' "$HDEFORM" "${PLANE[@]}" --csv "$TMP/q.csv")" /dev/null \
+      >"$TMP/tty" 2>&1 || { cat "$TMP/tty" >&2; fail "sweep on a terminal exited $?"; }
+    grep -q 'hdeform: Sweep: 3 beta value(s), a factorization each … [0-9.]* s' "$TMP/tty" \
+      || { cat -A "$TMP/tty" | head -20 >&2; fail "no status line on a terminal"; }
+    grep -q "$(printf '\r\033\\[K')" "$TMP/tty" || fail "the status line is not erased"
+  else
+    echo "progress: no script(1); the terminal half is skipped"
+  fi
   ;;
 run-names)
   # Hostile names (path components, absolute paths, NUL and control characters, Windows
