@@ -4,7 +4,9 @@ import type { App } from "../app";
 import { $ } from "../dom";
 import type { SessionLoader } from "../session_loader";
 
-export function setupLibraryPanel({ client, banner }: App, loader: SessionLoader): void {
+export function setupLibraryPanel({ state, client, banner }: App, loader: SessionLoader): void {
+  // An old "x.obj: failed" goes when another mesh opens.
+  state.on("mesh", () => ($("upload-label").textContent = ""));
   const select = $<HTMLSelectElement>("library");
   const list = async () => {
     try {
@@ -21,6 +23,7 @@ export function setupLibraryPanel({ client, banner }: App, loader: SessionLoader
     progress.classList.remove("hidden");
     progress.value = 0;
     label.textContent = file.name;
+    label.title = file.name;
     try {
       const s = await createSessionViaUpload({ filename: file.name, body: file }, (loaded, total) => {
         progress.value = total > 0 ? loaded / total : 0;
@@ -28,7 +31,7 @@ export function setupLibraryPanel({ client, banner }: App, loader: SessionLoader
       });
       label.textContent = `${file.name}: processing…`;
       await loader.load(s);
-      label.textContent = file.name;
+      label.textContent = ""; // the session label names the mesh now
       banner.clear();
     } catch (err) {
       label.textContent = `${file.name}: failed`;
