@@ -20,6 +20,8 @@
 //     editors drag different handles at once and both moves are kept; a drag of a handle the
 //     other holds is refused with the holder's name; a watcher lists both names.
 
+import { readFileSync } from "node:fs";
+
 /** Page helpers shared with e2e.mjs. */
 export async function editorChecks({ context, base, log, check, sleep, shot, watchPage, waitLoaded, waitIdle, positions, maxDiff }) {
   const W = 1400, H = 860;
@@ -337,6 +339,20 @@ export async function editorChecks({ context, base, log, check, sleep, shot, wat
   await page.waitForFunction((p) => window.hdeform.loaded && window.hdeform.sessionName !== p, prevName, { timeout: 60_000 });
   const after = await Promise.all(["#m-e", "#m-flips", "#m-solve"].map((s) => page.textContent(s)));
   check(before !== "–" && after.every((t) => t === "–"), `the Measures table is emptied when another mesh (${other}) opens (${before} → ${after.join(", ")})`);
+  // ---- ★ models open with the benchmark's regions in one click -----------------------------------------------
+  const sel = readFileSync(new URL("../../data/botsch-sorkine/cactus.sel", import.meta.url), "utf8").split("\n").filter((l) => /^\d$/.test(l.trim()));
+  const want = { fixed: sel.filter((l) => l.trim() === "0").length, handle: sel.filter((l) => l.trim() === "2").length };
+  await page.selectOption("#library", "cactus");
+  const prev = await hook(() => window.hdeform.sessionName);
+  await page.click("#open-benchmark");
+  await page.waitForFunction((p) => window.hdeform.sessionName !== p && window.hdeform.constraintsApplied, prev, { timeout: 60_000 });
+  await waitIdle(page);
+  const got = await hook(() => {
+    const L = window.hdeform.labels();
+    return { fixed: L.filter((l) => l === 0).length, handle: L.filter((l) => l === 1).length };
+  });
+  check(got.fixed === want.fixed && got.handle === want.handle && (await hook(() => window.hdeform.mode)) === "move", `Open ★ regions: the cactus opens with the benchmark's regions applied (fixed ${got.fixed}/${want.fixed}, handle ${got.handle}/${want.handle}), ready to move`);
+  await shot(page, "ux-08-benchmark-regions");
   await watcher.close();
   await page.close();
   return { watchLink };

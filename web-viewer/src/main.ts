@@ -129,7 +129,7 @@ setupMeasuresPanel(state);
 const sweep = setupSweepPanel(app);
 setupFilesPanel(app, (s) => loader.load(s));
 setupSessionBar(app);
-setupLibraryPanel(app, loader);
+setupLibraryPanel(app, loader, regions.applyConstraints);
 
 // One render per change; handle updates coalesced to the display frame rate.
 function frame(): void {

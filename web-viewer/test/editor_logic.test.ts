@@ -10,6 +10,7 @@ import { heldMessage, holderFromMessage, PresenceModel } from "../src/multi/pres
 import { LatestWins } from "../src/latest_wins";
 import { stepsDone } from "../src/panels/onboarding";
 import { snapSteps } from "../src/viewport/snap";
+import { parseSel } from "../src/sel_file";
 
 class MemoryStore {
   private m = new Map<string, string>();
@@ -146,5 +147,14 @@ describe("onboarding", () => {
     assert.deepEqual(stepsDone(new Int16Array([0, -1]), false, false), { fixed: true, handle: false, moved: false });
     assert.deepEqual(stepsDone(new Int16Array([0, 2]), false, true), { fixed: true, handle: true, moved: true });
     assert.deepEqual(stepsDone(null, true, false), { fixed: true, handle: true, moved: false });
+  });
+});
+
+describe(".sel files", () => {
+  it("reads fixed (0) and handle (2) vertices after the # lines", () => {
+    assert.deepEqual(parseSel("# status\n# 4 vertices\n0\n1\n2\n0\n", 4), { fixed: [0, 3], handle: [2] });
+  });
+  it("refuses a file for another mesh", () => {
+    assert.throws(() => parseSel("0\n2\n", 3), /2 vertices, the mesh 3/);
   });
 });
