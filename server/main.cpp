@@ -136,6 +136,14 @@ int main(int argc, char** argv) {
       ->envname("HDEFORM_MAX_PENDING_UPDATES")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  app.add_option_function<std::int64_t>(
+         "--max-lease-ms",
+         [&request](std::int64_t ms) { request.max_lease = std::chrono::milliseconds(ms); },
+         "longest handle grab a client may ask (GrabHandles lease_ms); a vanished client's "
+         "grab ends at most this long after its last update")
+      ->envname("HDEFORM_MAX_LEASE_MS")
+      ->check(CLI::Range(std::int64_t{100}, std::int64_t{3'600'000}))
+      ->default_str("60000");
   app.add_option("--max-upload-inflight-mb", max_upload_inflight_mb,
                  "upload bytes held by unfinished uploads, all clients together (MiB)")
       ->envname("HDEFORM_MAX_UPLOAD_INFLIGHT_MB")

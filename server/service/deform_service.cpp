@@ -3,6 +3,7 @@
 #include "convert.h"
 #include "errors.h"
 #include "frame_encoding.h"
+#include "handle_update.h"
 
 #include <malloc.h>
 #include <spdlog/spdlog.h>
@@ -252,8 +253,10 @@ class MeshWriter final : public grpc::ServerWriteReactor<v1::MeshChunk> {
 // frame (the newest) and one state (the newest) waiting.
 class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
  public:
-  WatchReactor(std::shared_ptr<Session> session, const v1::FrameFormat& format)
-      : session_(std::move(session)), format_(format) {
+  // `client_id`: the watcher joined the session's presence under it (empty: anonymous).
+  WatchReactor(std::shared_ptr<Session> session, const v1::FrameFormat& format,
+               std::string client_id)
+      : session_(std::move(session)), format_(format), client_id_(std::move(client_id)) {
     sink_ = std::make_shared<Sink>(this);
     session_->add_watcher(sink_);
   }
@@ -280,6 +283,7 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
       sink_->reactor = nullptr;
     }
     session_->remove_watcher(sink_.get());
+    if (!client_id_.empty()) session_->leave(client_id_);  // its grabs end with it
     delete this;
   }
 
@@ -301,9 +305,11 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
   void enqueue(std::shared_ptr<const v1::SessionEvent> event) {
     std::lock_guard lock(mutex_);
     if (finished_ || closing_) return;
-    // Latest wins: a newer frame replaces a waiting frame, a newer state a waiting state.
+    // Latest wins: a newer frame replaces a waiting frame, a newer state a waiting state, a
+    // newer presence a waiting presence.
     const auto kind = event->event_case();
-    if (kind == v1::SessionEvent::kFrame || kind == v1::SessionEvent::kState) {
+    if (kind == v1::SessionEvent::kFrame || kind == v1::SessionEvent::kState ||
+        kind == v1::SessionEvent::kPresence) {
       for (auto it = pending_.begin(); it != pending_.end(); ++it)
         if ((*it)->event_case() == kind) {
           pending_.erase(it);
@@ -350,6 +356,7 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
 
   std::shared_ptr<Session> session_;
   const v1::FrameFormat format_;
+  const std::string client_id_;
   std::shared_ptr<Sink> sink_;
   std::mutex mutex_;
   std::deque<std::shared_ptr<const v1::SessionEvent>> pending_;
@@ -402,8 +409,13 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
       }
       format_ = in_.format();
     }
-    if (pending_) ++coalesced_;
-    pending_ = std::move(in_);
+    // Latest wins, but a partial update keeps the moves of the one it replaces.
+    if (pending_) {
+      ++coalesced_;
+      merge_deform_requests(*pending_, std::move(in_));
+    } else {
+      pending_ = std::move(in_);
+    }
     in_.Clear();
     if (!solving_) start_solve_locked();
     StartRead(&in_);
@@ -476,6 +488,8 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
             u.energies = request->energies();
             u.dragging = request->dragging();
             u.beta = request->has_beta() ? &request->beta() : nullptr;
+            u.handles = &request->handles();
+            u.client_id = request->client_id();
             frame = session_->update(u);
             // Handle moves are saved as SessionStore::moved() says; a β change is an
             // accepted change like SetBeta: durable before its frame goes out.
@@ -654,6 +668,11 @@ void DeformService::authorize(const grpc::ServerContextBase& ctx, const Session&
                             : what + "; the token presented is not one of this session's");
 }
 
+bool DeformService::can_edit(const grpc::ServerContextBase& ctx, const Session& session) const {
+  const auto hashes = presented_token_hashes(ctx);
+  return is_admin(hashes) || session.grant(hashes) == Access::kEdit;
+}
+
 std::shared_ptr<Session> DeformService::session_for(const grpc::ServerContextBase& ctx,
                                                     const std::string& name, Access needed,
                                                     const char* op) {
@@ -769,8 +788,9 @@ grpc::ServerUnaryReactor* DeformService::SetConstraints(grpc::CallbackServerCont
                                                         v1::Session* response) {
   return finish_on_session(ctx, "SetConstraints", request->name(), Access::kEdit,
                            [this, request, response](Session& s) {
-                             *response = s.set_constraints(request->constraints(),
-                                                           request->expected_version());
+                             *response = s.set_constraints(
+                                 request->constraints(), request->expected_version(),
+                                 request->expected_config_version());
                              store_.save(s);
                            });
 }
@@ -780,7 +800,8 @@ grpc::ServerUnaryReactor* DeformService::SetBeta(grpc::CallbackServerContext* ct
                                                  v1::Session* response) {
   return finish_on_session(ctx, "SetBeta", request->name(), Access::kEdit,
                            [this, request, response](Session& s) {
-                             *response = s.set_beta(request->beta(), request->expected_version());
+                             *response = s.set_beta(request->beta(), request->expected_version(),
+                                                    request->expected_config_version());
                              store_.save(s);
                            });
 }
@@ -798,16 +819,19 @@ grpc::ServerUnaryReactor* DeformService::UpdateHandles(grpc::CallbackServerConte
   return finish_on_session(
       ctx, "UpdateHandles", request->name(), Access::kEdit,
       [this, request, response, ticket](Session& s) {
-        if (*ticket && (*ticket)->superseded()) {
-          *response = s.superseded_frame(request->sequence());
-          return;
-        }
         Session::Update u;
         u.sequence = request->sequence();
         u.transforms = &request->transforms();
         u.energies = request->energies();
         u.dragging = request->dragging();
         u.expected_version = request->expected_version();
+        u.handles = &request->handles();
+        u.client_id = request->client_id();
+        if (*ticket && (*ticket)->superseded()) {
+          *response = s.supersede(u);
+          store_.moved(s);
+          return;
+        }
         auto frame = s.update(u);
         store_.moved(s);  // a drag: saved coalesced (SQLite) or at once (Redis)
         if (!encode_frame_to(*frame, request->format(), request->omit_buffers(), response))
@@ -916,6 +940,7 @@ grpc::ServerWriteReactor<v1::SessionEvent>* DeformService::WatchSession(
       [&] {
         session = session_for(*ctx, request->name(), Access::kView, "WatchSession");
         check_frame_format(request->format(), "WatchSession");
+        if (request->has_client()) Roster::check_participant(request->client(), "WatchSession");
       },
       "WatchSession");
   if (!status.ok()) {
@@ -937,7 +962,21 @@ grpc::ServerWriteReactor<v1::SessionEvent>* DeformService::WatchSession(
                      session->name() + " has " + std::to_string(session->observers()) +
                          " watchers, the limit (--max-watchers)"});
   }
-  return new WatchReactor(std::move(session), request->format());
+  std::string client_id;
+  if (request->has_client()) {
+    const auto joined = guarded(
+        [&] { session->join(request->client(), can_edit(*ctx, *session)); }, "WatchSession");
+    if (!joined.ok()) {
+      class Fail final : public grpc::ServerWriteReactor<v1::SessionEvent> {
+       public:
+        explicit Fail(grpc::Status s) { Finish(std::move(s)); }
+        void OnDone() override { delete this; }
+      };
+      return new Fail(joined);
+    }
+    client_id = request->client().client_id();
+  }
+  return new WatchReactor(std::move(session), request->format(), std::move(client_id));
 }
 
 grpc::ServerUnaryReactor* DeformService::ExportSession(grpc::CallbackServerContext* ctx,
@@ -998,6 +1037,26 @@ grpc::ServerUnaryReactor* DeformService::ImportSession(grpc::CallbackServerConte
     response->set_edit_token(tokens.edit);
     response->set_view_token(tokens.view);
   });
+}
+
+// Grabs run on the session's strand: they are ordered with SetConstraints, which renumbers
+// the handles and ends every grab.
+grpc::ServerUnaryReactor* DeformService::GrabHandles(grpc::CallbackServerContext* ctx,
+                                                     const v1::GrabHandlesRequest* request,
+                                                     v1::GrabHandlesResponse* response) {
+  return finish_on_session(ctx, "GrabHandles", request->name(), Access::kEdit,
+                           [request, response](Session& s) {
+                             *response = s.grab(*request, true);
+                           });
+}
+
+grpc::ServerUnaryReactor* DeformService::ReleaseHandles(grpc::CallbackServerContext* ctx,
+                                                        const v1::ReleaseHandlesRequest* request,
+                                                        v1::GrabHandlesResponse* response) {
+  return finish_on_session(ctx, "ReleaseHandles", request->name(), Access::kEdit,
+                           [request, response](Session& s) {
+                             *response = s.release(*request);
+                           });
 }
 
 grpc::ServerUnaryReactor* DeformService::RotateTokens(grpc::CallbackServerContext* ctx,

@@ -77,12 +77,20 @@ class DeformService final : public v1::Deformation::CallbackService {
   grpc::ServerUnaryReactor* ImportSession(grpc::CallbackServerContext* ctx,
                                           const v1::ImportSessionRequest* request,
                                           v1::Session* response) override;
+  grpc::ServerUnaryReactor* GrabHandles(grpc::CallbackServerContext* ctx,
+                                        const v1::GrabHandlesRequest* request,
+                                        v1::GrabHandlesResponse* response) override;
+  grpc::ServerUnaryReactor* ReleaseHandles(grpc::CallbackServerContext* ctx,
+                                           const v1::ReleaseHandlesRequest* request,
+                                           v1::GrabHandlesResponse* response) override;
   grpc::ServerUnaryReactor* RotateTokens(grpc::CallbackServerContext* ctx,
                                          const v1::RotateTokensRequest* request,
                                          v1::Session* response) override;
 
   // Capability check (access.h): throws ServiceError UNAUTHENTICATED (no token) or
   // PERMISSION_DENIED unless the call's tokens grant `needed` on `session`.
+  // Whether the call presented the session's edit token (or the operator token).
+  bool can_edit(const grpc::ServerContextBase& ctx, const Session& session) const;
   void authorize(const grpc::ServerContextBase& ctx, const Session& session, Access needed,
                  const char* op) const;
   // The presented tokens include the operator token.

@@ -50,6 +50,8 @@ void copy_frame_header(const v1::Frame& in, v1::Frame* out) {
   out->set_solve_ms(in.solve_ms());
   out->set_exact(in.exact());
   out->set_superseded(in.superseded());
+  out->set_client_id(in.client_id());
+  *out->mutable_transforms() = in.transforms();
   out->set_encoding(v1::FRAME_ENCODING_FLOAT32);
 }
 

@@ -2,6 +2,7 @@
 // these, and a request beyond one gets RESOURCE_EXHAUSTED naming the cap and its flag.
 #pragma once
 
+#include <chrono>
 #include <cstddef>
 #include <string>
 
@@ -17,6 +18,7 @@ struct RequestLimits {
   std::size_t max_watchers = 64;             // --max-watchers: WatchSession streams per session
   std::size_t max_pending_updates = 16;      // --max-pending-updates: coalescing UpdateHandles
                                              // waiting per session
+  std::chrono::milliseconds max_lease{60'000};  // --max-lease-ms: longest GrabHandles lease
 };
 
 // Throws ServiceError RESOURCE_EXHAUSTED "WHAT: COUNT exceeds the limit of LIMIT (FLAG)".

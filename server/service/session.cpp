@@ -1,5 +1,7 @@
 #include "session.h"
 
+#include "handle_update.h"
+
 #include "auto_beta.h"
 #include "convert.h"
 #include "errors.h"
@@ -75,7 +77,9 @@ Session::Session(std::string id, std::shared_ptr<const MeshRef> mesh, WorkerPool
       mesh_(std::move(mesh)),
       limits_(limits),
       cache_(cache),
-      strand_(std::make_shared<Strand>(pool)) {
+      strand_(std::make_shared<Strand>(pool)),
+      roster_(Roster::Limits{limits.max_watchers, std::chrono::milliseconds(5000),
+                             limits.max_lease}) {
   create_ms_ = update_ms_ = unix_ms_now();
   touch();
 }
@@ -91,6 +95,14 @@ void Session::check_version_locked(std::int64_t expected) const {
     fail(grpc::StatusCode::ABORTED, "version conflict: expected " + std::to_string(expected) +
                                         ", session " + name_ + " is at " +
                                         std::to_string(version_));
+}
+
+void Session::check_config_version_locked(std::int64_t expected) const {
+  if (expected != 0 && expected != config_version_)
+    fail(grpc::StatusCode::ABORTED,
+         "the constraints or beta of " + name_ + " changed since config_version " +
+             std::to_string(expected) + " (now " + std::to_string(config_version_) +
+             "): another change came first; reload the session (GetSession) and retry");
 }
 
 std::shared_ptr<const ConstraintSet> Session::constraint_set_for(const Constraints& c,
@@ -207,12 +219,14 @@ hdeform::Frame Session::solve(const ConstraintSet& cs,
 }
 
 pb::Session Session::set_constraints(const pb::Constraints& constraints,
-                                     std::int64_t expected_version) {
+                                     std::int64_t expected_version,
+                                     std::int64_t expected_config_version) {
   touch();
   SessionBeta beta;
   {
     std::lock_guard lock(mutex_);
     check_version_locked(expected_version);
+    check_config_version_locked(expected_config_version);
     beta = beta_;
   }
   const Constraints resolved = resolve_constraints(constraints, mesh_->prepared->mesh().V,
@@ -230,13 +244,16 @@ pb::Session Session::set_constraints(const pb::Constraints& constraints,
     cs_key_ = key;
     given_ = constraints;
     transforms_.assign(cs->num_handles(), HandleTransform{});
+    ++config_version_;
     changed_locked(&out);
   }
   broadcast_state();
+  if (roster_.release_all()) broadcast_presence();  // handle i is another region now
   return out;
 }
 
-pb::Session Session::set_beta(const pb::Beta& beta_msg, std::int64_t expected_version) {
+pb::Session Session::set_beta(const pb::Beta& beta_msg, std::int64_t expected_version,
+                              std::int64_t expected_config_version) {
   touch();
   SessionBeta beta = parse_beta(beta_msg);
   std::shared_ptr<const ConstraintSet> cs;
@@ -245,6 +262,7 @@ pb::Session Session::set_beta(const pb::Beta& beta_msg, std::int64_t expected_ve
   {
     std::lock_guard lock(mutex_);
     check_version_locked(expected_version);
+    check_config_version_locked(expected_config_version);
     cs = cs_;
     transforms = transforms_;
     key = cs_key_;
@@ -264,19 +282,37 @@ pb::Session Session::set_beta(const pb::Beta& beta_msg, std::int64_t expected_ve
   {
     std::lock_guard lock(mutex_);
     beta_ = std::move(beta);
+    ++config_version_;
     changed_locked(&out);
   }
   broadcast_state();
   return out;
 }
 
-std::shared_ptr<pb::Frame> Session::update(const Update& u) {
-  touch();
-  const auto t0 = std::chrono::steady_clock::now();
-  std::shared_ptr<const ConstraintSet> cs;
-  SessionBeta beta;
-  std::vector<HandleTransform> transforms;
-  std::string key;
+std::vector<int> Session::handle_indices(
+    const google::protobuf::RepeatedField<std::int32_t>& handles, const char* op) const {
+  std::lock_guard lock(mutex_);
+  if (!cs_) fail(grpc::StatusCode::FAILED_PRECONDITION, kNoConstraints);
+  const int n = cs_->num_handles();
+  std::vector<bool> seen(static_cast<std::size_t>(n), false);
+  std::vector<int> out;
+  for (int i = 0; i < handles.size(); ++i) {
+    const int h = handles.Get(i);
+    if (h < 0 || h >= n)
+      fail(grpc::StatusCode::INVALID_ARGUMENT,
+           std::string(op) + ": handles[" + std::to_string(i) + "] = " + std::to_string(h) +
+               " is not a handle of " + name_ + " (it has " + std::to_string(n) + ")");
+    if (seen[static_cast<std::size_t>(h)])
+      fail(grpc::StatusCode::INVALID_ARGUMENT,
+           std::string(op) + ": handles names handle " + std::to_string(h) + " twice");
+    seen[static_cast<std::size_t>(h)] = true;
+    out.push_back(h);
+  }
+  return out;
+}
+
+Session::Move Session::begin_move(const Update& u) {
+  Move m;
   const bool keep = u.keep_transforms_if_empty && (!u.transforms || u.transforms->empty());
   {
     std::lock_guard lock(mutex_);
@@ -284,15 +320,46 @@ std::shared_ptr<pb::Frame> Session::update(const Update& u) {
     if (closed_) fail(grpc::StatusCode::NOT_FOUND, name_ + " was deleted");
     if (!cs_) fail(grpc::StatusCode::FAILED_PRECONDITION, kNoConstraints);
     check_version_locked(u.expected_version);
-    cs = cs_;
-    beta = beta_;
-    key = cs_key_;
-    if (keep) transforms = transforms_;
+    m.cs = cs_;
+    m.beta = beta_;
+    m.key = cs_key_;
+    m.transforms = transforms_;  // updates run on the strand: nothing moves them meanwhile
   }
-  if (!keep) {
-    static const google::protobuf::RepeatedPtrField<pb::HandleTransform> kNone;
-    transforms = from_proto(u.transforms ? *u.transforms : kNone, *cs);
+  if (keep) return m;
+  static const google::protobuf::RepeatedPtrField<pb::HandleTransform> kNone;
+  static const google::protobuf::RepeatedField<std::int32_t> kAll;
+  const std::vector<int> moved = apply_handle_update(
+      u.handles ? *u.handles : kAll, u.transforms ? *u.transforms : kNone, *m.cs, m.transforms);
+  roster_.check_move(u.client_id, moved, Roster::Clock::now());
+  return m;
+}
+
+pb::Frame Session::supersede(const Update& u) {
+  touch();
+  Move m = begin_move(u);
+  std::lock_guard lock(mutex_);
+  if (cs_ == m.cs) {
+    transforms_ = std::move(m.transforms);
+    ++version_;  // the newer update's frame follows at once
+    last_frame_.reset();
   }
+  pb::Frame out;
+  out.set_session(name_);
+  out.set_sequence(u.sequence);
+  out.set_version(version_);
+  out.set_client_id(u.client_id);
+  out.set_superseded(true);
+  return out;
+}
+
+std::shared_ptr<pb::Frame> Session::update(const Update& u) {
+  touch();
+  const auto t0 = std::chrono::steady_clock::now();
+  Move m = begin_move(u);
+  const auto& cs = m.cs;
+  const auto& key = m.key;
+  SessionBeta& beta = m.beta;
+  std::vector<HandleTransform>& transforms = m.transforms;
   bool beta_changed = false;
   if (u.beta) {
     SessionBeta b = parse_beta(*u.beta);
@@ -307,6 +374,8 @@ std::shared_ptr<pb::Frame> Session::update(const Update& u) {
   mesh_->layout->fill(*frame, out.get());
   out->set_session(name_);
   out->set_sequence(u.sequence);
+  out->set_client_id(u.client_id);
+  for (const auto& t : transforms) to_proto(t, out->add_transforms());
   beta_to_proto(beta, out->mutable_beta(), false);
   {
     std::lock_guard lock(mutex_);
@@ -316,6 +385,7 @@ std::shared_ptr<pb::Frame> Session::update(const Update& u) {
     }
     transforms_ = std::move(transforms);
     beta_ = beta;
+    if (beta_changed) ++config_version_;
     ++version_;
     {
       std::lock_guard moves(move_mutex_);  // the old frame's buffers serve a later move
@@ -347,15 +417,6 @@ std::unique_ptr<Session::CoalesceTicket> Session::coalesce_ticket(std::size_t li
              "one when an answer arrives");
   }
   return std::make_unique<CoalesceTicket>(*this, ++coalesce_newest_);
-}
-
-pb::Frame Session::superseded_frame(std::int64_t sequence) const {
-  pb::Frame out;
-  out.set_session(name_);
-  out.set_sequence(sequence);
-  out.set_version(version());
-  out.set_superseded(true);
-  return out;
 }
 
 Session::SweepPlan Session::sweep_plan(const pb::SweepRequest& request) const {
@@ -487,6 +548,8 @@ void Session::adopt(std::int64_t version, const SessionTokens& tokens, std::int6
                     std::int64_t update_ms) {
   std::lock_guard lock(mutex_);
   version_ = version;
+  // Not stored: a client's config_version from before the restart is refused (it reloads).
+  config_version_ = version;
   tokens_ = tokens;
   create_ms_ = create_ms;
   update_ms_ = update_ms;
@@ -521,6 +584,7 @@ void Session::describe_locked(pb::Session* out) const {
   out->set_vertex_count(mesh_->layout->vertex_count());
   out->set_triangle_count(mesh_->layout->triangle_count());
   out->set_version(version_);
+  out->set_config_version(config_version_);
   out->set_constrained(cs_ != nullptr);
   if (cs_) {
     to_proto(cs_->constraints(), out->mutable_constraints());
@@ -568,6 +632,62 @@ void Session::broadcast_state() {
   broadcast(std::move(event));
 }
 
+pb::Presence Session::presence() const {
+  pb::Presence out;
+  roster_.describe(&out);
+  out.set_version(version());
+  return out;
+}
+
+void Session::broadcast_presence() {
+  if (observers() == 0) return;
+  auto event = std::make_shared<pb::SessionEvent>();
+  *event->mutable_presence() = presence();
+  broadcast(std::move(event));
+}
+
+void Session::join(const pb::Participant& who, bool editor) {
+  roster_.join(who, editor);
+  broadcast_presence();
+}
+
+void Session::leave(const std::string& client_id) {
+  if (roster_.leave(client_id) && !closed_) broadcast_presence();
+}
+
+pb::GrabHandlesResponse Session::grab(const pb::GrabHandlesRequest& request, bool editor) {
+  touch();
+  Roster::check_participant(request.client(), "GrabHandles");
+  if (request.handles_size() == 0)
+    fail(grpc::StatusCode::INVALID_ARGUMENT, "GrabHandles: handles is empty");
+  const std::vector<int> handles = handle_indices(request.handles(), "GrabHandles");
+  const auto now = Roster::Clock::now();
+  const auto until = roster_.grab(request.client(), editor, handles,
+                                  std::chrono::milliseconds(request.lease_ms()), now);
+  broadcast_presence();
+  pb::GrabHandlesResponse out;
+  *out.mutable_presence() = presence();
+  out.set_lease_expire_unix_ms(
+      unix_ms_now() + std::chrono::duration_cast<std::chrono::milliseconds>(until - now).count());
+  return out;
+}
+
+pb::GrabHandlesResponse Session::release(const pb::ReleaseHandlesRequest& request) {
+  touch();
+  pb::Participant who;
+  who.set_client_id(request.client_id());
+  Roster::check_participant(who, "ReleaseHandles");
+  const std::vector<int> handles = handle_indices(request.handles(), "ReleaseHandles");
+  if (roster_.release(request.client_id(), handles)) broadcast_presence();
+  pb::GrabHandlesResponse out;
+  *out.mutable_presence() = presence();
+  return out;
+}
+
+void Session::expire_leases() {
+  if (roster_.expire(Roster::Clock::now())) broadcast_presence();
+}
+
 void Session::add_watcher(std::shared_ptr<EventSink> sink) {
   touch();
   auto event = std::make_shared<pb::SessionEvent>();
@@ -585,6 +705,9 @@ void Session::add_watcher(std::shared_ptr<EventSink> sink) {
     sink->close();
     return;
   }
+  auto who = std::make_shared<pb::SessionEvent>();
+  *who->mutable_presence() = presence();  // who is here, before anyone moves
+  sink->push(std::move(who));
   broadcast_state();  // the others see the new observer count
 }
 

@@ -10,6 +10,7 @@
 #include "hdeform/v1/deform.pb.h"
 #include "mesh_library.h"
 #include "request_limits.h"
+#include "roster.h"
 #include "worker_pool.h"
 
 #include <google/protobuf/repeated_field.h>
@@ -66,8 +67,11 @@ class Session : public std::enable_shared_from_this<Session> {
   void post(WorkerPool::Task task) { strand_->post(std::move(task)); }
 
   // ---- blocking: call on the strand. Throw ServiceError / InvalidInput. ----
-  pb::Session set_constraints(const pb::Constraints& constraints, std::int64_t expected_version);
-  pb::Session set_beta(const pb::Beta& beta, std::int64_t expected_version);
+  // expected_config_version (0: any): ABORTED unless no constraint or β change came since.
+  pb::Session set_constraints(const pb::Constraints& constraints, std::int64_t expected_version,
+                              std::int64_t expected_config_version = 0);
+  pb::Session set_beta(const pb::Beta& beta, std::int64_t expected_version,
+                       std::int64_t expected_config_version = 0);
 
   struct Update {
     std::int64_t sequence = 0;
@@ -79,10 +83,16 @@ class Session : public std::enable_shared_from_this<Session> {
     bool dragging = false;
     const pb::Beta* beta = nullptr;  // also change β
     std::int64_t expected_version = 0;
+    // Which handles `transforms` are for (empty: all); the others keep their transforms.
+    const google::protobuf::RepeatedField<std::int32_t>* handles = nullptr;
+    std::string client_id;  // the sender (may move the handles it holds); empty: anonymous
   };
   // Solves, commits the transforms (bumping the version) and sends the frame to every
   // observer. Returns the frame.
   std::shared_ptr<pb::Frame> update(const Update& update);
+  // A coalesced update whose turn came after a newer one: its moves are committed (so a
+  // partial update from another editor is never lost) without a solve; answers superseded.
+  pb::Frame supersede(const Update& update);
   // A Sweep in steps, so it never holds the strand (edits go on between its βs): plan()
   // checks the request and captures the session's state; row() solves one β transiently
   // (no factorization enters the shared cache). Both may run on any thread.
@@ -107,6 +117,15 @@ class Session : public std::enable_shared_from_this<Session> {
 
   // ---- non-blocking ----
   pb::Session describe() const;
+
+  // Several editors (roster.h): watchers with a client identity, and handle grabs. Each
+  // change is sent to every watcher as a presence event. Throw ServiceError.
+  void join(const pb::Participant& who, bool editor);
+  void leave(const std::string& client_id);
+  pb::GrabHandlesResponse grab(const pb::GrabHandlesRequest& request, bool editor);
+  pb::GrabHandlesResponse release(const pb::ReleaseHandlesRequest& request);
+  void expire_leases();  // called periodically (SessionStore's sweeper)
+  pb::Presence presence() const;
   // Capability tokens (access.h): what the presented token hashes grant, and new tokens
   // (the old ones stop working at once).
   Access grant(const std::vector<TokenHash>& token_hashes) const;
@@ -158,6 +177,18 @@ class Session : public std::enable_shared_from_this<Session> {
 
  private:
   void check_version_locked(std::int64_t expected) const;
+  void check_config_version_locked(std::int64_t expected) const;
+  // The transforms an update leads to, checked (version, grabs); `moved` gets its handles.
+  struct Move {
+    std::shared_ptr<const ConstraintSet> cs;
+    SessionBeta beta;
+    std::string key;
+    std::vector<HandleTransform> transforms;
+  };
+  Move begin_move(const Update& u);
+  std::vector<int> handle_indices(const google::protobuf::RepeatedField<std::int32_t>& handles,
+                                  const char* op) const;
+  void broadcast_presence();
   void describe_locked(pb::Session* out) const;
   // A state change under the lock: new version, stale frame dropped, `out` describes it.
   void changed_locked(pb::Session* out);
@@ -194,6 +225,7 @@ class Session : public std::enable_shared_from_this<Session> {
   SessionBeta beta_;
   std::vector<HandleTransform> transforms_;
   std::int64_t version_ = 1;
+  std::int64_t config_version_ = 1;  // bumped by constraint and β changes only
 
  public:
   std::int64_t version() const {
@@ -215,6 +247,7 @@ class Session : public std::enable_shared_from_this<Session> {
   std::vector<std::shared_ptr<EventSink>> watchers_;
   SessionTokens tokens_;
   Persisted persisted_;
+  Roster roster_;
 
   std::atomic<int> streams_{0};
   std::atomic<std::size_t> coalesce_waiting_{0};

@@ -347,7 +347,7 @@ void SessionStore::start_sweeper() {
   }
   if (sweeper_.joinable()) return;
   const auto period = std::clamp<std::chrono::milliseconds>(
-      limits_.session_ttl / 4, std::chrono::milliseconds(50), std::chrono::milliseconds(10'000));
+      limits_.session_ttl / 4, std::chrono::milliseconds(50), std::chrono::milliseconds(1'000));
   sweeper_ = std::thread([this, period] {
     std::unique_lock lock(sweeper_mutex_);
     while (!stopping_) {
@@ -356,6 +356,8 @@ void SessionStore::start_sweeper() {
       lock.unlock();
       try {
         expire_idle();
+        // Handle grabs of clients that stopped renewing end within a second of their lease.
+        for (auto& s : list()) s->expire_leases();
       } catch (const std::exception& e) {
         spdlog::error("session sweeper: {}", e.what());
       }
