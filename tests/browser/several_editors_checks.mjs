@@ -119,6 +119,11 @@ export async function severalEditorsChecks({ context, base, log, check, sleep, s
   }
   await bob.waitForFunction(() => window.hdeform.presence().some((p) => p.name === "Alice" && p.held.includes(0)), null, { timeout: 10_000 }).catch(() => {});
   const bobBefore = await bob.evaluate(() => window.hdeform.handleTransforms()[0].translation);
+  let bobUpdates = 0;
+  const countUpdates = (r) => {
+    if (/Deformation\/UpdateHandles/.test(r.url())) bobUpdates++;
+  };
+  bob.on("request", countUpdates);
   const sb2 = await start(bob);
   for (let i = 1; i <= 4; i++) {
     await step(bob, sb2, i, 40);
@@ -127,13 +132,15 @@ export async function severalEditorsChecks({ context, base, log, check, sleep, s
   await bob.mouse.up();
   await bob.waitForFunction(() => /being moved by/.test(window.hdeform.lastError), null, { timeout: 10_000 }).catch(() => {});
   const refused = await bob.evaluate(() => window.hdeform.lastError);
+  await sleep(300);
+  bob.off("request", countUpdates);
   await shot(bob, "multi-03-bob-refused");
   await alice.mouse.up();
   await waitIdle(alice);
   await sleep(300);
   const bobAfter = await bob.evaluate(() => window.hdeform.handleTransforms()[0].translation);
   const aliceFinal = await alice.evaluate(() => window.hdeform.serverTranslations());
-  check(/Handle 1 is being moved by Alice/.test(refused), `Bob's drag of the handle Alice holds is refused: "${refused}"`);
+  check(/Handle 1 is being moved by Alice/.test(refused) && bobUpdates === 0, `Bob's drag of the handle Alice holds is refused: "${refused}" (${bobUpdates} updates sent)`);
   check(
     Math.hypot(aliceFinal[0][0] - bobAfter.x, aliceFinal[0][1] - bobAfter.y, aliceFinal[0][2] - bobAfter.z) < 1e-6,
     `…his page ends on Alice's pose of it, not his own (before ${bobBefore.x.toFixed(3)}, after ${bobAfter.x.toFixed(3)}, server ${aliceFinal[0][0].toFixed(3)})`,

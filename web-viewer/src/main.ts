@@ -112,7 +112,6 @@ const gizmo = new HandleGizmo(viewport, state, {
   grab: (h) => editors.grab(h),
   release: () => editors.release(),
 });
-gizmo.lockedBy = (h) => editors.presence.holderOf(h)?.name ?? null;
 const tools = new SelectionTools(viewport, display, state);
 const feedback = new CursorFeedback(viewport, display, state, () => tools.brushRadius());
 const markers = new RegionMarkers(viewport, state);

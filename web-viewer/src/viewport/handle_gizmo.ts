@@ -32,8 +32,6 @@ export class HandleGizmo {
   space: GizmoSpace = "world";
   /** Snap settings from the panel (the modifier keys come from the pointer events). */
   snap: Omit<SnapInput, "ctrl" | "shift"> = { enabled: false, grid: 0 };
-  /** Handles (0-based) another editor holds: their gizmo does not start a drag. */
-  lockedBy: (h: number) => string | null = () => null;
   private start: HandleState | null = null;
   private granted = false;
   private dragHandle = -1;
@@ -197,7 +195,6 @@ export class HandleGizmo {
     pivotObject.scale.copy(s.scale);
     pivotObject.updateMatrixWorld(true);
     gizmo.attach(pivotObject);
-    gizmo.enabled = this.lockedBy(this.state.activeHandle - 1) === null;
     this.viewport.requestRender();
   }
 
