@@ -146,6 +146,29 @@ export async function severalEditorsChecks({ context, base, log, check, sleep, s
     `…his page ends on Alice's pose of it, not his own (before ${bobBefore.x.toFixed(3)}, after ${bobAfter.x.toFixed(3)}, server ${aliceFinal[0][0].toFixed(3)})`,
   );
   await shot(alice, "multi-04-alice-after");
+
+  // A stale β change: Bob's live stream is held back (a WatchSession that never answers; his
+  // name change restarts the stream), so he has not seen Alice's β when he sets his own. The
+  // server refuses his (expected_config_version); his page says so and reloads the session.
+  await bob.route("**/hdeform.v1.Deformation/WatchSession", () => {}); // never answered
+  await bob.fill("#display-name", "Bob2");
+  await bob.press("#display-name", "Tab");
+  await sleep(300);
+  const cvBob = await bob.evaluate(() => window.hdeform.configVersion);
+  await alice.fill("#beta-num", "0.3");
+  await alice.press("#beta-num", "Enter");
+  await alice.waitForFunction((v) => window.hdeform.configVersion > v, cvBob, { timeout: 15_000 }).catch(() => {});
+  await waitIdle(alice);
+  await bob.fill("#beta-num", "0.6");
+  await bob.press("#beta-num", "Enter");
+  await bob.waitForFunction(() => /not applied/.test(window.hdeform.lastError), null, { timeout: 15_000 }).catch(() => {});
+  const conflict = await bob.evaluate(() => window.hdeform.lastError);
+  await bob.waitForFunction(() => Math.abs(Number(document.querySelector("#beta").value) - 0.3) < 1e-9, null, { timeout: 10_000 }).catch(() => {});
+  const bobBeta = Number(await bob.inputValue("#beta"));
+  const serverBeta = await alice.evaluate(() => window.hdeform.serverBeta());
+  check(/someone else changed/.test(conflict) && Math.abs(serverBeta - 0.3) < 1e-9 && Math.abs(bobBeta - 0.3) < 1e-9, `a β change made on a stale config version is refused, said so, and the page reloads Alice's β (${bobBeta}; server ${serverBeta}): "${conflict.slice(0, 90)}…"`);
+  await shot(bob, "multi-05-bob-stale-beta");
+  await bob.unroute("**/hdeform.v1.Deformation/WatchSession");
   for (const p of [watcher, bob, alice]) await p.close();
   return true;
 }
