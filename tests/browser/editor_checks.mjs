@@ -221,6 +221,37 @@ export async function editorChecks({ context, base, log, check, sleep, shot, wat
   check(dist3((await hook(() => window.hdeform.camera())).target, handleCentre) < 1e-3 * diag, "the Frame selection button does what F does");
   await page.click("#view-reset");
 
+  // Zoom to cursor: the point under the cursor stays under it while the wheel zooms.
+  const cbox = await canvasBox();
+  const cursor = { x: cbox.x + cbox.width / 2 + 160, y: cbox.y + cbox.height / 2 + 90 };
+  const under = await hook(([x, y]) => window.hdeform.pointOnTargetPlane(x, y), [cursor.x, cursor.y]);
+  const dist0 = dist3((await hook(() => window.hdeform.camera())).position, (await hook(() => window.hdeform.camera())).target);
+  await page.mouse.move(cursor.x, cursor.y);
+  await page.mouse.wheel(0, -300);
+  await sleep(300);
+  const underAfter = await hook(([x, y, z]) => window.hdeform.screenPoint(x, y, z), under);
+  const camZ = await hook(() => window.hdeform.camera());
+  check(dist3(camZ.position, camZ.target) < 0.95 * dist0 && Math.hypot(underAfter.x - cursor.x, underAfter.y - cursor.y) < 3, `the wheel zooms to the cursor (the point under it moved ${Math.hypot(underAfter.x - cursor.x, underAfter.y - cursor.y).toFixed(1)} px; distance ${dist0.toFixed(3)} → ${dist3(camZ.position, camZ.target).toFixed(3)})`);
+  await page.click("#view-reset");
+
+  // Q: world / local axes (also the Axes select).
+  await page.keyboard.press("q");
+  const spaceQ = [await hook(() => window.hdeform.gizmoSpace), await page.inputValue("#gizmo-space")];
+  await page.keyboard.press("q");
+  check(spaceQ.join() === "local,local" && (await hook(() => window.hdeform.gizmoSpace)) === "world", `Q toggles the gizmo between world and local axes (${spaceQ})`);
+
+  // Ctrl held during a drag snaps the move to the grid.
+  const grid = Number(await page.inputValue("#snap-grid"));
+  await page.keyboard.down("Control");
+  await dragStart(horiz[0], horiz[1], 77);
+  await page.mouse.up();
+  await page.keyboard.up("Control");
+  await waitIdle(page);
+  const snapped = await hook(() => window.hdeform.gizmoPose().position);
+  const axisIndex = { x: 0, y: 1, z: 2 }[horiz[0]];
+  const q = snapped[axisIndex] / grid;
+  check(grid > 0 && Math.abs(q - Math.round(q)) < 1e-6, `Ctrl while dragging snaps the move to the ${grid} grid (${horiz[0]} = ${snapped[axisIndex]})`);
+
   // ---- typed-in values ----------------------------------------------------------------------------
   const typed = Number((t3.x + 0.05 * diag).toFixed(4));
   await page.fill("#tf-tx", String(typed));
@@ -353,6 +384,13 @@ export async function editorChecks({ context, base, log, check, sleep, shot, wat
   });
   check(got.fixed === want.fixed && got.handle === want.handle && (await hook(() => window.hdeform.mode)) === "move", `Open ★ regions: the cactus opens with the benchmark's regions applied (fixed ${got.fixed}/${want.fixed}, handle ${got.handle}/${want.handle}), ready to move`);
   await shot(page, "ux-08-benchmark-regions");
+  // Delete clears the region being assigned (here: Fixed), in a selection mode.
+  await page.click('button[data-mode="box"]');
+  await page.selectOption("#label-select", "0");
+  await page.mouse.move(5, 300); // off any field
+  await page.keyboard.press("Delete");
+  const fixedLeft = await hook(() => window.hdeform.labels().filter((l) => l === 0).length);
+  check(fixedLeft === 0 && /not applied/.test((await page.textContent("#region-counts")) ?? ""), `Delete clears the region being assigned (fixed ${want.fixed} → ${fixedLeft}, "not applied")`);
   await watcher.close();
   await page.close();
   return { watchLink };

@@ -156,6 +156,16 @@ export function installTestHook({ state, client, banner, status }: App, parts: H
     get markerCount() {
       return parts.markers.count;
     },
+    /** The point on the plane through the orbit target (facing the camera) under client (x, y). */
+    pointOnTargetPlane: (x: number, y: number) => {
+      const r = viewport.canvas.getBoundingClientRect();
+      const ndc = new THREE.Vector2(((x - r.left) / r.width) * 2 - 1, -((y - r.top) / r.height) * 2 + 1);
+      const ray = new THREE.Raycaster();
+      ray.setFromCamera(ndc, viewport.camera);
+      const normal = viewport.camera.getWorldDirection(new THREE.Vector3());
+      const plane = new THREE.Plane().setFromNormalAndCoplanarPoint(normal, viewport.orbit.target);
+      return ray.ray.intersectPlane(plane, new THREE.Vector3())?.toArray() ?? null;
+    },
     get configVersion() {
       return Number(state.session?.configVersion ?? 0n);
     },
