@@ -117,6 +117,9 @@ export async function severalEditorsChecks({ context, base, log, check, sleep, s
     await step(alice, sa2, i, 40);
     await sleep(60);
   }
+  // Alice holds still for longer than the 5 s lease: her page grabs again every 2 s, so she
+  // still holds the handle when Bob tries.
+  await sleep(6000);
   await bob.waitForFunction(() => window.hdeform.presence().some((p) => p.name === "Alice" && p.held.includes(0)), null, { timeout: 10_000 }).catch(() => {});
   const bobBefore = await bob.evaluate(() => window.hdeform.handleTransforms()[0].translation);
   let bobUpdates = 0;

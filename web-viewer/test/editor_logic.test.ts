@@ -11,6 +11,8 @@ import { LatestWins } from "../src/latest_wins";
 import { stepsDone } from "../src/panels/onboarding";
 import { snapSteps } from "../src/viewport/snap";
 import { parseSel } from "../src/sel_file";
+import { Code, ConnectError } from "@connectrpc/connect";
+import { HandleLease, type GrabClient } from "../src/multi/handle_lease";
 
 class MemoryStore {
   private m = new Map<string, string>();
@@ -156,5 +158,57 @@ describe(".sel files", () => {
   });
   it("refuses a file for another mesh", () => {
     assert.throws(() => parseSel("0\n2\n", 3), /2 vertices, the mesh 3/);
+  });
+});
+
+describe("handle lease", () => {
+  const me = () => ({ clientId: "tab1", displayName: "Alice" });
+  function fakeGrab(answer: () => Promise<unknown>) {
+    const calls: { method: string; request: Record<string, unknown> }[] = [];
+    const client = {
+      grabHandles: async (request: Record<string, unknown>) => {
+        calls.push({ method: "grab", request });
+        return answer();
+      },
+      releaseHandles: async (request: Record<string, unknown>) => {
+        calls.push({ method: "release", request });
+        return {};
+      },
+    } as unknown as GrabClient;
+    return { client, calls };
+  }
+  it("grabs, then releases what it holds", async () => {
+    const { client, calls } = fakeGrab(async () => ({}));
+    const lease = new HandleLease(client, me, () => {});
+    assert.deepEqual(await lease.grab("sessions/s", [1]), { ok: true });
+    assert.equal(lease.supported, true);
+    assert.deepEqual(lease.holding, [1]);
+    await lease.release();
+    assert.deepEqual(calls.map((c) => c.method), ["grab", "release"]);
+    assert.deepEqual(calls[1].request.handles, [1]);
+    assert.equal(calls[1].request.clientId, "tab1");
+    assert.deepEqual(lease.holding, []);
+  });
+  it("a refusal names the holder's message", async () => {
+    const { client } = fakeGrab(async () => {
+      throw new ConnectError("GrabHandles: handle 0 is held by Bob (client b2)", Code.Aborted);
+    });
+    const r = await new HandleLease(client, me, () => {}).grab("sessions/s", [0]);
+    assert.equal(r.ok, false);
+    if (!r.ok) {
+      assert.equal(r.code, Code.Aborted);
+      assert.equal(holderFromMessage(r.message), "Bob");
+    }
+  });
+  it("a server without GrabHandles: every grab succeeds, nothing more is asked", async () => {
+    const { client, calls } = fakeGrab(async () => {
+      throw new ConnectError("unknown method", Code.Unimplemented);
+    });
+    const lease = new HandleLease(client, me, () => {});
+    assert.deepEqual(await lease.grab("sessions/s", [0]), { ok: true });
+    assert.equal(lease.supported, false);
+    assert.deepEqual(await lease.grab("sessions/s", [0]), { ok: true });
+    await lease.release();
+    assert.equal(calls.length, 1);
   });
 });
