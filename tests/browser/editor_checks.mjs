@@ -261,7 +261,16 @@ export async function editorChecks({ context, base, log, check, sleep, shot, wat
   const shown4 = await positions(page);
   const server4 = await hook(() => window.hdeform.serverPositions());
   check(Math.abs(t4.x - typed) < 1e-9 && maxDiff(shown4, server4) === 0 && maxDiff(shown4, p0) > 1e-3, `a typed-in x translation (${typed}) moves the handle and the server solves it`);
+  await page.fill("#tf-rz", "30");
+  await page.keyboard.press("Enter");
+  await waitIdle(page);
+  const rot = await hook(() => window.hdeform.handleTransforms()[0].rotation);
+  const wantRot = { w: Math.cos(Math.PI / 12), z: Math.sin(Math.PI / 12) };
+  check(Math.abs(rot.w - wantRot.w) < 1e-9 && Math.abs(rot.z - wantRot.z) < 1e-9 && Math.abs(rot.x) < 1e-12 && Math.abs(rot.y) < 1e-12 && maxDiff(await positions(page), await hook(() => window.hdeform.serverPositions())) === 0, `a typed-in rotation of 30° about z is the handle's rotation (w ${rot.w.toFixed(6)}, z ${rot.z.toFixed(6)}) and is solved`);
   await shot(page, "ux-04-typed-values");
+  await page.fill("#tf-rz", "0");
+  await page.keyboard.press("Enter");
+  await waitIdle(page);
 
   // ---- a refused update snaps the gizmo back ---------------------------------------------------------
   const confirmedBefore = await hook(() => window.hdeform.handleTransforms()[0].translation);
