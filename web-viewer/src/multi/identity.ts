@@ -9,7 +9,8 @@ export interface KeyValueStore {
   setItem(key: string, value: string): void;
 }
 
-const PALETTE = ["#e57373", "#64b5f6", "#81c784", "#ffb74d", "#ba68c8", "#4db6ac", "#f06292", "#aed581", "#ffd54f", "#9575cd"];
+// No blues: a held handle is drawn in its holder's colour, and blue is the fixed region's.
+const PALETTE = ["#e57373", "#81c784", "#ffb74d", "#ba68c8", "#4db6ac", "#f06292", "#aed581", "#ffd54f", "#a1887f", "#ff8a65"];
 
 /** A colour for `clientId`: the same on every page that sees it. */
 export function colorFor(clientId: string): string {
