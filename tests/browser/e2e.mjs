@@ -34,6 +34,8 @@ import http from "node:http";
 import { createRequire } from "node:module";
 import { tmpdir } from "node:os";
 import { join, resolve } from "node:path";
+import { editorChecks } from "./editor_checks.mjs";
+import { severalEditorsChecks } from "./several_editors_checks.mjs";
 
 /**
  * A flat 7×5 grid (x = 0.5 i, y = 0.5 j) as GLB in two vertex blocks that both carry the
@@ -109,6 +111,7 @@ function check(cond, what) {
   return cond;
 }
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+class StopHere {}
 
 // ---- server ---------------------------------------------------------------------------------
 // Durable sessions go to a temporary --state-dir (never the user's ~/.local/share/hdeform);
@@ -208,7 +211,18 @@ async function nonBackgroundFraction(page) {
 async function arrow(page, axis) {
   const [c, a] = await page.evaluate((ax) => [window.hdeform.gizmoScreenPoint(), window.hdeform.gizmoScreenPoint(ax)], axis);
   const len = Math.hypot(a.x - c.x, a.y - c.y);
-  return { x: (a.x - c.x) / len, y: (a.y - c.y) / len, len };
+  return { x: (a.x - c.x) / len, y: (a.y - c.y) / len, len, axis };
+}
+/**
+ * The gizmo's arrows by how they look on screen: `up` (the most vertical one) and
+ * `horizontal` (the longer of the other two). The axes are the model's: for a z-up model
+ * (the cactus) up is z.
+ */
+async function arrowsOnScreen(page) {
+  const all = [await arrow(page, "x"), await arrow(page, "y"), await arrow(page, "z")];
+  const upArrow = all.reduce((a, b) => (Math.abs(b.y) * b.len > Math.abs(a.y) * a.len ? b : a));
+  const rest = all.filter((a) => a !== upArrow);
+  return { up: upArrow, horizontal: rest[0].len >= rest[1].len ? rest[0] : rest[1] };
 }
 /** The URL's fragment as parameters (`#edit=…&view=…`). */
 const fragmentOf = (url) => new URLSearchParams(new URL(url).hash.replace(/^#/, ""));
@@ -290,6 +304,13 @@ try {
   });
   const shot = (page, name) => page.screenshot({ path: join(artifacts, `${name}.png`) });
 
+  // 0. The editor's usability checks (editor_checks.mjs) and several editors in one session
+  // (several_editors_checks.mjs), on sessions of their own. `--only editor` stops after them.
+  const helpers = { context, base, log, check, sleep, shot, watchPage, waitLoaded, waitIdle, positions, maxDiff, artifacts };
+  await editorChecks(helpers);
+  await severalEditorsChecks(helpers);
+  if (args.only === "editor") throw new StopHere();
+
   // 1. Open the cactus from the library.
   const page1 = context.pages()[0] ?? (await context.newPage());
   watchPage(page1, "editor");
@@ -343,7 +364,9 @@ try {
       const L = window.hdeform.labels(), R = window.hdeform.restPositions();
       return L.filter((l, v) => l === 0 && R[3 * v + upAxis] > limit).length;
     },
-    [up, bmin[up] + 0.2 * h],
+    // The default view looks down about 30°, so the rectangle around the bottom slab also
+    // takes the front and back of the trunk above it (Box selects through the mesh).
+    [up, bmin[up] + 0.4 * h],
   );
   check(nFixed > 10 && fixedTooHigh === 0, `box select (real mouse drag) marked ${nFixed} fixed vertices, all near the bottom`);
   // Handle: the page's test hook (model-space box → the same assign() the tools use).
@@ -392,9 +415,8 @@ try {
   const g = await page1.evaluate(() => window.hdeform.gizmoScreenPoint());
   check(g !== null, `gizmo attached at (${g?.x.toFixed(0)}, ${g?.y.toFixed(0)})`);
   // Grab the horizontal arrow that is longest on screen and pull along it.
-  const ax = await arrow(page1, "x");
-  const az = await arrow(page1, "z");
-  const [axis, dir] = ax.len >= az.len ? ["x", ax] : ["z", az];
+  const dir = (await arrowsOnScreen(page1)).horizontal;
+  const axis = dir.axis;
   log(`dragging the ${axis} arrow (${dir.len.toFixed(0)} px from the centre)`);
   await dragGizmo(page1, axis, 140 * dir.x, 140 * dir.y);
   const p1 = await positions(page1);
@@ -449,8 +471,8 @@ try {
 
   // 5. Live: another drag on page 1 reaches page 2 through WatchSession.
   await page1.bringToFront();
-  const ay = await arrow(page1, "y"); // the up arrow
-  await dragGizmo(page1, "y", 70 * ay.x, 70 * ay.y);
+  const ay = (await arrowsOnScreen(page1)).up;
+  await dragGizmo(page1, ay.axis, 70 * ay.x, 70 * ay.y);
   const p2 = await positions(page1);
   check(maxDiff(p1, p2) > 1e-3 && (await page1.evaluate(() => window.hdeform.lastError)) === "", "the reloaded editor's drag moved the mesh again");
   await waitSame(page2, p2, "the second viewer followed the edit live");
@@ -540,8 +562,8 @@ try {
     await sleep(200);
     const before = await positions(page1);
     // The longer horizontal arrow (the up arrow's tip may be off the canvas), back and forth.
-    const [ex, ez] = [await arrow(page1, "x"), await arrow(page1, "z")];
-    const [hAxis, a] = ex.len >= ez.len ? ["x", ex] : ["z", ez];
+    const a = (await arrowsOnScreen(page1)).horizontal;
+    const hAxis = a.axis;
     const sign = i % 2 === 0 ? -1 : 1;
     await dragGizmo(page1, hAxis, sign * 60 * a.x, sign * 60 * a.y);
     const shown = await positions(page1);
@@ -659,9 +681,8 @@ try {
   check(await back(page3), "the watch page reconnected too");
   await waitSame(page3, pKill, "the watch page shows the same pose after the restart");
   // A horizontal arrow (the up arrow's tip may be under the top bar after step 5's lift).
-  const ax2 = await arrow(page2, "x");
-  const az2 = await arrow(page2, "z");
-  const [axis2, dir2] = ax2.len >= az2.len ? ["x", ax2] : ["z", az2];
+  const dir2 = (await arrowsOnScreen(page2)).horizontal;
+  const axis2 = dir2.axis;
   await dragGizmo(page2, axis2, -80 * dir2.x, -80 * dir2.y, 5);
   const p10 = await positions(page2);
   const v10b = await page2.evaluate(() => window.hdeform.version);
@@ -722,8 +743,11 @@ try {
 
   writeFileSync(join(artifacts, "console.log"), consoleLines.join("\n") + "\n");
 } catch (err) {
-  failures++;
-  log(`FAIL exception: ${err.stack ?? err}`);
+  if (err instanceof StopHere) log("--only editor: stopping after the editor checks");
+  else {
+    failures++;
+    log(`FAIL exception: ${err.stack ?? err}`);
+  }
 } finally {
   if (context) await context.close().catch(() => {});
   rmSync(userDataDir, { recursive: true, force: true });

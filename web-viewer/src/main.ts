@@ -22,7 +22,17 @@ import { SessionLoader } from "./session_loader";
 import { SessionState } from "./state";
 import { Sync } from "./sync/sync";
 import { installTestHook } from "./test_hook";
-import { toProtoTransforms } from "./transforms";
+import { fromProtoTransform, toProtoTransforms } from "./transforms";
+import { create } from "@bufbuild/protobuf";
+import { HandleTransformSchema } from "./gen/hdeform/v1/deform_pb";
+import { setupEditors, type Editors } from "./multi/editors";
+import { setupPresencePanel } from "./panels/presence_panel";
+import { setupShortcuts } from "./panels/shortcuts";
+import { setupTransformFields } from "./panels/transform_fields";
+import { setupOnboarding } from "./panels/onboarding";
+import { setupViewButtons } from "./panels/view_buttons";
+import { CursorFeedback } from "./selection/cursor_feedback";
+import { RegionMarkers } from "./viewport/region_markers";
 import { HandleGizmo } from "./viewport/handle_gizmo";
 import { MeshDisplay } from "./viewport/mesh_display";
 import { Viewport } from "./viewport/viewport";
@@ -54,7 +64,13 @@ const sync: Sync = new Sync({
   // server has the next pose as soon as it finishes one. Sync keeps the drag's last update
   // solved and its exact frame shown (sync/sync.ts).
   window: 2,
-  pose: () => ({ transforms: toProtoTransforms(state.handles, state.pivots), energies: state.energyMapping !== "off" }),
+  pose: () => ({
+    transforms: toProtoTransforms(state.handles, state.pivots),
+    // Several editors: only the handle this page moves, so the others' handles stay theirs.
+    handles: editors.multi ? [state.activeHandle - 1] : undefined,
+    energies: state.energyMapping !== "off",
+  }),
+  participant: () => editors.identity.participant(),
   refreshShape: (name, s, signal) => loader.refreshShape(name, s, signal),
 });
 const app: App = {
@@ -71,6 +87,7 @@ const app: App = {
   },
 };
 const loader: SessionLoader = new SessionLoader(app, sync);
+const editors: Editors = setupEditors(app, sync);
 
 sync.on("link", ({ link, why }) => status.setReconnecting(link === "reconnecting" ? `reconnecting…${why ? ` (${why})` : ""}` : ""));
 sync.on("error", ({ message, kind }) => banner.show(message, kind));
@@ -80,23 +97,38 @@ sync.on("state", ({ session, source, adoptTransforms }) => {
   if (source === "resync") state.frameVersion = 0n; // the server's version is the truth now
   state.adoptSession(session, { labels: true, transforms: adoptTransforms });
 });
+// A failed update: the gizmo goes back to the pose the server holds (the mesh shows that one).
+sync.on("revert", ({ transforms }) => {
+  if (gizmo.dragging) return; // the drag's release sends its pose again
+  state.handles = transforms.map((t, h) => fromProtoTransform(create(HandleTransformSchema, t), state.pivots[h]));
+  state.emit("handles", undefined);
+});
 const frameApply = setupFrameApply(app, sync);
 
 const display = new MeshDisplay(viewport, state);
 const gizmo = new HandleGizmo(viewport, state, {
   dragging: (held) => sync.setDragging(held),
   moved: () => app.edits.requestFrame(),
+  grab: (h) => editors.grab(h),
+  release: () => editors.release(),
 });
 const tools = new SelectionTools(viewport, display, state);
+const feedback = new CursorFeedback(viewport, display, state, () => tools.brushRadius());
+const markers = new RegionMarkers(viewport, state);
 const regions = setupRegionsPanel(app);
-setupHandleTools(app, gizmo);
+setupHandleTools(app, gizmo, () => editors.multi);
+setupTransformFields(app, gizmo);
+setupPresencePanel(editors, sync);
+setupViewButtons(app, viewport);
+setupShortcuts(app, gizmo, viewport);
+setupOnboarding(app);
 setupBetaPanel(app);
 setupDisplayPanel(app, display);
 setupMeasuresPanel(state);
 const sweep = setupSweepPanel(app);
 setupFilesPanel(app, (s) => loader.load(s));
 setupSessionBar(app);
-setupLibraryPanel(app, loader);
+setupLibraryPanel(app, loader, regions.applyConstraints);
 
 // One render per change; handle updates coalesced to the display frame rate.
 function frame(): void {
@@ -119,4 +151,7 @@ installTestHook(app, {
   applyConstraints: regions.applyConstraints,
   openLibrary: (name) => loader.openLibrary(name),
   sweepRows: sweep.rows,
+  editors,
+  feedback,
+  markers,
 });

@@ -37,6 +37,7 @@ export class SessionLoader {
       banner.show(`The base GLB has ${mesh.n} vertices but the session reports ${s.vertexCount}`);
     }
     state.handles = [];
+    sync.confirm(s.transforms);
     state.adoptSession(s, { transforms: !sync.dragging });
     // A shared session may already be deformed: fetch the current shape once.
     if (s.transforms.some((t) => !isIdentity(t))) {

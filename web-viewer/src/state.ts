@@ -36,6 +36,8 @@ export interface StateEvents {
   measures: { measures: Measures; solveMs: number };
   session: void; // the session, its version or its tokens
   mode: Mode;
+  /** The gizmo changed handle h's (0-based) pose (a drag, a cancel, typed-in values). */
+  pose: number;
 }
 
 export class SessionState extends Emitter<StateEvents> {
@@ -56,6 +58,8 @@ export class SessionState extends Emitter<StateEvents> {
   energyMapping: EnergyMapping = "off";
   truncation = 1; // top of the "truncated" energy mapping
   mode: Mode = "orbit";
+  /** Handle labels (1-based) another editor holds → that editor's colour (drawn so). */
+  heldColours = new Map<number, string>();
 
   constructor(readonly watchOnly: boolean) {
     super();

@@ -15,6 +15,9 @@ import { parseGlb } from "./viewport/glb";
 import type { HandleGizmo } from "./viewport/handle_gizmo";
 import type { MeshDisplay } from "./viewport/mesh_display";
 import type { Viewport } from "./viewport/viewport";
+import type { Editors } from "./multi/editors";
+import type { CursorFeedback } from "./selection/cursor_feedback";
+import type { RegionMarkers } from "./viewport/region_markers";
 
 declare global {
   interface Window {
@@ -32,6 +35,9 @@ export interface HookParts {
   applyConstraints: () => Promise<void>;
   openLibrary: (name: string) => Promise<void>;
   sweepRows: () => number;
+  editors: Editors;
+  feedback: CursorFeedback;
+  markers: RegionMarkers;
 }
 
 export function installTestHook({ state, client, banner, status }: App, parts: HookParts): void {
@@ -92,6 +98,77 @@ export function installTestHook({ state, client, banner, status }: App, parts: H
     labels: () => (state.mesh ? Array.from(state.mesh.labels) : []),
     measures: () => (state.measures ? { ...state.measures } : null),
     handleTransforms: () => toProtoTransforms(state.handles, state.pivots),
+    /** The handles' transforms as the server last confirmed them (null: none seen). */
+    confirmedTransforms: () => sync.confirmedTransforms,
+    /** The gizmo's pose (its object: the active handle's pivot, rotation, scale). */
+    gizmoPose: () => {
+      const o = viewport.pivotObject;
+      return { position: o.position.toArray(), quaternion: o.quaternion.toArray(), scale: o.scale.toArray() };
+    },
+    get gizmoMode() {
+      return gizmo.mode;
+    },
+    get gizmoSpace() {
+      return gizmo.space;
+    },
+    get gizmoDragging() {
+      return gizmo.dragging;
+    },
+    get activeHandle() {
+      return state.activeHandle;
+    },
+    setActiveHandle: (h: number) => {
+      state.activeHandle = h;
+      state.emit("handles", undefined);
+    },
+    get mode() {
+      return state.mode;
+    },
+    /** Camera position and orbit target (world = model coordinates). */
+    camera: () => ({ position: viewport.camera.position.toArray(), target: viewport.orbit.target.toArray(), up: viewport.camera.up.toArray() }),
+    get clientId() {
+      return parts.editors.identity.clientId;
+    },
+    get displayName() {
+      return parts.editors.identity.displayName;
+    },
+    /** Several editors: the server answered a grab or sent presence. */
+    get multiUser() {
+      return parts.editors.multi;
+    },
+    get grabSupported() {
+      return parts.editors.lease.supported;
+    },
+    presence: () => parts.editors.presence.people.map((p) => ({ ...p })),
+    /** The session's handle transforms as the server has them (GetSession), translations only. */
+    serverTranslations: async () => (await client.getSession({ name: state.sessionName })).transforms.map((t) => [t.translation?.x ?? 0, t.translation?.y ?? 0, t.translation?.z ?? 0]),
+    serverBeta: async () => (await client.getSession({ name: state.sessionName })).beta?.value ?? 0,
+    /** Vertex mode: the vertex under the cursor (-1: none). */
+    get hoverVertex() {
+      return parts.feedback.hoverVertex;
+    },
+    /** Brush mode: the ring under the cursor (radius in model units). */
+    get brushRing() {
+      const r = parts.feedback.ring;
+      return { visible: r.visible, radius: r.scale.x, expected: tools.brushRadius() };
+    },
+    /** Vertices of small regions drawn as markers. */
+    get markerCount() {
+      return parts.markers.count;
+    },
+    /** The point on the plane through the orbit target (facing the camera) under client (x, y). */
+    pointOnTargetPlane: (x: number, y: number) => {
+      const r = viewport.canvas.getBoundingClientRect();
+      const ndc = new THREE.Vector2(((x - r.left) / r.width) * 2 - 1, -((y - r.top) / r.height) * 2 + 1);
+      const ray = new THREE.Raycaster();
+      ray.setFromCamera(ndc, viewport.camera);
+      const normal = viewport.camera.getWorldDirection(new THREE.Vector3());
+      const plane = new THREE.Plane().setFromNormalAndCoplanarPoint(normal, viewport.orbit.target);
+      return ray.ray.intersectPlane(plane, new THREE.Vector3())?.toArray() ?? null;
+    },
+    get configVersion() {
+      return Number(state.session?.configVersion ?? 0n);
+    },
     get sweepRows() {
       return parts.sweepRows();
     },

@@ -22,7 +22,7 @@ function setup(window = 1, format?: SyncOptions["format"]) {
     format,
     timing: FAST,
   });
-  const events: { [K in keyof SyncEvents]: SyncEvents[K][] } = { link: [], frame: [], state: [], error: [], clearError: [] };
+  const events: { [K in keyof SyncEvents]: SyncEvents[K][] } = { link: [], frame: [], state: [], error: [], clearError: [], revert: [], presence: [] };
   for (const k of Object.keys(events) as (keyof SyncEvents)[]) sync.on(k, (p) => (events[k] as unknown[]).push(p));
   sync.open("sessions/s");
   opened.push(sync);
@@ -348,5 +348,61 @@ describe("sync, pipelined (window > 1)", () => {
     fake.updates[0].resolve(frame({ version: 1, sequence: 1 }));
     await settle();
     assert.equal(sync.busy, false);
+  });
+});
+
+describe("sync, the confirmed pose", () => {
+  it("a refused update reverts to the last pose the server confirmed", async () => {
+    const { fake, sync, events, pose } = setup();
+    pose.x = 1;
+    sync.request();
+    sync.tick();
+    fake.updates[0].resolve(frame({ version: 1, sequence: 1, positions: [0, 0, 0] }));
+    await settle();
+    assert.equal(sync.confirmedTransforms?.[0].translation?.x, 1);
+    pose.x = 5;
+    sync.request();
+    sync.tick();
+    fake.updates[1].reject(new ConnectError("session gone", Code.NotFound));
+    await settle();
+    assert.equal(events.revert.length, 1);
+    assert.equal(events.revert[0].transforms[0].translation?.x, 1);
+  });
+
+  it("does not revert when a newer update is still to be sent", async () => {
+    const { fake, sync, events, pose } = setup();
+    sync.request();
+    sync.tick();
+    fake.updates[0].resolve(frame({ version: 1, sequence: 1, positions: [0, 0, 0] }));
+    await settle();
+    pose.x = 2;
+    sync.request();
+    sync.tick();
+    sync.request(); // a newer pose, sent after this one
+    fake.updates[1].reject(new ConnectError("held by Alice", Code.Aborted));
+    await settle();
+    assert.equal(events.revert.length, 0);
+  });
+
+  it("several editors: sends only the named handles, with the client id", async () => {
+    const fake = new FakeClient();
+    const sync = new Sync({
+      client: fake.client,
+      pose: () => ({ transforms: [{ translation: { x: 1, y: 0, z: 0 } }, { translation: { x: 2, y: 0, z: 0 } }], handles: [1], energies: false }),
+      participant: () => ({ clientId: "tab1", displayName: "Alice" }),
+      timing: FAST,
+    });
+    opened.push(sync);
+    sync.open("sessions/s");
+    sync.request();
+    sync.tick();
+    const req = fake.updates[0].request;
+    assert.deepEqual(req.handles, [1]);
+    assert.equal(req.transforms.length, 1);
+    assert.equal(req.transforms[0].translation?.x, 2);
+    assert.equal(req.clientId, "tab1");
+    sync.watch();
+    await until(() => fake.watchRequests.length > 0, "a watch request");
+    assert.equal(fake.watchRequests[0].client?.displayName, "Alice");
   });
 });

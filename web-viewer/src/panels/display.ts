@@ -19,7 +19,7 @@ export function setupDisplayPanel({ state, edits }: App, display: MeshDisplay): 
   };
   const showLegend = () => {
     const top = energyTop(state);
-    legend.classList.toggle("hidden", top === null);
+    $("legend-box").classList.toggle("hidden", top === null);
     if (top !== null) drawLegend(legend, top, state.energyMapping);
   };
   state.on("mesh", showLegend);

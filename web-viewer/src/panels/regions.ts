@@ -1,7 +1,10 @@
 // The Regions panel: what the tools assign (Fixed, Handle k, Erase), + handle, Clear, the
 // per-region counts, and Apply constraints (SetConstraints; also on entering Move with
 // unapplied edits).
+import { Code, ConnectError } from "@connectrpc/connect";
 import { describeError } from "../api";
+import { reloadAfterConflict } from "../conflict";
+import { regionColourCss } from "../region_colours";
 import type { App } from "../app";
 import { $ } from "../dom";
 
@@ -15,9 +18,11 @@ export function setupRegionsPanel(app: App): { applyConstraints: () => Promise<v
     if (!mesh) return;
     const counts = new Map<number, number>();
     for (let v = 0; v < mesh.n; v++) if (mesh.labels[v] >= 0) counts.set(mesh.labels[v], (counts.get(mesh.labels[v]) ?? 0) + 1);
-    const parts = [`fixed ${counts.get(0) ?? 0}`];
-    for (let h = 1; h <= state.handleCount; h++) parts.push(`handle ${h}: ${counts.get(h) ?? 0}`);
-    $("region-counts").textContent = parts.join(" · ") + (state.labelsDirty ? " — not applied" : "");
+    // Also the legend of the regions' colours on the mesh.
+    const swatch = (label: number) => `<span class="swatch" style="background:${state.heldColours.get(label) ?? regionColourCss(label)}"></span>`;
+    const parts = [`${swatch(0)}fixed ${counts.get(0) ?? 0}`];
+    for (let h = 1; h <= state.handleCount; h++) parts.push(`${swatch(h)}handle ${h}: ${counts.get(h) ?? 0}`);
+    $("region-counts").innerHTML = parts.join(" · ") + (state.labelsDirty ? " — <b>not applied</b>" : "");
   };
   const showLabels = () => {
     const opts = [`<option value="0">Fixed</option>`];
@@ -60,7 +65,11 @@ export function setupRegionsPanel(app: App): { applyConstraints: () => Promise<v
     const region = (ids: number[]) => ({ selectors: ids.length ? [{ kind: { case: "baseIds" as const, value: { ids } } }] : [] });
     try {
       status.set("factorizing…");
-      const s = await edits.setConstraints({ name, constraints: { fixed: region(fixed), handles: handleIds.map(region) } });
+      const s = await edits.setConstraints({
+        name,
+        constraints: { fixed: region(fixed), handles: handleIds.map(region) },
+        expectedConfigVersion: state.session?.configVersion ?? 0n,
+      });
       if (name !== state.sessionName) return;
       state.labelsDirty = false;
       banner.clear("rejected");
@@ -72,7 +81,8 @@ export function setupRegionsPanel(app: App): { applyConstraints: () => Promise<v
       showLabels();
       edits.requestFrame();
     } catch (err) {
-      banner.show(`Constraints rejected: ${describeError(err)}`, "rejected");
+      if (err instanceof ConnectError && err.code === Code.Aborted) await reloadAfterConflict(app, "constraints", err);
+      else banner.show(`Constraints rejected: ${describeError(err)}`, "rejected");
     }
   }
 

@@ -34,7 +34,7 @@ export class SelectionTools {
     this.viewport.canvas.style.cursor = selecting ? "crosshair" : "";
   }
 
-  private brushRadius(): number {
+  brushRadius(): number {
     return (Number($<HTMLInputElement>("brush-radius").value) / 100) * (this.state.mesh?.diag ?? 1);
   }
 

@@ -21,6 +21,8 @@ import type {
   Frame,
   FrameFormatSchema,
   HandleTransformSchema,
+  ParticipantSchema,
+  Presence,
   Session,
   SessionEvent,
   SetBetaRequestSchema,
@@ -45,11 +47,25 @@ export interface SyncEvents {
   state: { session: Session; source: "watch" | "resync"; adoptTransforms: boolean };
   error: { message: string; kind: SyncErrorKind };
   clearError: SyncErrorKind;
+  /**
+   * An update failed (rejected, session gone, a handle another editor holds): the handles'
+   * last pose the server confirmed, so the gizmo goes back to where the mesh is.
+   */
+  revert: { transforms: MessageInitShape<typeof HandleTransformSchema>[]; message: string };
+  /** Who is in the session (WatchSession presence events). */
+  presence: Presence;
 }
 
 /** The pose an UpdateHandles sends, read when the request is built. */
 export interface Pose {
+  /** Every handle's transform. */
   transforms: MessageInitShape<typeof HandleTransformSchema>[];
+  /**
+   * Several editors: the handles (indices into `transforms`) this page changes; only they are
+   * sent (UpdateHandlesRequest.handles), so another editor's handles keep their poses.
+   * Unset: every handle (a server without several-editor support needs all of them).
+   */
+  handles?: number[];
   energies: boolean;
 }
 
@@ -60,6 +76,8 @@ export interface SyncOptions {
   refreshShape?: (name: string, session: Session, signal: AbortSignal) => Promise<void>;
   /** UpdateHandles calls in flight at most. */
   window?: number;
+  /** Who this page is (WatchSession.client, UpdateHandles.client_id); unset: anonymous. */
+  participant?: () => MessageInitShape<typeof ParticipantSchema> | undefined;
   /** How UpdateHandles answers and WatchSession frames are to be encoded (unset: FLOAT32). */
   format?: MessageInitShape<typeof FrameFormatSchema>;
   timing?: Partial<SyncTiming>;
@@ -80,6 +98,9 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
   /** WatchSession events received (frames and states). */
   watchEvents = 0;
   private readonly pose: () => Pose;
+  private readonly participantOf: NonNullable<SyncOptions["participant"]>;
+  /** Every handle's pose as the server last confirmed it (a reply, a frame, a state). */
+  private confirmed: MessageInitShape<typeof HandleTransformSchema>[] | null = null;
   private readonly refreshShape: NonNullable<SyncOptions["refreshShape"]>;
   private readonly order = new FrameOrder();
   private name = "";
@@ -100,6 +121,7 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
     super();
     this.client = options.client;
     this.pose = options.pose;
+    this.participantOf = options.participant ?? (() => undefined);
     this.refreshShape = options.refreshShape ?? (async () => {});
     this.window = Math.max(1, options.window ?? 1);
     this.format = options.format;
@@ -137,7 +159,22 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
     this.dirty = false;
     this.awaitingBuffers = 0n;
     this.streamLive = false;
+    this.confirmed = null;
     this.order.reset();
+  }
+
+  get participant(): MessageInitShape<typeof ParticipantSchema> | undefined {
+    return this.participantOf();
+  }
+
+  /** The handles' poses the server holds, as far as this page knows (null: none seen yet). */
+  get confirmedTransforms(): MessageInitShape<typeof HandleTransformSchema>[] | null {
+    return this.confirmed;
+  }
+
+  /** Records the server's handle poses (a session state or a frame's transforms). */
+  confirm(transforms: MessageInitShape<typeof HandleTransformSchema>[]): void {
+    if (transforms.length > 0) this.confirmed = transforms;
   }
 
   /** Starts the WatchSession loop of the open session. */
@@ -167,16 +204,20 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
     const name = this.name;
     let seq = 0;
     let omitBuffers = false;
+    let sent: Pose | null = null;
     this.edit(() => {
       seq = ++this.sequence;
       omitBuffers = this.pipelined && this.streamLive;
-      const { transforms, energies } = this.pose();
+      sent = this.pose();
+      const { transforms, handles, energies } = sent;
       const coalesce = this.pipelined && this.lastSentDragging;
       this.lastSentDragging = this.held;
       return this.client.updateHandles({
         name,
         sequence: BigInt(seq),
-        transforms,
+        transforms: handles ? handles.map((h) => transforms[h]) : transforms,
+        handles: handles ?? [],
+        clientId: this.participantOf()?.clientId ?? "",
         energies,
         // While the gizmo is held the server may answer with a drag frame (float32 factor).
         dragging: this.held,
@@ -188,6 +229,7 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
       .then((frame) => {
         if (name !== this.name) return; // another session was opened meanwhile
         if (seq === this.sequence) this.emit("clearError", "rejected");
+        this.confirmAnswer(sent, frame);
         if (frame.superseded) return; // acknowledged, not solved: a newer update was waiting
         // omit_buffers: the shape comes on the stream (unless it came first).
         if (omitBuffers && !carriesShape(frame) && frame.version > this.order.newest) {
@@ -196,12 +238,29 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
         this.offer(frame, "reply");
       })
       .catch((err) => {
-        if (isAbort(err)) return;
-        this.emit("error", { message: `Handle update rejected: ${describeError(err)}`, kind: "rejected" });
+        if (isAbort(err) || name !== this.name) return;
+        const message = `Handle update rejected: ${describeError(err)}`;
+        this.emit("error", { message, kind: "rejected" });
+        // The newest update failed: the server keeps the last pose it confirmed. A newer update
+        // still to be sent or in flight will say where the handle is instead.
+        if (seq === this.sequence && !this.dirty && this.confirmed) {
+          this.emit("revert", { transforms: this.confirmed, message });
+        }
       })
       .finally(() => {
         this.inFlight--;
       });
+  }
+
+  /** The server solved `sent` (its frame may name every handle's transform). */
+  private confirmAnswer(sent: Pose | null, frame: Frame): void {
+    if (frame.transforms.length > 0) this.confirm(frame.transforms);
+    else if (sent && !sent.handles) this.confirm(sent.transforms);
+    else if (sent?.handles && this.confirmed) {
+      const next = [...this.confirmed];
+      for (const h of sent.handles) next[h] = sent.transforms[h];
+      this.confirm(next);
+    }
   }
 
   setBeta(request: MessageInitShape<typeof SetBetaRequestSchema>): Promise<Session> {
@@ -255,6 +314,7 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
   async resynced(name: string, session: Session, signal: AbortSignal): Promise<void> {
     this.order.reset(); // the server's version is the truth now (a restart may have lost a move)
     this.awaitingBuffers = 0n;
+    this.confirm(session.transforms);
     this.emit("state", { session, source: "resync", adoptTransforms: !this.busy });
     await this.refreshShape(name, session, signal);
     this.order.forgetLast();
@@ -263,10 +323,13 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
 
   event(ev: SessionEvent): void {
     this.streamLive = true;
-    if (ev.event.case === "frame") this.offer(ev.event.value, "watch");
-    else if (ev.event.case === "state") {
+    if (ev.event.case === "frame") {
+      this.confirm(ev.event.value.transforms);
+      this.offer(ev.event.value, "watch");
+    } else if (ev.event.case === "state") {
+      this.confirm(ev.event.value.transforms);
       this.emit("state", { session: ev.event.value, source: "watch", adoptTransforms: !this.busy });
-    }
+    } else if (ev.event.case === "presence") this.emit("presence", ev.event.value);
     this.watchEvents++;
   }
 

@@ -7,7 +7,7 @@ import { Code, ConnectError } from "@connectrpc/connect";
 import { describeError, isAbort, isTransient } from "../api";
 import { accessError } from "../access_error";
 import type { MessageInitShape } from "@bufbuild/protobuf";
-import type { FrameFormatSchema, Session, SessionEvent } from "../gen/hdeform/v1/deform_pb";
+import type { FrameFormatSchema, ParticipantSchema, Session, SessionEvent } from "../gen/hdeform/v1/deform_pb";
 import type { SyncClient } from "./client";
 import type { LinkState } from "./link";
 
@@ -32,6 +32,8 @@ export interface WatchHost {
   readonly timing: SyncTiming;
   /** The encoding the stream's frames are to come in. */
   readonly format: MessageInitShape<typeof FrameFormatSchema> | undefined;
+  /** Who watches (shown in every watcher's presence); undefined: anonymous. */
+  readonly participant: MessageInitShape<typeof ParticipantSchema> | undefined;
   /** The current stream, which an edit that finds the server away aborts. */
   setStream(stream: AbortController): void;
   /** The session as re-read after an outage: adopt it and its shape. */
@@ -76,7 +78,7 @@ export async function watchLoop(host: WatchHost, name: string, signal: AbortSign
         link.set("connected");
         host.clearError();
       }
-      for await (const ev of client.watchSession({ name, format: host.format }, { signal: stream.signal })) {
+      for await (const ev of client.watchSession({ name, format: host.format, client: host.participant }, { signal: stream.signal })) {
         if (ev.event.case === "deleted") {
           // Deleted, expired — or the server is stopping: the re-read below tells which.
           sawDeleted = true;

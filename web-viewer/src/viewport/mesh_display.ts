@@ -5,23 +5,12 @@
 // (indexed) or expanded through the index (split) on every change.
 import * as THREE from "three";
 import { ramp } from "../colormap";
+import { regionColour } from "../region_colours";
 import { energyTop } from "../energy_scale";
 import type { MeshData, SessionState } from "../state";
 import type { Viewport } from "./viewport";
 
-const REGION_COLOURS = [
-  new THREE.Color(0x3b6fd8), // fixed
-  new THREE.Color(0xe0483a),
-  new THREE.Color(0x3fb950),
-  new THREE.Color(0xd29922),
-  new THREE.Color(0xb062d9),
-  new THREE.Color(0x2fb8b0),
-  new THREE.Color(0xe06fa8),
-];
 const BASE_COLOUR = new THREE.Color(0xc9c4ba);
-function regionColour(label: number): THREE.Color {
-  return label === 0 ? REGION_COLOURS[0] : REGION_COLOURS[1 + ((label - 1) % (REGION_COLOURS.length - 1))];
-}
 
 export class MeshDisplay {
   object: THREE.Mesh | null = null;
@@ -130,7 +119,9 @@ export class MeshDisplay {
       const o = c * 3;
       const label = labels[this.split ? index[c] : c];
       if (label >= 0) {
-        const k = regionColour(label);
+        // A handle another editor is moving shows in that editor's colour.
+        const held = label > 0 ? this.state.heldColours.get(label) : undefined;
+        const k = held ? new THREE.Color(held) : regionColour(label);
         C[o] = k.r;
         C[o + 1] = k.g;
         C[o + 2] = k.b;

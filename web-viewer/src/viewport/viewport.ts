@@ -1,5 +1,9 @@
 // The three.js scene: renderer, camera, lights, orbit controls and the handle gizmo. Renders
 // only when something changed (requestRender).
+//
+// The scene is the model's own frame (root is never rotated): a z-up model gets camera.up =
+// +z instead, so the gizmo's "world" axes are the model's axes in every gizmo mode (Scale,
+// which TransformControls always orients to the object, agreed with Move only this way).
 import * as THREE from "three";
 import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
 import { TransformControls } from "three/examples/jsm/controls/TransformControls.js";
@@ -10,7 +14,7 @@ export class Viewport {
   readonly renderer: THREE.WebGLRenderer;
   readonly scene = new THREE.Scene();
   readonly camera = new THREE.PerspectiveCamera(40, 1, 0.001, 1000);
-  /** Model space (rotated for z-up models); the gizmo's object too, so its pose is in model coordinates. */
+  /** Model space (= the scene's frame); the gizmo's object too, so its pose is in model coordinates. */
   readonly root = new THREE.Group();
   readonly pivotObject = new THREE.Object3D();
   readonly gizmo: TransformControls;
@@ -37,6 +41,7 @@ export class Viewport {
     this.scene.add(this.gizmo.getHelper());
     this.orbit = new OrbitControls(this.camera, this.renderer.domElement);
     this.orbit.enableDamping = false;
+    this.orbit.zoomToCursor = true; // as in Blender / the three.js editor: the point under the cursor stays put
     this.orbit.addEventListener("change", () => this.requestRender());
     this.gizmo.addEventListener("change", () => this.requestRender());
     new ResizeObserver(() => this.resize()).observe(element);
@@ -67,27 +72,67 @@ export class Viewport {
     this.requestRender();
   }
 
-  /** Frames the model-space box `box`. */
+  /** The model's box and up axis, from the last fitCamera (Home / reset view go back to it). */
+  private modelBox: THREE.Box3 | null = null;
+
+  /** A new model: its up axis, and the default 3/4 view of `box`. */
   fitCamera(box: THREE.Box3): void {
-    const { camera, root, orbit } = this;
     const size = box.getSize(new THREE.Vector3());
     // z-up models (the Botsch–Sorkine set) stand upright on screen.
-    root.rotation.x = size.z > 1.3 * size.y ? -Math.PI / 2 : 0;
-    root.updateMatrixWorld(true);
-    const worldBox = box.clone().applyMatrix4(root.matrixWorld);
-    const center = worldBox.getCenter(new THREE.Vector3());
-    const radius = worldBox.getSize(new THREE.Vector3()).length() / 2 || 1;
-    const dist = (radius / Math.sin(THREE.MathUtils.degToRad(camera.fov / 2))) * 1.25;
-    camera.near = radius / 100;
-    camera.far = radius * 100;
-    // Look along the shallower horizontal axis so the widest silhouette faces the camera.
-    const ws = worldBox.getSize(new THREE.Vector3());
-    const offset = ws.z > 1.2 * ws.x ? new THREE.Vector3(dist, radius * 0.15, 0) : new THREE.Vector3(0, radius * 0.15, dist);
-    camera.position.copy(center).add(offset);
+    this.setUp(size.z > 1.3 * size.y ? new THREE.Vector3(0, 0, 1) : new THREE.Vector3(0, 1, 0));
+    this.modelBox = box.clone();
+    this.resetView();
+  }
+
+  /**
+   * The default view: from (1, 0.8, 1.2) (right, up, front) of the model's diagonal, so no
+   * gizmo arrow points at the viewer and all three can be grabbed.
+   */
+  resetView(): void {
+    if (!this.modelBox) return;
+    const up = this.camera.up;
+    const zUp = up.z > 0.5;
+    // right, up, front in model coordinates
+    const dir = zUp ? new THREE.Vector3(1, -1.2, 0.8) : new THREE.Vector3(1, 0.8, 1.2);
+    this.frameBox(this.modelBox, dir.normalize());
+  }
+
+  /** Home: the whole model, from the current direction. */
+  frameAll(): void {
+    if (this.modelBox) this.frameBox(this.modelBox);
+  }
+
+  /**
+   * Frames `box` (model = world coordinates) from `direction` (unit, target → camera; default:
+   * the current one) and orbits around its centre from now on.
+   */
+  frameBox(box: THREE.Box3, direction?: THREE.Vector3): void {
+    const { camera, orbit } = this;
+    const center = box.getCenter(new THREE.Vector3());
+    const radius = Math.max(box.getSize(new THREE.Vector3()).length() / 2, (this.modelRadius() || 1) * 0.05);
+    const dist = (radius / Math.sin(THREE.MathUtils.degToRad(camera.fov / 2))) * 1.1;
+    const dir = direction ?? camera.position.clone().sub(orbit.target).normalize();
+    const modelRadius = this.modelRadius() || radius;
+    camera.near = modelRadius / 100;
+    camera.far = modelRadius * 100;
+    camera.position.copy(center).addScaledVector(dir, dist);
     camera.updateProjectionMatrix();
     orbit.target.copy(center);
     orbit.update();
     this.requestRender();
+  }
+
+  private modelRadius(): number {
+    return this.modelBox ? this.modelBox.getSize(new THREE.Vector3()).length() / 2 : 0;
+  }
+
+  private setUp(up: THREE.Vector3): void {
+    this.camera.up.copy(up);
+    // OrbitControls takes its "up" from camera.up once, in its constructor (_quat maps it to
+    // +y); a model with another up axis needs it again.
+    const o = this.orbit as unknown as { _quat: THREE.Quaternion; _quatInverse: THREE.Quaternion };
+    o._quat.setFromUnitVectors(up, new THREE.Vector3(0, 1, 0));
+    o._quatInverse.copy(o._quat).invert();
   }
 
   /** Client coordinates of a world-space point. */

@@ -1,0 +1,97 @@
+// Keyboard shortcuts, as people know them from Blender and the three.js editor: which key does
+// what, without the DOM (unit-tested); panels/shortcuts.ts carries the actions out.
+
+export type KeyAction =
+  | "translate" // W: move gizmo
+  | "rotate" // E
+  | "scale" // R
+  | "toggleSpace" // Q: world / local axes (the three.js editor's key)
+  | "cancel" // Esc: cancel the drag (or close the shortcuts overlay)
+  | "axisX" // X / Y / Z while dragging: keep to that axis
+  | "axisY"
+  | "axisZ"
+  | "frameSelection" // F
+  | "frameAll" // Home
+  | "clearSelection" // Delete / Backspace: clear the region being assigned
+  | "help"; // ?
+
+export interface KeyInput {
+  key: string;
+  ctrlKey?: boolean;
+  metaKey?: boolean;
+  altKey?: boolean;
+}
+
+/** The action of a key press; null for keys that are not shortcuts (or with Ctrl / Alt / ⌘). */
+export function keyAction(ev: KeyInput): KeyAction | null {
+  if (ev.ctrlKey || ev.metaKey || ev.altKey) return null; // the browser's own (copy, reload, …)
+  switch (ev.key) {
+    case "w":
+    case "W":
+      return "translate";
+    case "e":
+    case "E":
+      return "rotate";
+    case "r":
+    case "R":
+      return "scale";
+    case "q":
+    case "Q":
+      return "toggleSpace";
+    case "Escape":
+      return "cancel";
+    case "x":
+    case "X":
+      return "axisX";
+    case "y":
+    case "Y":
+      return "axisY";
+    case "z":
+    case "Z":
+      return "axisZ";
+    case "f":
+    case "F":
+      return "frameSelection";
+    case "Home":
+      return "frameAll";
+    case "Delete":
+    case "Backspace":
+      return "clearSelection";
+    case "?":
+      return "help";
+    default:
+      return null;
+  }
+}
+
+/** What an element is, as far as typing goes (a DOM element or a plain description in tests). */
+export interface TargetInfo {
+  tagName?: string;
+  type?: string;
+  isContentEditable?: boolean;
+}
+
+const NOT_TEXT = new Set(["range", "checkbox", "radio", "button", "submit", "reset", "file", "color"]);
+
+/** Keys typed into a text field, a select or an editable element are not shortcuts. */
+export function isTyping(target: TargetInfo | null | undefined): boolean {
+  if (!target) return false;
+  if (target.isContentEditable) return true;
+  const tag = (target.tagName ?? "").toUpperCase();
+  if (tag === "TEXTAREA" || tag === "SELECT") return true;
+  if (tag === "INPUT") return !NOT_TEXT.has((target.type ?? "text").toLowerCase());
+  return false;
+}
+
+/** The shortcuts overlay's rows: keys, what they do. */
+export const SHORTCUTS: [string, string][] = [
+  ["W / E / R", "move / rotate / scale gizmo"],
+  ["Q", "world / local axes"],
+  ["Esc · right click", "cancel the drag (back to where it began)"],
+  ["X / Y / Z (dragging)", "keep the drag to one axis"],
+  ["Ctrl (Shift) while dragging", "snap: 15° (5°) steps, grid moves"],
+  ["F", "frame the active handle / selected region"],
+  ["Home", "frame everything"],
+  ["Delete", "clear the region being assigned"],
+  ["?", "this list"],
+];

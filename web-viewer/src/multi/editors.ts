@@ -1,0 +1,86 @@
+// Several editors in one session: this tab's identity, who else is there (presence), taking a
+// handle before dragging it, and other editors' frames moving their handles' gizmos here.
+import { create } from "@bufbuild/protobuf";
+import { Code } from "@connectrpc/connect";
+import type { App } from "../app";
+import { HandleTransformSchema, type Presence } from "../gen/hdeform/v1/deform_pb";
+import type { Sync } from "../sync/sync";
+import { fromProtoTransform } from "../transforms";
+import { HandleLease } from "./handle_lease";
+import { Identity } from "./identity";
+import { heldMessage, holderFromMessage, PresenceModel } from "./presence_model";
+
+export interface Editors {
+  identity: Identity;
+  presence: PresenceModel;
+  lease: HandleLease;
+  /** The server supports several editors (a presence event or a granted grab came). */
+  readonly multi: boolean;
+  /** GrabHandles for a drag of handle h (0-based); false (and a message) when refused. */
+  grab(h: number): Promise<boolean>;
+  release(): void;
+  onPresence(listener: () => void): void;
+}
+
+export function setupEditors(app: App, sync: Sync): Editors {
+  const { state, client, banner } = app;
+  const identity = new Identity(window.sessionStorage, window.localStorage);
+  const presence = new PresenceModel(identity.clientId);
+  const listeners: (() => void)[] = [];
+  let sawPresence = false;
+  const adopt = (p: Presence) => {
+    sawPresence = true;
+    if (!presence.update(p)) return;
+    // Handles someone else holds are drawn in their colour.
+    state.heldColours = new Map();
+    for (const person of presence.people) if (!person.me) for (const h of person.held) state.heldColours.set(h + 1, person.color);
+    state.emit("colours", undefined);
+    state.emit("handles", undefined); // the gizmo of a held handle does not start drags
+    for (const l of listeners) l();
+  };
+  const lease = new HandleLease(client, () => identity.participant(), adopt);
+  sync.on("presence", adopt);
+
+  // Another editor's frame: it names every handle's transform; move the gizmos of the handles
+  // this page is not dragging.
+  sync.on("frame", ({ frame }) => {
+    if (!frame.clientId || frame.clientId === identity.clientId || frame.transforms.length === 0) return;
+    const mine = sync.dragging || sync.busy ? state.activeHandle - 1 : -1;
+    let changed = false;
+    frame.transforms.forEach((t, h) => {
+      if (h === mine || h >= state.handles.length) return;
+      state.setHandle(h, fromProtoTransform(create(HandleTransformSchema, t), state.pivots[h]));
+      changed = true;
+    });
+    if (changed) state.emit("handles", undefined);
+  });
+
+  return {
+    identity,
+    presence,
+    lease,
+    get multi() {
+      return sawPresence || lease.supported === true;
+    },
+    async grab(h: number): Promise<boolean> {
+      if (state.watchOnly || !state.sessionName) return false;
+      const holder = presence.holderOf(h);
+      if (holder) {
+        banner.show(heldMessage(h + 1, holder.name), "rejected");
+        return false;
+      }
+      const r = await lease.grab(state.sessionName, [h]);
+      if (r.ok) {
+        banner.clear("rejected");
+        return true;
+      }
+      banner.show(
+        r.code === Code.Aborted ? heldMessage(h + 1, holderFromMessage(r.message)) : `Cannot take handle ${h + 1}: ${r.message}`,
+        "rejected",
+      );
+      return false;
+    },
+    release: () => void lease.release(),
+    onPresence: (l) => listeners.push(l),
+  };
+}

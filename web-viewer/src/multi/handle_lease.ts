@@ -1,0 +1,79 @@
+// Taking a handle before dragging it (GrabHandles), keeping it while it is held without moving
+// (a grab every RENEW_MS; updates naming it renew the lease too) and giving it back at the
+// drag's end (ReleaseHandles). A server without several-editor support answers UNIMPLEMENTED:
+// then every grab succeeds locally and nothing more is asked.
+import type { MessageInitShape } from "@bufbuild/protobuf";
+import { Code, ConnectError } from "@connectrpc/connect";
+import type { DeformationClient } from "../api";
+import type { ParticipantSchema, Presence } from "../gen/hdeform/v1/deform_pb";
+
+export const RENEW_MS = 2000;
+export const LEASE_MS = 5000;
+
+export type GrabClient = Pick<DeformationClient, "grabHandles" | "releaseHandles">;
+
+export type GrabResult = { ok: true } | { ok: false; message: string; code: Code };
+
+export class HandleLease {
+  /** null: not known yet; false: the server has no GrabHandles. */
+  supported: boolean | null = null;
+  private held: number[] = [];
+  private name = "";
+  private timer: ReturnType<typeof setInterval> | undefined;
+
+  constructor(
+    private readonly client: GrabClient,
+    private readonly participant: () => MessageInitShape<typeof ParticipantSchema>,
+    private readonly presence: (p: Presence) => void,
+  ) {}
+
+  get holding(): number[] {
+    return this.held;
+  }
+
+  /** Grabs `handles` (0-based) of session `name` for this page. */
+  async grab(name: string, handles: number[]): Promise<GrabResult> {
+    if (this.supported === false) return { ok: true };
+    try {
+      const res = await this.client.grabHandles({ name, client: this.participant(), handles, leaseMs: LEASE_MS });
+      this.supported = true;
+      this.name = name;
+      this.held = handles;
+      if (res.presence) this.presence(res.presence);
+      clearInterval(this.timer);
+      this.timer = setInterval(() => void this.renew(), RENEW_MS);
+      return { ok: true };
+    } catch (err) {
+      const e = ConnectError.from(err);
+      if (e.code === Code.Unimplemented) {
+        this.supported = false;
+        return { ok: true };
+      }
+      return { ok: false, message: e.rawMessage, code: e.code };
+    }
+  }
+
+  /** Gives back what this page holds (at a drag's end, or when it is cancelled). */
+  async release(): Promise<void> {
+    clearInterval(this.timer);
+    this.timer = undefined;
+    if (!this.supported || this.held.length === 0) return;
+    const { name, held } = this;
+    this.held = [];
+    try {
+      const res = await this.client.releaseHandles({ name, clientId: this.participant().clientId ?? "", handles: held });
+      if (res.presence) this.presence(res.presence);
+    } catch {
+      /* the lease runs out by itself */
+    }
+  }
+
+  private async renew(): Promise<void> {
+    if (this.held.length === 0) return;
+    try {
+      await this.client.grabHandles({ name: this.name, client: this.participant(), handles: this.held, leaseMs: LEASE_MS });
+    } catch {
+      /* the next update or grab says more */
+    }
+  }
+}
