@@ -18,6 +18,7 @@ struct DeformOptions {
   std::string output;
   bool keep = false;
   ConstraintOptions c;
+  MeshOutputOptions out;
 };
 
 }  // namespace
@@ -30,6 +31,7 @@ Command add_deform_command(CLI::App& app, const GlobalOptions& global) {
   add_constraint_options(*cmd, opts->c);
   add_beta_options(*cmd, opts->c, true);
   cmd->add_option("-o,--output", opts->output, "write the deformed mesh (.glb .obj .off .ply)");
+  add_mesh_output_options(*cmd, opts->out);
   cmd->add_flag("--keep", opts->keep, "keep the session on the server and print its name");
   auto* beta_opt = cmd->get_option("--beta");
 
@@ -75,7 +77,7 @@ Command add_deform_command(CLI::App& app, const GlobalOptions& global) {
                   << " units)\n";
       print_measures(std::cout, frame.measures());
       if (!o.output.empty()) {
-        const std::size_t bytes = s.download(o.output, format);
+        const std::size_t bytes = s.download(o.output, format, false, o.out);
         std::cout << "wrote " << o.output << " (" << bytes << " bytes)\n";
       }
     });

@@ -27,6 +27,7 @@ struct RunOptions {
   std::string job;
   std::string output_dir;
   bool dry_run = false;
+  MeshOutputOptions out;
 };
 
 // Per mesh and constraint set, resolved before any call: {mesh} substituted, files read.
@@ -149,6 +150,7 @@ Command add_run_command(CLI::App& app, const GlobalOptions& global) {
       "run", "run a batch job (JSON, docs/cli.md): meshes x constraints x transforms x betas");
   cmd->add_option("JOB", opts->job, "job file (.json)")->required()->check(CLI::ExistingFile);
   cmd->add_option("-o,--output-dir", opts->output_dir, "override the job's output_dir");
+  add_mesh_output_options(*cmd, opts->out);
   cmd->add_flag("--dry-run", opts->dry_run, "check the job and list its items; no server calls");
 
   return [opts, &global]() -> int {
@@ -301,7 +303,7 @@ Command add_run_command(CLI::App& app, const GlobalOptions& global) {
                 const std::string file = item_file_name(job, m, c, t, beta);
                 const fs::path path = output_path_inside(job.output_dir, file);
                 output = (fs::path(job.output_dir) / file).string();
-                const std::size_t bytes = s->download(path.string(), format);
+                const std::size_t bytes = s->download(path.string(), format, false, o.out);
                 wrote = "wrote " + output + " (" + std::to_string(bytes) + " bytes)";
               }
               const double ms = ms_since(start);

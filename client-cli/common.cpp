@@ -493,11 +493,14 @@ pb::SweepResponse SessionClient::sweep(const std::vector<double>& betas, pb::Bet
   return resp;
 }
 
-std::size_t SessionClient::download(const std::string& path, pb::MeshFormat format, bool rest) {
+std::size_t SessionClient::download(const std::string& path, pb::MeshFormat format, bool rest,
+                                    const MeshOutputOptions& options) {
   pb::GetMeshRequest req;
   req.set_name(name_);
   req.set_rest(rest);
   req.set_format(format);
+  req.set_up(options.up);
+  req.set_ply_encoding(options.ply);
   std::string bytes;
   // A download cut by UNAVAILABLE starts again from its first chunk.
   call("GetMesh", [&](grpc::ClientContext& ctx) {

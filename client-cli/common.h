@@ -33,6 +33,12 @@ struct RpcError : CliError {
 
 const char* status_code_name(grpc::StatusCode code);
 
+// How written meshes look beyond their format (deform -o, run outputs): --up, --ply.
+struct MeshOutputOptions {
+  pb::UpAxis up = pb::UP_AXIS_Y;
+  pb::PlyEncoding ply = pb::PLY_ENCODING_AS_INPUT;
+};
+
 struct GlobalOptions {
   std::string server;            // HOST:PORT; empty = in-process service
   std::string log_level = "warn";
@@ -137,7 +143,8 @@ class SessionClient {
                           const std::vector<pb::HandleTransform>& transforms);
   // Downloads the current (or rest) mesh into `path`; returns the number of bytes. A mesh
   // with NaN/Inf vertex coordinates is not written (CliError).
-  std::size_t download(const std::string& path, pb::MeshFormat format, bool rest = false);
+  std::size_t download(const std::string& path, pb::MeshFormat format, bool rest = false,
+                       const MeshOutputOptions& options = {});
   pb::Snapshot export_snapshot(bool include_mesh);
   void remove();
 

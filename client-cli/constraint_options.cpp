@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <map>
 #include <sstream>
 
 namespace hdeform::cli {
@@ -227,6 +228,25 @@ std::array<double, 16> parse_def(const std::string& content, const std::string& 
     throw parse_error(file, lineno,
                       "expected a 4x4 matrix (16 numbers), got " + std::to_string(count));
   return m;
+}
+
+void add_mesh_output_options(CLI::App& cmd, MeshOutputOptions& o) {
+  cmd.add_option("--up", o.up,
+                 "the model's up axis: z writes a .glb with a root node turning it to glTF's "
+                 "y-up (the buffer keeps the model's own coordinates)")
+      ->transform(CLI::CheckedTransformer(
+          std::map<std::string, pb::UpAxis>{{"y", pb::UP_AXIS_Y}, {"z", pb::UP_AXIS_Z}},
+          CLI::ignore_case))
+      ->default_str("y");
+  cmd.add_option("--ply", o.ply,
+                 "PLY output encoding: auto (binary when the input was a binary PLY), ascii or "
+                 "binary")
+      ->transform(CLI::CheckedTransformer(
+          std::map<std::string, pb::PlyEncoding>{{"auto", pb::PLY_ENCODING_AS_INPUT},
+                                                 {"ascii", pb::PLY_ENCODING_ASCII},
+                                                 {"binary", pb::PLY_ENCODING_BINARY}},
+          CLI::ignore_case))
+      ->default_str("auto");
 }
 
 }  // namespace hdeform::cli

@@ -27,6 +27,8 @@ struct ConstraintOptions {
 };
 
 void add_constraint_options(CLI::App& cmd, ConstraintOptions& options);
+// --up z|y and --ply auto|ascii|binary (MeshOutputOptions, common.h).
+void add_mesh_output_options(CLI::App& cmd, MeshOutputOptions& o);
 void add_beta_options(CLI::App& cmd, ConstraintOptions& options, bool with_beta_value);
 
 struct ConstraintSpec {

@@ -122,13 +122,14 @@ MeshFileFormat format_from_path(const std::string& path) {
 }
 
 std::string write_mesh_bytes(MeshFileFormat format, const Vertices& V, const Triangles& F,
-                             const Vertices* N) {
+                             const Vertices* N, const WriteOptions& options) {
   check_write_input(V, F, N);
   switch (format) {
-    case MeshFileFormat::glb: return detail::write_glb(V, F, N);
+    case MeshFileFormat::glb: return detail::write_glb(V, F, N, options.up_z);
     case MeshFileFormat::obj: return detail::write_obj(V, F, N);
     case MeshFileFormat::off: return detail::write_off(V, F, N);
-    case MeshFileFormat::ply: return detail::write_ply(V, F, N);
+    case MeshFileFormat::ply:
+      return options.binary_ply ? detail::write_ply_binary(V, F, N) : detail::write_ply(V, F, N);
   }
   throw std::invalid_argument("write_mesh_bytes: unknown format");
 }

@@ -77,8 +77,18 @@ MeshFileFormat format_from_path(const std::string& path);  // throws InvalidInpu
 // indices in one buffer laid out [POSITION n×12 B | NORMAL n×12 B | indices m×12 B] (the
 // base layout that service frames refer to). format_from_path throws InvalidInput; a file
 // that cannot be written throws std::runtime_error.
+// How a file is written beyond its format.
+struct WriteOptions {
+  // GLB: the model's up axis is +z (the cactus; CAD and scan data). glTF is y-up, so the GLB
+  // gets a root node rotating −90° about x (z → y): Blender and three.js show it upright, and
+  // the buffer keeps the model's own coordinates exactly (read_mesh ignores node transforms,
+  // so a round trip gives the same positions and ids). Other formats: no effect.
+  bool up_z = false;
+  // PLY: binary little-endian (doubles, int indices) instead of ASCII; reads back identical.
+  bool binary_ply = false;
+};
 std::string write_mesh_bytes(MeshFileFormat format, const Vertices& V, const Triangles& F,
-                             const Vertices* N = nullptr);
+                             const Vertices* N = nullptr, const WriteOptions& options = {});
 void write_mesh(const std::string& path, const Vertices& V, const Triangles& F,
                 const Vertices* N = nullptr);
 

@@ -11,7 +11,8 @@ namespace hdeform::detail {
 std::string write_obj(const Vertices& V, const Triangles& F, const Vertices* N);
 std::string write_off(const Vertices& V, const Triangles& F, const Vertices* N);
 std::string write_ply(const Vertices& V, const Triangles& F, const Vertices* N);
-// N null: vertex_normals(V, F).
-std::string write_glb(const Vertices& V, const Triangles& F, const Vertices* N);
+std::string write_ply_binary(const Vertices& V, const Triangles& F, const Vertices* N);
+// N null: vertex_normals(V, F). up_z: a root node rotates the z-up model to glTF's y-up.
+std::string write_glb(const Vertices& V, const Triangles& F, const Vertices* N, bool up_z);
 
 }  // namespace hdeform::detail

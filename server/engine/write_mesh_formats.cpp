@@ -12,7 +12,10 @@
 #include <tiny_gltf.h>
 
 #include <algorithm>
+#include <bit>
 #include <charconv>
+#include <cmath>
+#include <cstring>
 #include <cstdint>
 #include <limits>
 #include <sstream>
@@ -117,7 +120,38 @@ std::string write_ply(const Vertices& V, const Triangles& F, const Vertices* N) 
   return out;
 }
 
-std::string write_glb(const Vertices& V, const Triangles& F, const Vertices* N) {
+std::string write_ply_binary(const Vertices& V, const Triangles& F, const Vertices* N) {
+  std::string out = "ply\nformat binary_little_endian 1.0\ncomment hdeform\nelement vertex ";
+  append_int(out, V.rows());
+  out += "\nproperty double x\nproperty double y\nproperty double z\n";
+  if (N) out += "property double nx\nproperty double ny\nproperty double nz\n";
+  out += "element face ";
+  append_int(out, F.rows());
+  out += "\nproperty list uchar int vertex_indices\nend_header\n";
+  static_assert(std::endian::native == std::endian::little, "binary PLY is written as is");
+  const int per_vertex = N ? 6 : 3;
+  const std::size_t header = out.size();
+  out.resize(header + static_cast<std::size_t>(V.rows()) * per_vertex * 8 +
+             static_cast<std::size_t>(F.rows()) * 13);
+  char* p = out.data() + header;
+  for (Eigen::Index i = 0; i < V.rows(); ++i)
+    for (int k = 0; k < per_vertex; ++k) {
+      const double v = k < 3 ? V(i, k) : (*N)(i, k - 3);
+      std::memcpy(p, &v, 8);
+      p += 8;
+    }
+  for (Eigen::Index t = 0; t < F.rows(); ++t) {
+    *p++ = 3;
+    for (int k = 0; k < 3; ++k) {
+      const std::int32_t idx = F(t, k);
+      std::memcpy(p, &idx, 4);
+      p += 4;
+    }
+  }
+  return out;
+}
+
+std::string write_glb(const Vertices& V, const Triangles& F, const Vertices* N, bool up_z) {
   Vertices computed;
   if (!N) {
     computed = vertex_normals(V, F);
@@ -191,7 +225,17 @@ std::string write_glb(const Vertices& V, const Triangles& F, const Vertices* N) 
   node.mesh = 0;
   model.nodes.push_back(node);
   tinygltf::Scene scene;
-  scene.nodes.push_back(0);
+  if (up_z) {
+    // −90° about x: (x, y, z) → (x, z, −y). On a parent, so the mesh node stays plain.
+    tinygltf::Node up;
+    up.name = "z-up to y-up";
+    up.rotation = {-std::sqrt(0.5), 0.0, 0.0, std::sqrt(0.5)};
+    up.children.push_back(0);
+    model.nodes.push_back(up);
+    scene.nodes.push_back(1);
+  } else {
+    scene.nodes.push_back(0);
+  }
   model.scenes.push_back(scene);
   model.defaultScene = 0;
 

@@ -205,8 +205,11 @@ class MeshWriter final : public grpc::ServerWriteReactor<v1::MeshChunk> {
       : session_(std::move(session)) {
     const bool rest = request.rest();
     const auto format = request.format();
-    session_->post([this, rest, format] {
-      const auto status = guarded([&] { data_ = session_->mesh_file(rest, format); }, "GetMesh");
+    const auto up = request.up();
+    const auto ply = request.ply_encoding();
+    session_->post([this, rest, format, up, ply] {
+      const auto status =
+          guarded([&] { data_ = session_->mesh_file(rest, format, up, ply); }, "GetMesh");
       if (!status.ok()) {
         Finish(status);
         return;

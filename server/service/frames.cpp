@@ -95,11 +95,12 @@ void FrameLayout::fill(const hdeform::Frame& frame, v1::Frame* out) const {
   m->set_flips(frame.measures.flips);
 }
 
-std::string FrameLayout::mesh_file(MeshFileFormat format, const Vertices& V) const {
+std::string FrameLayout::mesh_file(MeshFileFormat format, const Vertices& V,
+                                   const WriteOptions& options) const {
   const Triangles& F = mesh_->mesh().F;
-  if (format != MeshFileFormat::glb) return write_mesh_bytes(format, V, F);
+  if (format != MeshFileFormat::glb) return write_mesh_bytes(format, V, F, nullptr, options);
   const Vertices N = vertex_normals(V, F);
-  if (identity_) return write_mesh_bytes(format, V, layout_.input_triangles, &N);
+  if (identity_) return write_mesh_bytes(format, V, layout_.input_triangles, &N, options);
   // Not LoadedMesh::to_input_layout: layout_'s engine mesh was moved into the PreparedMesh
   // (its row check would see 0 vertices).
   auto to_base = [&](const Vertices& rows) {
@@ -109,7 +110,7 @@ std::string FrameLayout::mesh_file(MeshFileFormat format, const Vertices& V) con
   };
   const Vertices Vi = to_base(V);
   const Vertices Ni = to_base(N);
-  return write_mesh_bytes(format, Vi, layout_.input_triangles, &Ni);
+  return write_mesh_bytes(format, Vi, layout_.input_triangles, &Ni, options);
 }
 
 const std::string& FrameLayout::base_glb() const {

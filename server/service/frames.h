@@ -33,7 +33,8 @@ class FrameLayout {
 
   // A mesh file of `engine_positions`: GLB in the input layout with normals (the base
   // layout); OBJ/OFF/PLY in engine order (the ids constraints use; text keeps %.17g).
-  std::string mesh_file(MeshFileFormat format, const Vertices& engine_positions) const;
+  std::string mesh_file(MeshFileFormat format, const Vertices& engine_positions,
+                        const WriteOptions& options = {}) const;
   // The rest mesh as GLB, built once.
   const std::string& base_glb() const;
 

@@ -585,12 +585,24 @@ Vertices Session::deformed_positions() {
   return frame->positions;
 }
 
-std::string Session::mesh_file(bool rest, pb::MeshFormat format) {
+std::string Session::mesh_file(bool rest, pb::MeshFormat format, pb::UpAxis up,
+                               pb::PlyEncoding ply) {
   touch();
   const MeshFileFormat f = file_format(format);
-  if (rest && f == MeshFileFormat::glb) return mesh_->layout->base_glb();
+  if (up != pb::UP_AXIS_Y && up != pb::UP_AXIS_Z)
+    throw InvalidInput("GetMesh: unknown up axis " + std::to_string(up));
+  if (ply < pb::PLY_ENCODING_AS_INPUT || ply > pb::PLY_ENCODING_BINARY)
+    throw InvalidInput("GetMesh: unknown PLY encoding " + std::to_string(ply));
+  WriteOptions options;
+  options.up_z = up == pb::UP_AXIS_Z;
+  // A binary PLY upload comes back binary: its header says so in the first line after "ply".
+  const bool input_binary_ply =
+      mesh_->file_bytes && mesh_->file_bytes->compare(0, 24, "ply\nformat binary_little") == 0;
+  options.binary_ply = ply == pb::PLY_ENCODING_BINARY ||
+                       (ply == pb::PLY_ENCODING_AS_INPUT && input_binary_ply);
+  if (rest && f == MeshFileFormat::glb && !options.up_z) return mesh_->layout->base_glb();
   const Vertices V = rest ? mesh_->prepared->mesh().V : deformed_positions();
-  return mesh_->layout->mesh_file(f, V);
+  return mesh_->layout->mesh_file(f, V, options);
 }
 
 pb::Snapshot Session::export_snapshot(bool include_mesh, std::int64_t* version) const {

@@ -144,6 +144,24 @@ deform)
     || fail "deform (upload) exited $?"
   check_measures "$TMP/out2"
   grep -c '^v ' "$TMP/cactus.obj" | grep -qx 5261 || fail "OBJ does not have 5261 vertices"
+  # outputs that keep what the user gave: the z-up cactus as an upright GLB, binary PLY in,
+  # binary PLY out (and ASCII on request), bad values refused
+  "$HDEFORM" deform cactus --sel "$BS/cactus.sel" --def "$BS/cactus.def" --up z \
+    -o "$TMP/up.glb" >/dev/null || fail "deform --up z exited $?"
+  grep -aq 'z-up to y-up' "$TMP/up.glb" || fail "--up z: no root rotation node in the GLB"
+  $CHECK glb "$TMP/up.glb" 5261 || fail "bad --up z GLB"
+  "$HDEFORM" deform cactus --sel "$BS/cactus.sel" --def "$BS/cactus.def" --ply binary \
+    -o "$TMP/bin.ply" >/dev/null || fail "deform --ply binary exited $?"
+  head -c 40 "$TMP/bin.ply" | grep -aq 'format binary_little_endian' || fail "--ply binary: ASCII"
+  "$HDEFORM" deform "$TMP/bin.ply" --sel "$BS/cactus.sel" -o "$TMP/again.ply" >/dev/null \
+    || fail "deform of a binary PLY exited $?"
+  head -c 40 "$TMP/again.ply" | grep -aq 'format binary_little_endian' \
+    || fail "a binary PLY input did not give a binary PLY output"
+  "$HDEFORM" deform "$TMP/bin.ply" --sel "$BS/cactus.sel" --ply ascii -o "$TMP/ascii.ply" \
+    >/dev/null || fail "deform --ply ascii exited $?"
+  head -c 40 "$TMP/ascii.ply" | grep -aq 'format ascii' || fail "--ply ascii: not ASCII"
+  expect_fail "--up x" "--up: Check x value in" -- \
+    "$HDEFORM" deform cactus --sel "$BS/cactus.sel" --up x -o "$TMP/x.glb"
   ;;
 sweep)
   "$HDEFORM" sweep cactus --sel "$BS/cactus.sel" --def "$BS/cactus.def" --betas 0,0.1,0.25 \

@@ -2,6 +2,7 @@
 #include "mesh_io.h"
 #include "validate.h"
 
+#include <Eigen/Geometry>
 #include <gtest/gtest.h>
 #include <tiny_gltf.h>
 
@@ -871,6 +872,50 @@ TEST(MeshIoBounds, QuotedFileContentIsEscaped) {
   // Bytes of a binary or non-UTF-8 file quoted in a message are escaped, so the message is
   // valid UTF-8 (it ends up in gRPC status messages and proto strings).
   EXPECT_EQ(msg_of("OFF\n3 1 0\n0 0 0\n1 \xff\xfe 0\n0 1 0\n3 0 1 2\n", "u.off"), "u.off:4: bad coordinate '\\xff\\xfe'");
+}
+
+TEST(MeshIo, BinaryPlyReadsBackBitIdentical) {
+  const TriMesh m = awkward_tetra();
+  WriteOptions o;
+  o.binary_ply = true;
+  for (bool with_normals : {false, true}) {
+    const Vertices N = vertex_normals(m.V, m.F);
+    const std::string bytes =
+        write_mesh_bytes(MeshFileFormat::ply, m.V, m.F, with_normals ? &N : nullptr, o);
+    EXPECT_EQ(bytes.rfind("ply\nformat binary_little_endian 1.0\n", 0), 0u);
+    const LoadedMesh r = read_mesh_bytes(bytes, "t.ply");
+    expect_bitwise_equal(r.mesh.V, m.V);
+    EXPECT_EQ(r.mesh.F, m.F);
+    EXPECT_TRUE(r.warnings.empty());
+  }
+}
+
+TEST(MeshIo, ZUpGlbTurnsUprightInAViewerAndKeepsTheModelsCoordinates) {
+  const TriMesh m = awkward_tetra();
+  WriteOptions o;
+  o.up_z = true;
+  const std::string bytes = write_mesh_bytes(MeshFileFormat::glb, m.V, m.F, nullptr, o);
+  tinygltf::TinyGLTF loader;
+  tinygltf::Model model;
+  std::string err, warn;
+  ASSERT_TRUE(loader.LoadBinaryFromMemory(&model, &err, &warn,
+                                          reinterpret_cast<const unsigned char*>(bytes.data()),
+                                          static_cast<unsigned int>(bytes.size())))
+      << err;
+  // The scene's root turns +z into +y: q = (x, y, z, w) for −90° about x.
+  ASSERT_EQ(model.scenes.at(0).nodes.size(), 1u);
+  const auto& root = model.nodes.at(static_cast<size_t>(model.scenes[0].nodes[0]));
+  ASSERT_EQ(root.rotation.size(), 4u);
+  const Eigen::Quaterniond q(root.rotation[3], root.rotation[0], root.rotation[1], root.rotation[2]);
+  EXPECT_TRUE((q * Eigen::Vector3d::UnitZ()).isApprox(Eigen::Vector3d::UnitY(), 1e-15));
+  EXPECT_TRUE((q * Eigen::Vector3d::UnitY()).isApprox(-Eigen::Vector3d::UnitZ(), 1e-15));
+  ASSERT_EQ(root.children.size(), 1u);
+  EXPECT_EQ(model.nodes.at(static_cast<size_t>(root.children[0])).mesh, 0);
+  // Read back: the model's own coordinates, ids and triangles (node transforms ignored).
+  const LoadedMesh r = read_mesh_bytes(bytes, "t.glb");
+  EXPECT_EQ(r.mesh.V, m.V.cast<float>().cast<double>().eval());
+  EXPECT_EQ(r.mesh.F, m.F);
+  EXPECT_TRUE(r.identity_layout());
 }
 
 }  // namespace

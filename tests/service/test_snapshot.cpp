@@ -1,4 +1,5 @@
 // ExportSession → ImportSession reproduces the deformation bit for bit.
+#include "mesh_io.h"
 #include "service_fixture.h"
 
 using namespace hdeform::testing;
@@ -85,4 +86,48 @@ TEST(ServiceSnapshot, UploadWithMeshMovesToAnotherServer) {
   wrong.set_mesh_hash("0123456789abcdef");
   EXPECT_EQ(b.import_session(wrong, &imported).error_code(),
             grpc::StatusCode::INVALID_ARGUMENT);
+}
+
+// Outputs keep what the user gave: a binary PLY comes back binary (unless asked otherwise),
+// a z-up model's GLB gets the root rotation, and unknown values are refused.
+TEST(ServiceOutputs, BinaryPlyStaysBinaryAndUpZRotatesTheGlb) {
+  TestServer t;
+  const std::string off = grid_off(6);
+  const hdeform::LoadedMesh mesh = hdeform::read_mesh_bytes(off, "g.off");
+  hdeform::WriteOptions binary;
+  binary.binary_ply = true;
+  const std::string ply =
+      hdeform::write_mesh_bytes(hdeform::MeshFileFormat::ply, mesh.mesh.V, mesh.mesh.F, nullptr, binary);
+  pb::Session s;
+  ASSERT_TRUE(t.upload(ply, "g.ply", &s).ok());
+  auto get = [&](pb::MeshFormat f, pb::UpAxis up, pb::PlyEncoding enc, std::string* out) {
+    grpc::ClientContext ctx;
+    pb::GetMeshRequest r;
+    r.set_name(s.name());
+    r.set_format(f);
+    r.set_up(up);
+    r.set_ply_encoding(enc);
+    auto reader = t.stub->GetMesh(&ctx, r);
+    pb::MeshChunk c;
+    out->clear();
+    while (reader->Read(&c)) *out += c.data();
+    return reader->Finish();
+  };
+  std::string bytes;
+  ASSERT_TRUE(get(pb::MESH_FORMAT_PLY, pb::UP_AXIS_Y, pb::PLY_ENCODING_AS_INPUT, &bytes).ok());
+  EXPECT_EQ(bytes.rfind("ply\nformat binary_little_endian", 0), 0u);
+  ASSERT_TRUE(get(pb::MESH_FORMAT_PLY, pb::UP_AXIS_Y, pb::PLY_ENCODING_ASCII, &bytes).ok());
+  EXPECT_EQ(bytes.rfind("ply\nformat ascii", 0), 0u);
+  // The positions of the binary output are the upload's, bit for bit.
+  ASSERT_TRUE(get(pb::MESH_FORMAT_PLY, pb::UP_AXIS_Y, pb::PLY_ENCODING_BINARY, &bytes).ok());
+  EXPECT_EQ(hdeform::read_mesh_bytes(bytes, "x.ply").mesh.V, mesh.mesh.V);
+  ASSERT_TRUE(get(pb::MESH_FORMAT_GLB, pb::UP_AXIS_Z, pb::PLY_ENCODING_AS_INPUT, &bytes).ok());
+  EXPECT_NE(bytes.find("z-up to y-up"), std::string::npos);
+  EXPECT_EQ(hdeform::read_mesh_bytes(bytes, "x.glb").mesh.V,
+            mesh.mesh.V.cast<float>().cast<double>().eval());
+  auto st = get(pb::MESH_FORMAT_GLB, static_cast<pb::UpAxis>(7), pb::PLY_ENCODING_AS_INPUT, &bytes);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("unknown up axis 7"), std::string::npos) << st.error_message();
+  st = get(pb::MESH_FORMAT_PLY, pb::UP_AXIS_Y, static_cast<pb::PlyEncoding>(9), &bytes);
+  EXPECT_NE(st.error_message().find("unknown PLY encoding 9"), std::string::npos);
 }
