@@ -1,5 +1,7 @@
 #include "frames.h"
 
+#include "rewrite_gltf.h"
+
 #include <algorithm>
 #include <bit>
 #include <cstring>
@@ -93,6 +95,17 @@ void FrameLayout::fill(const hdeform::Frame& frame, v1::Frame* out) const {
   m->set_max_e_conf(frame.measures.max_e_conf);
   m->set_max_ef2(frame.measures.max_ef2);
   m->set_flips(frame.measures.flips);
+}
+
+std::string FrameLayout::input_gltf(std::string_view original, const std::string& filename,
+                                    const Vertices& V) const {
+  const Vertices N = vertex_normals(V, mesh_->mesh().F);
+  Vertices Vi(input_vertices_, 3), Ni(input_vertices_, 3);
+  for (int i = 0; i < input_vertices_; ++i) {
+    Vi.row(i) = V.row(input_vertex(i));
+    Ni.row(i) = N.row(input_vertex(i));
+  }
+  return rewrite_gltf(original, filename, Vi, Ni);
 }
 
 std::string FrameLayout::mesh_file(MeshFileFormat format, const Vertices& V,

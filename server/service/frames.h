@@ -35,6 +35,9 @@ class FrameLayout {
   // layout); OBJ/OFF/PLY in engine order (the ids constraints use; text keeps %.17g).
   std::string mesh_file(MeshFileFormat format, const Vertices& engine_positions,
                         const WriteOptions& options = {}) const;
+  // A glTF upload's own file with the deformed positions and normals (rewrite_gltf.h).
+  std::string input_gltf(std::string_view original, const std::string& filename,
+                         const Vertices& engine_positions) const;
   // The rest mesh as GLB, built once.
   const std::string& base_glb() const;
 

@@ -8,7 +8,9 @@
 
 #include <spdlog/spdlog.h>
 
+#include <cctype>
 #include <charconv>
+#include <filesystem>
 #include <chrono>
 #include <cmath>
 #include <set>
@@ -454,10 +456,15 @@ std::shared_ptr<pb::Frame> Session::update(const Update& u) {
     history_.drag_moved(u.client_id, m.moved, transforms_);
     std::map<int, HandleTransform> started;
     if (!u.dragging) started = history_.end_drag(u.client_id);
-    if (!started.empty() || beta_changed) {
+    bool moved_any = false;
+    for (const auto& [h, t] : started)
+      moved_any = moved_any || !same_transform(t, transforms[static_cast<std::size_t>(h)]);
+    if (moved_any || beta_changed) {
       Step step;
       step.before = edit_state_locked();
       for (const auto& [h, t] : started) {
+        // A handle sent back to where it was (or a frame refresh) is not a change.
+        if (same_transform(t, transforms[static_cast<std::size_t>(h)])) continue;
         step.before.transforms[static_cast<std::size_t>(h)] = t;
         step.handles.push_back(h);
       }
@@ -602,6 +609,14 @@ std::string Session::mesh_file(bool rest, pb::MeshFormat format, pb::UpAxis up,
                        (ply == pb::PLY_ENCODING_AS_INPUT && input_binary_ply);
   if (rest && f == MeshFileFormat::glb && !options.up_z) return mesh_->layout->base_glb();
   const Vertices V = rest ? mesh_->prepared->mesh().V : deformed_positions();
+  // A glTF upload's deformed GLB is its own file with new positions and normals: UVs,
+  // materials, textures, nodes and other primitives stay (glTF is y-up already).
+  std::string ext = std::filesystem::path(mesh_->filename).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  const bool gltf_upload =
+      mesh_->file_bytes && mesh_->library_name.empty() && (ext == ".glb" || ext == ".gltf");
+  if (!rest && f == MeshFileFormat::glb && gltf_upload)
+    return mesh_->layout->input_gltf(*mesh_->file_bytes, mesh_->filename, V);
   return mesh_->layout->mesh_file(f, V, options);
 }
 
@@ -785,10 +800,12 @@ void Session::close_drag(const std::string& client_id) {
     step.after = edit_state_locked();
     std::string summary;
     for (const auto& [h, t] : started) {
+      if (same_transform(t, step.after.transforms[static_cast<std::size_t>(h)])) continue;
       step.before.transforms[static_cast<std::size_t>(h)] = t;
       step.handles.push_back(h);
       summary += (summary.empty() ? "moved handle " : ", ") + std::to_string(h);
     }
+    if (step.handles.empty()) return;  // back where it started: no change
     step.info.set_kind(pb::STEP_KIND_MOVE);
     step.info.set_client_id(client_id);
     step.info.set_author(author_of(client_id));

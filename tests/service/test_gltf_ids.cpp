@@ -3,9 +3,12 @@
 #include "mesh_io.h"
 #include "service_fixture.h"
 
+#include <tiny_gltf.h>
+
 #include <algorithm>
 #include <array>
 #include <cstring>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -232,6 +235,135 @@ TEST(GltfBaseIds, IdentityLayoutsTakeBaseIdsAsEngineIds) {
   ASSERT_TRUE(st.ok()) << st.error_message();
   EXPECT_EQ(again.constraints().SerializeAsString(), resolved.constraints().SerializeAsString());
   EXPECT_FALSE(again.has_base_constraints());
+}
+
+// The seam grid dressed as a textured asset: UVs, tangents, a named material with an
+// embedded image, named nodes with a transform, and a points primitive. The deformed GLB of
+// such an upload keeps all of it and replaces only POSITION and NORMAL (TANGENT dropped).
+std::string dressed_glb() {
+  const std::string plain = seam_grid_glb();
+  tinygltf::TinyGLTF io;
+  tinygltf::Model model;
+  std::string err, warn;
+  EXPECT_TRUE(io.LoadBinaryFromMemory(&model, &err, &warn,
+                                      reinterpret_cast<const unsigned char*>(plain.data()),
+                                      static_cast<unsigned int>(plain.size())))
+      << err;
+  auto& data = model.buffers[0].data;
+  auto view = [&](const void* bytes, std::size_t n) {
+    while (data.size() % 4) data.push_back(0);
+    tinygltf::BufferView bv;
+    bv.buffer = 0;
+    bv.byteOffset = data.size();
+    bv.byteLength = n;
+    data.insert(data.end(), static_cast<const unsigned char*>(bytes),
+                static_cast<const unsigned char*>(bytes) + n);
+    model.bufferViews.push_back(bv);
+    return static_cast<int>(model.bufferViews.size()) - 1;
+  };
+  std::vector<float> uv(2 * kBase), tangent(4 * kBase, 0.0f);
+  for (int v = 0; v < kBase; ++v) {
+    uv[2 * v] = 0.01f * static_cast<float>(v);
+    uv[2 * v + 1] = 1.0f - 0.02f * static_cast<float>(v);
+    tangent[4 * v] = tangent[4 * v + 3] = 1.0f;
+  }
+  auto accessor = [&](int bv, int type, std::size_t count) {
+    tinygltf::Accessor a;
+    a.bufferView = bv;
+    a.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
+    a.type = type;
+    a.count = count;
+    model.accessors.push_back(a);
+    return static_cast<int>(model.accessors.size()) - 1;
+  };
+  auto& prim = model.meshes[0].primitives[0];
+  prim.attributes["TEXCOORD_0"] = accessor(view(uv.data(), uv.size() * 4), TINYGLTF_TYPE_VEC2, kBase);
+  prim.attributes["TANGENT"] = accessor(view(tangent.data(), tangent.size() * 4), TINYGLTF_TYPE_VEC4, kBase);
+  const std::string png = "\x89PNG not really, kept byte for byte";
+  tinygltf::Image image;
+  image.name = "checker";
+  image.mimeType = "image/png";
+  image.bufferView = view(png.data(), png.size());
+  model.images.push_back(image);
+  tinygltf::Texture tex;
+  tex.source = 0;
+  model.textures.push_back(tex);
+  tinygltf::Material mat;
+  mat.name = "painted";
+  mat.pbrMetallicRoughness.baseColorTexture.index = 0;
+  model.materials.push_back(mat);
+  prim.material = 0;
+  // A second primitive that is not deformed: three points.
+  tinygltf::Primitive points;
+  points.mode = TINYGLTF_MODE_POINTS;
+  const float p3[9] = {9, 9, 9, 8, 8, 8, 7, 7, 7};
+  points.attributes["POSITION"] = accessor(view(p3, sizeof p3), TINYGLTF_TYPE_VEC3, 3);
+  model.meshes[0].primitives.push_back(points);
+  model.nodes[0].name = "body";
+  model.nodes[0].translation = {1.0, 2.0, 3.0};
+  std::ostringstream os;
+  EXPECT_TRUE(io.WriteGltfSceneToStream(&model, os, false, true));
+  return os.str();
+}
+
+bool keep_image(tinygltf::Image*, const int, std::string*, std::string*, int, int,
+                const unsigned char*, int, void*) {
+  return true;  // the test's image bytes are not a real PNG: compare them, never decode
+}
+
+TEST(GltfOutputs, ADeformedGlbKeepsTheInputsAttributesAndStructure) {
+  TestServer t;
+  pb::Session s;
+  ASSERT_TRUE(t.upload(dressed_glb(), "dressed.glb", &s).ok());
+  pb::Session c;
+  ASSERT_TRUE(t.set_constraints(s.name(), seam_constraints(), &c).ok());
+  pb::Frame frame;
+  auto st = t.update(s.name(), 1, {translate_z(0.5), translate_z(-0.25)}, &frame);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  const std::string out = t.deformed(s.name(), pb::MESH_FORMAT_GLB);
+
+  tinygltf::TinyGLTF io;
+  io.SetImageLoader(keep_image, nullptr);
+  tinygltf::Model model;
+  std::string err, warn;
+  ASSERT_TRUE(io.LoadBinaryFromMemory(&model, &err, &warn,
+                                      reinterpret_cast<const unsigned char*>(out.data()),
+                                      static_cast<unsigned int>(out.size())))
+      << err;
+  auto floats_of = [&](int accessor) {
+    const auto& a = model.accessors.at(static_cast<std::size_t>(accessor));
+    const auto& bv = model.bufferViews.at(static_cast<std::size_t>(a.bufferView));
+    const std::size_t n = a.count * static_cast<std::size_t>(tinygltf::GetNumComponentsInType(a.type));
+    std::vector<float> v(n);
+    std::memcpy(v.data(), model.buffers[0].data.data() + bv.byteOffset + a.byteOffset, n * 4);
+    return v;
+  };
+  ASSERT_EQ(model.meshes.size(), 1u);
+  ASSERT_EQ(model.meshes[0].primitives.size(), 2u);
+  const auto& prim = model.meshes[0].primitives[0];
+  EXPECT_EQ(floats_of(prim.attributes.at("POSITION")), floats(frame.positions()));
+  EXPECT_EQ(floats_of(prim.attributes.at("NORMAL")).size(), 3u * kBase);
+  EXPECT_EQ(prim.attributes.count("TANGENT"), 0u);  // stale after deforming: dropped
+  const std::vector<float> uv = floats_of(prim.attributes.at("TEXCOORD_0"));
+  ASSERT_EQ(uv.size(), 2u * kBase);
+  EXPECT_FLOAT_EQ(uv[2 * 7], 0.07f);
+  ASSERT_EQ(prim.material, 0);
+  EXPECT_EQ(model.materials.at(0).name, "painted");
+  ASSERT_EQ(model.images.size(), 1u);
+  const auto& ibv = model.bufferViews.at(static_cast<std::size_t>(model.images[0].bufferView));
+  EXPECT_EQ(std::string(reinterpret_cast<const char*>(model.buffers[0].data.data() + ibv.byteOffset),
+                        ibv.byteLength),
+            "\x89PNG not really, kept byte for byte");
+  EXPECT_EQ(model.nodes.at(0).name, "body");
+  EXPECT_EQ(model.nodes.at(0).translation, (std::vector<double>{1.0, 2.0, 3.0}));
+  const auto& points = model.meshes[0].primitives[1];
+  EXPECT_EQ(points.mode, TINYGLTF_MODE_POINTS);
+  EXPECT_EQ(floats_of(points.attributes.at("POSITION")),
+            (std::vector<float>{9, 9, 9, 8, 8, 8, 7, 7, 7}));
+  // The base (rest) GLB the viewer loads keeps its plain layout.
+  std::string rest;
+  ASSERT_TRUE(t.get_mesh(s.name(), true, pb::MESH_FORMAT_GLB, &rest).ok());
+  EXPECT_EQ(rest.find("painted"), std::string::npos);
 }
 
 }  // namespace

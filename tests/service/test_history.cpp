@@ -291,3 +291,12 @@ TEST(Snapshots, AreDurableWithTheSession) {
   }
   fs::remove_all(dir);
 }
+
+TEST(History, AnUpdateThatChangesNothingIsNoStep) {
+  TwoHandles e;
+  ASSERT_TRUE(e.update("alice", {0}, {translation(0, 0, 0)}).ok());  // a frame refresh
+  Editor alice{e, "alice"};
+  alice.drag(1, 0.0);  // a drag that ends where it began
+  EXPECT_EQ(history(e).total(), 1);  // only the constraints
+  EXPECT_EQ(alice.undo().error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+}
