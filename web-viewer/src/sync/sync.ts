@@ -21,6 +21,7 @@ import type {
   Frame,
   FrameFormatSchema,
   HandleTransformSchema,
+  HistoryStep,
   ParticipantSchema,
   Presence,
   Session,
@@ -54,6 +55,8 @@ export interface SyncEvents {
   revert: { transforms: MessageInitShape<typeof HandleTransformSchema>[]; message: string };
   /** Who is in the session (WatchSession presence events). */
   presence: Presence;
+  /** A new step of the session's history (WatchSession step events). */
+  step: HistoryStep;
 }
 
 /** The pose an UpdateHandles sends, read when the request is built. */
@@ -263,12 +266,14 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
     }
   }
 
+  // Both carry this page's client_id (unless the request names one), so the server's history
+  // names the author and Undo (by client_id) finds the change as this page's own.
   setBeta(request: MessageInitShape<typeof SetBetaRequestSchema>): Promise<Session> {
-    return this.edit(() => this.client.setBeta(request));
+    return this.edit(() => this.client.setBeta({ clientId: this.participantOf()?.clientId ?? "", ...request }));
   }
 
   setConstraints(request: MessageInitShape<typeof SetConstraintsRequestSchema>): Promise<Session> {
-    return this.edit(() => this.client.setConstraints(request));
+    return this.edit(() => this.client.setConstraints({ clientId: this.participantOf()?.clientId ?? "", ...request }));
   }
 
   /**
@@ -330,6 +335,7 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
       this.confirm(ev.event.value.transforms);
       this.emit("state", { session: ev.event.value, source: "watch", adoptTransforms: !this.busy });
     } else if (ev.event.case === "presence") this.emit("presence", ev.event.value);
+    else if (ev.event.case === "step") this.emit("step", ev.event.value);
     this.watchEvents++;
   }
 
