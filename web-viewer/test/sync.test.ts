@@ -432,4 +432,21 @@ describe("sync, the confirmed pose", () => {
     assert.equal(steps[0].id, 7n);
     assert.equal(steps[0].summary, "moved handle 1");
   });
+
+  it("whenSent: resolves once the last pose is sent and answered (a drag's release waits for it)", async () => {
+    const { fake, sync } = setup(2);
+    sync.open("sessions/s");
+    let done = false;
+    await sync.whenSent(); // nothing to send: at once
+    sync.setDragging(true);
+    sync.setDragging(false); // the release: its pose is still to be sent
+    void sync.whenSent().then(() => (done = true));
+    await settle();
+    assert.equal(done, false);
+    sync.tick();
+    await settle();
+    assert.equal(done, false, "sent but not answered");
+    fake.updates[0].resolve(frame({ version: 2 }));
+    await until(() => done, "whenSent after the answer");
+  });
 });

@@ -42,7 +42,10 @@ export function setupUndoRedo(app: App, sync: Sync, clientId: () => string): Und
         banner.clear("rejected");
         return true;
       } catch (err) {
-        banner.show(`${kind === "undo" ? "Undo" : "Redo"}: ${describeError(err)}`, "rejected");
+        // The server's words ("Undo of step 4 (Alice: …) refused: …"); named so when they are not.
+        const what = kind === "undo" ? "Undo" : "Redo";
+        const message = describeError(err);
+        banner.show(message.startsWith(what) ? message : `${what}: ${message}`, "rejected");
         return false;
       } finally {
         running = false;

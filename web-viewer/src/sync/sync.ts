@@ -119,6 +119,8 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
   private awaitingBuffers = 0n;
   /** The WatchSession stream has brought an event, so it receives every frame from now on. */
   private streamLive = false;
+  /** whenSent() callers, woken once no pose is left to send or in flight. */
+  private sentWaiters: (() => void)[] = [];
 
   constructor(options: SyncOptions) {
     super();
@@ -164,6 +166,7 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
     this.streamLive = false;
     this.confirmed = null;
     this.order.reset();
+    this.wakeSent();
   }
 
   get participant(): MessageInitShape<typeof ParticipantSchema> | undefined {
@@ -197,6 +200,29 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
     const released = this.held && !held;
     this.held = held;
     if (released) this.request();
+  }
+
+  /**
+   * Resolves once the pose set so far has been sent and answered (no update dirty or in flight),
+   * or after `timeoutMs`. A drag's ReleaseHandles waits for it: the server ends the drag's
+   * history step at the release, so a release overtaking the drag's last update would make that
+   * update a step of its own (and Ctrl+Z would undo only it).
+   */
+  whenSent(timeoutMs = 5000): Promise<void> {
+    if (!this.dirty && this.inFlight === 0) return Promise.resolve();
+    return new Promise((resolve) => {
+      const timer = setTimeout(done, timeoutMs);
+      function done(): void {
+        clearTimeout(timer);
+        resolve();
+      }
+      this.sentWaiters.push(done);
+    });
+  }
+
+  private wakeSent(): void {
+    if (this.dirty || this.inFlight > 0) return;
+    for (const w of this.sentWaiters.splice(0)) w();
   }
 
   /** Once per animation frame: sends at most one update. */
@@ -252,6 +278,7 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
       })
       .finally(() => {
         this.inFlight--;
+        this.wakeSent();
       });
   }
 
