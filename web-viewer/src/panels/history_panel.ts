@@ -39,6 +39,8 @@ export function setupHistoryPanel(app: App, sync: Sync, undo: UndoRedo): History
         const title = state.watchOnly ? "" : undone ? "click: redo this step" : "click: undo this step";
         return (
           `<li class="step${undone ? " undone" : ""}" data-step="${step.id}" data-kind="${StepKind[step.kind]}" title="${title}">` +
+          // The id: summaries name steps by it ("undo step 3 …").
+          `<span class="id muted">${step.id}</span> ` +
           `<span class="who" style="color:${escape(colorFor(step.clientId || who))}">${escape(who)}</span> ` +
           `<span class="when muted" data-time="${step.timeUnixMs}">${relativeTime(Number(step.timeUnixMs), now)}</span> ` +
           `<span class="what">${escape(step.summary)}</span></li>`
