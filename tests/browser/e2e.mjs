@@ -36,6 +36,7 @@ import { tmpdir } from "node:os";
 import { join, resolve } from "node:path";
 import { editorChecks } from "./editor_checks.mjs";
 import { severalEditorsChecks } from "./several_editors_checks.mjs";
+import { historyChecks } from "./history_checks.mjs";
 
 /**
  * A flat 7×5 grid (x = 0.5 i, y = 0.5 j) as GLB in two vertex blocks that both carry the
@@ -307,9 +308,13 @@ try {
   // 0. The editor's usability checks (editor_checks.mjs) and several editors in one session
   // (several_editors_checks.mjs), on sessions of their own. `--only editor` stops after them.
   const helpers = { context, base, log, check, sleep, shot, watchPage, waitLoaded, waitIdle, positions, maxDiff, artifacts };
-  await editorChecks(helpers);
-  await severalEditorsChecks(helpers);
-  if (args.only === "editor") throw new StopHere();
+  // `--only history` runs just the history checks (history_checks.mjs).
+  if (args.only !== "history") {
+    await editorChecks(helpers);
+    await severalEditorsChecks(helpers);
+  }
+  await historyChecks(helpers);
+  if (args.only === "editor" || args.only === "history") throw new StopHere();
 
   // 1. Open the cactus from the library.
   const page1 = context.pages()[0] ?? (await context.newPage());
@@ -743,7 +748,7 @@ try {
 
   writeFileSync(join(artifacts, "console.log"), consoleLines.join("\n") + "\n");
 } catch (err) {
-  if (err instanceof StopHere) log("--only editor: stopping after the editor checks");
+  if (err instanceof StopHere) log(`--only ${args.only}: stopping after the ${args.only} checks`);
   else {
     failures++;
     log(`FAIL exception: ${err.stack ?? err}`);

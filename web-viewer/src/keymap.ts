@@ -20,6 +20,7 @@ export interface KeyInput {
   ctrlKey?: boolean;
   metaKey?: boolean;
   altKey?: boolean;
+  shiftKey?: boolean;
 }
 
 /** The action of a key press; null for keys that are not shortcuts (or with Ctrl / Alt / ⌘). */
@@ -64,6 +65,32 @@ export function keyAction(ev: KeyInput): KeyAction | null {
   }
 }
 
+export type HistoryKey = "undo" | "redo";
+
+/** macOS (and iOS) use ⌘ where other systems use Ctrl (navigator.platform: "MacIntel", "iPad", …). */
+export function isMacPlatform(platform: string | undefined): boolean {
+  return /^(mac|iphone|ipad|ipod)/i.test(platform ?? "");
+}
+
+/**
+ * Undo / redo, as in every editor: Ctrl+Z undo, Ctrl+Shift+Z or Ctrl+Y redo; ⌘ instead of Ctrl
+ * on macOS (where Ctrl+Z is not undo, so it is left alone). With Alt: not ours.
+ */
+export function historyKey(ev: KeyInput, mac: boolean): HistoryKey | null {
+  const command = mac ? ev.metaKey && !ev.ctrlKey : ev.ctrlKey && !ev.metaKey;
+  if (!command || ev.altKey) return null;
+  switch (ev.key) {
+    case "z":
+    case "Z":
+      return ev.shiftKey ? "redo" : "undo";
+    case "y":
+    case "Y":
+      return ev.shiftKey ? null : "redo";
+    default:
+      return null;
+  }
+}
+
 /** What an element is, as far as typing goes (a DOM element or a plain description in tests). */
 export interface TargetInfo {
   tagName?: string;
@@ -93,5 +120,7 @@ export const SHORTCUTS: [string, string][] = [
   ["F", "frame the active handle / selected region"],
   ["Home", "frame everything"],
   ["Delete", "clear the region being assigned"],
+  ["Ctrl+Z (⌘Z)", "undo your last change"],
+  ["Ctrl+Shift+Z · Ctrl+Y", "redo it"],
   ["?", "this list"],
 ];

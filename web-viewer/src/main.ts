@@ -31,6 +31,10 @@ import { setupShortcuts } from "./panels/shortcuts";
 import { setupTransformFields } from "./panels/transform_fields";
 import { setupOnboarding } from "./panels/onboarding";
 import { setupViewButtons } from "./panels/view_buttons";
+import { setupHistoryPanel } from "./panels/history_panel";
+import { setupSnapshotsPanel } from "./panels/snapshots_panel";
+import { setupUndoRedo } from "./history/undo_redo";
+import { setupUndoShortcuts } from "./history/undo_shortcuts";
 import { CursorFeedback } from "./selection/cursor_feedback";
 import { RegionMarkers } from "./viewport/region_markers";
 import { HandleGizmo } from "./viewport/handle_gizmo";
@@ -128,6 +132,12 @@ setupMeasuresPanel(state);
 const sweep = setupSweepPanel(app);
 setupFilesPanel(app, (s) => loader.load(s));
 setupSessionBar(app);
+// History: undo / redo by this tab's client id (the one presence and updates carry).
+const myId = () => editors.identity.clientId;
+const undoRedo = setupUndoRedo(app, sync, myId);
+setupUndoShortcuts(undoRedo);
+const history = setupHistoryPanel(app, sync, undoRedo);
+const snapshots = setupSnapshotsPanel(app, undoRedo, myId);
 setupLibraryPanel(app, loader, regions.applyConstraints);
 
 // One render per change; handle updates coalesced to the display frame rate.
@@ -154,4 +164,6 @@ installTestHook(app, {
   editors,
   feedback,
   markers,
+  history: history.list,
+  snapshots,
 });

@@ -18,6 +18,9 @@ import type { Viewport } from "./viewport/viewport";
 import type { Editors } from "./multi/editors";
 import type { CursorFeedback } from "./selection/cursor_feedback";
 import type { RegionMarkers } from "./viewport/region_markers";
+import type { HistoryList } from "./history/history_list";
+import type { SnapshotsPanel } from "./panels/snapshots_panel";
+import { StepKind } from "./gen/hdeform/v1/deform_pb";
 
 declare global {
   interface Window {
@@ -38,6 +41,8 @@ export interface HookParts {
   editors: Editors;
   feedback: CursorFeedback;
   markers: RegionMarkers;
+  history: HistoryList;
+  snapshots: SnapshotsPanel;
 }
 
 export function installTestHook({ state, client, banner, status }: App, parts: HookParts): void {
@@ -140,6 +145,18 @@ export function installTestHook({ state, client, banner, status }: App, parts: H
       return parts.editors.lease.supported;
     },
     presence: () => parts.editors.presence.people.map((p) => ({ ...p })),
+    /** The History panel's steps, newest first (what it shows). */
+    history: () =>
+      parts.history.shown().map(({ step, undone }) => ({
+        id: Number(step.id),
+        kind: StepKind[step.kind],
+        author: step.author,
+        clientId: step.clientId,
+        target: Number(step.target),
+        summary: step.summary,
+        undone,
+      })),
+    snapshotNames: () => parts.snapshots.names(),
     /** The session's handle transforms as the server has them (GetSession), translations only. */
     serverTranslations: async () => (await client.getSession({ name: state.sessionName })).transforms.map((t) => [t.translation?.x ?? 0, t.translation?.y ?? 0, t.translation?.z ?? 0]),
     serverBeta: async () => (await client.getSession({ name: state.sessionName })).beta?.value ?? 0,

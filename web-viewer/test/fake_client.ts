@@ -62,17 +62,23 @@ export class FakeClient {
   session: () => Session = () => create(SessionSchema, { name: "sessions/s" });
   getSessionCalls = 0;
   setBetaCalls = 0;
+  /** SetBeta and SetConstraints requests, in order (their client_id). */
+  requests: { clientId?: string }[] = [];
   /** What each SetBeta answers, in order. */
   betaAnswers: (() => Session)[] = [];
 
   readonly client = {
     updateHandles: (request: UpdateHandlesRequest) =>
       new Promise<Frame>((resolve, reject) => this.updates.push({ request, resolve, reject })),
-    setBeta: async () => {
+    setBeta: async (request: { clientId?: string }) => {
+      this.requests.push(request);
       const answer = this.betaAnswers[this.setBetaCalls++];
       return answer ? answer() : create(SessionSchema, {});
     },
-    setConstraints: async () => create(SessionSchema, {}),
+    setConstraints: async (request: { clientId?: string }) => {
+      this.requests.push(request);
+      return create(SessionSchema, {});
+    },
     getSession: async () => {
       this.getSessionCalls++;
       return this.session();

@@ -4,7 +4,7 @@ import assert from "node:assert/strict";
 import { create } from "@bufbuild/protobuf";
 import { Code, ConnectError } from "@connectrpc/connect";
 import { afterEach, describe, it } from "node:test";
-import { FrameEncoding, SessionSchema } from "../src/gen/hdeform/v1/deform_pb";
+import { FrameEncoding, SessionEventSchema, SessionSchema, StepKind } from "../src/gen/hdeform/v1/deform_pb";
 import { Sync, type SyncEvents, type SyncOptions } from "../src/sync/sync";
 import { deletedEvent, FakeClient, frame, frameEvent, settle, stateEvent, until } from "./fake_client";
 
@@ -22,7 +22,7 @@ function setup(window = 1, format?: SyncOptions["format"]) {
     format,
     timing: FAST,
   });
-  const events: { [K in keyof SyncEvents]: SyncEvents[K][] } = { link: [], frame: [], state: [], error: [], clearError: [], revert: [], presence: [] };
+  const events: { [K in keyof SyncEvents]: SyncEvents[K][] } = { link: [], frame: [], state: [], error: [], clearError: [], revert: [], presence: [], step: [] };
   for (const k of Object.keys(events) as (keyof SyncEvents)[]) sync.on(k, (p) => (events[k] as unknown[]).push(p));
   sync.open("sessions/s");
   opened.push(sync);
@@ -404,5 +404,49 @@ describe("sync, the confirmed pose", () => {
     sync.watch();
     await until(() => fake.watchRequests.length > 0, "a watch request");
     assert.equal(fake.watchRequests[0].client?.displayName, "Alice");
+  });
+
+  it("history: SetBeta and SetConstraints carry the client id; steps on the stream come out as events", async () => {
+    const fake = new FakeClient();
+    const sync = new Sync({
+      client: fake.client,
+      pose: () => ({ transforms: [], energies: false }),
+      participant: () => ({ clientId: "tab1", displayName: "Alice" }),
+      timing: FAST,
+    });
+    opened.push(sync);
+    const steps: SyncEvents["step"][] = [];
+    sync.on("step", (st) => steps.push(st));
+    sync.open("sessions/s");
+    await sync.setBeta({ name: "sessions/s", beta: { value: 0.3 } });
+    await sync.setConstraints({ name: "sessions/s" });
+    await sync.setBeta({ name: "sessions/s", clientId: "explicit" });
+    assert.deepEqual(
+      fake.requests.map((r) => r.clientId),
+      ["tab1", "tab1", "explicit"],
+    );
+    sync.watch();
+    await until(() => fake.streams.length > 0, "a watch stream");
+    fake.streams[0].push(create(SessionEventSchema, { event: { case: "step", value: { id: 7n, kind: StepKind.MOVE, author: "Bob", summary: "moved handle 1" } } }));
+    await until(() => steps.length > 0, "a step event");
+    assert.equal(steps[0].id, 7n);
+    assert.equal(steps[0].summary, "moved handle 1");
+  });
+
+  it("whenSent: resolves once the last pose is sent and answered (a drag's release waits for it)", async () => {
+    const { fake, sync } = setup(2);
+    sync.open("sessions/s");
+    let done = false;
+    await sync.whenSent(); // nothing to send: at once
+    sync.setDragging(true);
+    sync.setDragging(false); // the release: its pose is still to be sent
+    void sync.whenSent().then(() => (done = true));
+    await settle();
+    assert.equal(done, false);
+    sync.tick();
+    await settle();
+    assert.equal(done, false, "sent but not answered");
+    fake.updates[0].resolve(frame({ version: 2 }));
+    await until(() => done, "whenSent after the answer");
   });
 });

@@ -28,6 +28,7 @@ export function setupEditors(app: App, sync: Sync): Editors {
   const presence = new PresenceModel(identity.clientId);
   const listeners: (() => void)[] = [];
   let sawPresence = false;
+  let grabs = 0; // a release waiting for the drag's last update must not end a newer grab
   const adopt = (p: Presence) => {
     sawPresence = true;
     if (!presence.update(p)) return;
@@ -69,6 +70,7 @@ export function setupEditors(app: App, sync: Sync): Editors {
         banner.show(heldMessage(h + 1, holder.name), "rejected");
         return false;
       }
+      grabs++;
       const r = await lease.grab(state.sessionName, [h]);
       if (r.ok) {
         banner.clear("rejected");
@@ -80,7 +82,14 @@ export function setupEditors(app: App, sync: Sync): Editors {
       );
       return false;
     },
-    release: () => void lease.release(),
+    // After the drag's last update is answered: the server ends the drag's history step at the
+    // release, and the last update must be part of it (one drag, one step to undo).
+    release: () => {
+      const g = grabs;
+      void sync.whenSent().then(() => {
+        if (g === grabs) void lease.release();
+      });
+    },
     onPresence: (l) => listeners.push(l),
   };
 }

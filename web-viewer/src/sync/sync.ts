@@ -21,6 +21,7 @@ import type {
   Frame,
   FrameFormatSchema,
   HandleTransformSchema,
+  HistoryStep,
   ParticipantSchema,
   Presence,
   Session,
@@ -54,6 +55,8 @@ export interface SyncEvents {
   revert: { transforms: MessageInitShape<typeof HandleTransformSchema>[]; message: string };
   /** Who is in the session (WatchSession presence events). */
   presence: Presence;
+  /** A new step of the session's history (WatchSession step events). */
+  step: HistoryStep;
 }
 
 /** The pose an UpdateHandles sends, read when the request is built. */
@@ -116,6 +119,8 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
   private awaitingBuffers = 0n;
   /** The WatchSession stream has brought an event, so it receives every frame from now on. */
   private streamLive = false;
+  /** whenSent() callers, woken once no pose is left to send or in flight. */
+  private sentWaiters: (() => void)[] = [];
 
   constructor(options: SyncOptions) {
     super();
@@ -161,6 +166,7 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
     this.streamLive = false;
     this.confirmed = null;
     this.order.reset();
+    this.wakeSent();
   }
 
   get participant(): MessageInitShape<typeof ParticipantSchema> | undefined {
@@ -194,6 +200,29 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
     const released = this.held && !held;
     this.held = held;
     if (released) this.request();
+  }
+
+  /**
+   * Resolves once the pose set so far has been sent and answered (no update dirty or in flight),
+   * or after `timeoutMs`. A drag's ReleaseHandles waits for it: the server ends the drag's
+   * history step at the release, so a release overtaking the drag's last update would make that
+   * update a step of its own (and Ctrl+Z would undo only it).
+   */
+  whenSent(timeoutMs = 5000): Promise<void> {
+    if (!this.dirty && this.inFlight === 0) return Promise.resolve();
+    return new Promise((resolve) => {
+      const timer = setTimeout(done, timeoutMs);
+      function done(): void {
+        clearTimeout(timer);
+        resolve();
+      }
+      this.sentWaiters.push(done);
+    });
+  }
+
+  private wakeSent(): void {
+    if (this.dirty || this.inFlight > 0) return;
+    for (const w of this.sentWaiters.splice(0)) w();
   }
 
   /** Once per animation frame: sends at most one update. */
@@ -249,6 +278,7 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
       })
       .finally(() => {
         this.inFlight--;
+        this.wakeSent();
       });
   }
 
@@ -263,12 +293,14 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
     }
   }
 
+  // Both carry this page's client_id (unless the request names one), so the server's history
+  // names the author and Undo (by client_id) finds the change as this page's own.
   setBeta(request: MessageInitShape<typeof SetBetaRequestSchema>): Promise<Session> {
-    return this.edit(() => this.client.setBeta(request));
+    return this.edit(() => this.client.setBeta({ clientId: this.participantOf()?.clientId ?? "", ...request }));
   }
 
   setConstraints(request: MessageInitShape<typeof SetConstraintsRequestSchema>): Promise<Session> {
-    return this.edit(() => this.client.setConstraints(request));
+    return this.edit(() => this.client.setConstraints({ clientId: this.participantOf()?.clientId ?? "", ...request }));
   }
 
   /**
@@ -330,6 +362,7 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
       this.confirm(ev.event.value.transforms);
       this.emit("state", { session: ev.event.value, source: "watch", adoptTransforms: !this.busy });
     } else if (ev.event.case === "presence") this.emit("presence", ev.event.value);
+    else if (ev.event.case === "step") this.emit("step", ev.event.value);
     this.watchEvents++;
   }
 

@@ -1,0 +1,101 @@
+// Named snapshots of the session (its constraints, β and transforms, kept by the server with
+// the session): a name and Save, then the list — name, author, when — with Restore and Delete.
+// The list is read again after each action (and when a session opens). A restore is a step like
+// an undo: its answer is adopted at once, its state and frame come on the watch stream.
+import { Code, ConnectError } from "@connectrpc/connect";
+import { describeError } from "../api";
+import type { App } from "../app";
+import { reloadAfterConflict } from "../conflict";
+import { $ } from "../dom";
+import type { NamedSnapshot } from "../gen/hdeform/v1/deform_pb";
+import { relativeTime } from "../history/relative_time";
+import type { UndoRedo } from "../history/undo_redo";
+
+function escape(s: string): string {
+  return s.replace(/[&<>"']/g, (c) => `&#${c.charCodeAt(0)};`);
+}
+
+export interface SnapshotsPanel {
+  /** The names listed (the last ListSnapshots). */
+  names(): string[];
+}
+
+export function setupSnapshotsPanel(app: App, undo: UndoRedo, clientId: () => string): SnapshotsPanel {
+  const { state, client, banner } = app;
+  const nameField = $<HTMLInputElement>("snapshot-name");
+  const save = $<HTMLButtonElement>("snapshot-save");
+  const ul = $("snapshot-list");
+  let listed: NamedSnapshot[] = [];
+  let shownFor = "";
+
+  const render = () => {
+    const now = Date.now();
+    ul.innerHTML = listed
+      .map(
+        (s) =>
+          `<li data-name="${escape(s.name)}"><span class="what">${escape(s.name)}</span> ` +
+          `<span class="muted">${escape(s.author || "anonymous")}, ${relativeTime(Number(s.timeUnixMs), now)}</span>` +
+          `<span class="actions"><button data-act="restore">Restore</button><button data-act="delete" title="Delete this snapshot">Delete</button></span></li>`,
+      )
+      .join("");
+  };
+
+  const refresh = async () => {
+    const name = state.sessionName;
+    if (!name || state.watchOnly) return;
+    try {
+      const res = await client.listSnapshots({ name });
+      if (name !== state.sessionName) return;
+      listed = res.snapshots;
+      render();
+    } catch (err) {
+      banner.show(`Snapshots: ${describeError(err)}`, "rejected");
+    }
+  };
+
+  const act = async (what: string, call: () => Promise<unknown>) => {
+    try {
+      await call();
+      banner.clear("rejected");
+    } catch (err) {
+      if (what === "restore" && err instanceof ConnectError && err.code === Code.Aborted) await reloadAfterConflict(app, "restore", err);
+      else banner.show(`Snapshot ${what}: ${describeError(err)}`, "rejected");
+    }
+    await refresh();
+  };
+
+  const doSave = () => {
+    const snapshot = nameField.value.trim();
+    if (!snapshot || !state.sessionName) return;
+    void act("save", () => client.saveSnapshot({ name: state.sessionName, snapshot, clientId: clientId() }));
+  };
+  save.addEventListener("click", doSave);
+  nameField.addEventListener("keydown", (ev) => {
+    if (ev.key === "Enter") doSave();
+  });
+
+  ul.addEventListener("click", (ev) => {
+    const button = (ev.target as HTMLElement).closest<HTMLButtonElement>("button[data-act]");
+    const snapshot = button?.closest<HTMLElement>("li[data-name]")?.dataset.name;
+    if (!button || snapshot === undefined) return;
+    const name = state.sessionName;
+    if (button.dataset.act === "restore") {
+      void act("restore", async () =>
+        undo.adopt(
+          await client.restoreSnapshot({ name, snapshot, clientId: clientId(), expectedConfigVersion: state.session?.configVersion ?? 0n }),
+        ),
+      );
+    } else {
+      void act("delete", () => client.deleteSnapshot({ name, snapshot }));
+    }
+  });
+
+  state.on("session", () => {
+    if (state.sessionName === shownFor) return;
+    shownFor = state.sessionName;
+    listed = [];
+    render();
+    void refresh();
+  });
+  return { names: () => listed.map((s) => s.name) };
+}
