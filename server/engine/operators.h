@@ -1,5 +1,6 @@
 // Differential operators of SPEC.md §Operators, built once per mesh from the rest pose.
-// All in the mesh's own units ("raw"); area-unit β is mapped onto them by beta_units.h.
+// All in the mesh's own units ("raw"); area-unit β is mapped onto them by the BetaUnits
+// conversion in deformer.h.
 #pragma once
 
 #include "mesh.h"

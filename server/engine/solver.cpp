@@ -12,8 +12,8 @@ namespace hdeform {
 CholmodLLT::CholmodLLT() {
   m_cholmod.final_asis = 1;
   m_cholmod.supernodal = CHOLMOD_SUPERNODAL;
-  // METIS alone: the smallest factors on these meshes (TOOLCHAIN.md: 3.9M vs 4.8M nnz
-  // with AMD at 100K, β = 0; 9.9M vs 16.4M at β = 0.5).
+  // METIS alone: the smallest factors on these meshes (measured when the toolchain was set
+  // up: 3.9M vs 4.8M nnz with AMD at 100K, β = 0; 9.9M vs 16.4M at β = 0.5).
   m_cholmod.nmethods = 1;
   m_cholmod.method[0].ordering = CHOLMOD_METIS;
   m_cholmod.postorder = 1;
