@@ -2,6 +2,7 @@
 import csv
 import itertools
 import os
+import uuid
 import weakref
 from dataclasses import dataclass
 
@@ -212,6 +213,9 @@ class Session:
     on exit if this client created it."""
 
     def __init__(self, client, info, token, view_token=None, owned=False):
+        # Who this script is in the session's history and to other editors: its changes
+        # carry it, and undo() / redo() act on its own steps.
+        self.client_id = "py-" + uuid.uuid4().hex[:12]
         self.client = client
         self.info = info  # the latest hdeform.v1.Session
         self.name = info.name
@@ -303,7 +307,8 @@ class Session:
         if fixed is not None:
             c.fixed.CopyFrom(region(fixed))
         self.info = self._call("SetConstraints", pb.SetConstraintsRequest(
-            name=self.name, constraints=c, expected_version=expected_version))
+            name=self.name, constraints=c, expected_version=expected_version,
+            client_id=self.client_id))
         return self
 
     @property
@@ -329,7 +334,7 @@ class Session:
         {"region": …, "beta": b, "falloff_radius": r}."""
         self.info = self._call("SetBeta", pb.SetBetaRequest(
             name=self.name, beta=_beta_proto(value, units, local),
-            expected_version=expected_version))
+            expected_version=expected_version, client_id=self.client_id))
         return self
 
     def _transforms(self, transforms, single):
@@ -358,7 +363,7 @@ class Session:
         seq = next(self._sequence)
         raw = self._call("UpdateHandles", pb.UpdateHandlesRequest(
             name=self.name, sequence=seq, transforms=ts, energies=energies, dragging=dragging,
-            expected_version=expected_version,
+            expected_version=expected_version, client_id=self.client_id,
             format=pb.FrameFormat(encoding=encoding_value(encoding))))
         frame = decode(raw)
         self.info.version = raw.version
@@ -376,6 +381,53 @@ class Session:
         r = self._call("Sweep", req)
         return SweepResult(SweepRow(row.beta, Measures.from_proto(row.measures))
                            for row in r.rows)
+
+    # --- history and snapshots (docs/api.md "History and snapshots") --------------------
+    def undo(self, step=0):
+        """Revert this script's latest change (or history step `step`, any author). Refused
+        (hdeform.Error, code ABORTED) when a later change touched what it would revert."""
+        self.info = self._call("Undo", pb.UndoRequest(name=self.name, client_id=self.client_id,
+                                                      step=step))
+        return self
+
+    def redo(self, step=0):
+        """Re-apply this script's latest undone change (or undone step `step`)."""
+        self.info = self._call("Redo", pb.UndoRequest(name=self.name, client_id=self.client_id,
+                                                      step=step))
+        return self
+
+    def history(self, limit=None):
+        """The session's history steps, newest first (hdeform.v1.HistoryStep messages: id,
+        kind, author, time_unix_ms, summary, undone, …); all of them, or the newest `limit`."""
+        steps, token = [], ""
+        while limit is None or len(steps) < limit:
+            page = self._call("ListHistory", pb.ListHistoryRequest(
+                name=self.name, page_size=500 if limit is None else min(500, limit - len(steps)),
+                page_token=token))
+            steps.extend(page.steps)
+            token = page.next_page_token
+            if not token:
+                break
+        return steps
+
+    def save_snapshot(self, name):
+        """Keep the constraints, β and transforms under `name` (replaces one of that name)."""
+        return self._call("SaveSnapshot", pb.SaveSnapshotRequest(
+            name=self.name, snapshot=name, client_id=self.client_id))
+
+    def snapshots(self):
+        """{name: hdeform.v1.NamedSnapshot} of this session."""
+        r = self._call("ListSnapshots", pb.ListSnapshotsRequest(name=self.name))
+        return {s.name: s for s in r.snapshots}
+
+    def restore_snapshot(self, name):
+        """Make snapshot `name` the session's state (an undoable history step)."""
+        self.info = self._call("RestoreSnapshot", pb.RestoreSnapshotRequest(
+            name=self.name, snapshot=name, client_id=self.client_id))
+        return self
+
+    def delete_snapshot(self, name):
+        self._call("DeleteSnapshot", pb.DeleteSnapshotRequest(name=self.name, snapshot=name))
 
     def watch(self, encoding="float32"):
         """A Watch: iterate it for every Frame of this session (from any client); it is

@@ -207,3 +207,29 @@ def test_examples(tmp_path, script, args):
         assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [
             "bar.glb", "cactus.glb", "cylinder.glb", "measures.csv", "plane.glb"]
         assert (tmp_path / "out" / "cactus.glb").read_bytes()[:4] == b"glTF"
+
+
+def test_undo_redo_history_and_snapshots(cactus):
+    from hdeform._proto import pb
+    cactus.update(translate=(0.05, 0, 0))
+    moved = cactus.refresh().info.transforms[0].translation.x
+    assert moved == 0.05
+    steps = cactus.history()
+    assert steps[0].kind == pb.STEP_KIND_MOVE and steps[0].summary == "moved handle 0"
+    cactus.undo()
+    assert cactus.info.transforms[0].translation.x == 0
+    assert cactus.history(limit=1)[0].kind == pb.STEP_KIND_UNDO
+    cactus.redo()
+    assert cactus.info.transforms[0].translation.x == 0.05
+    with pytest.raises(hdeform.Error) as e:
+        cactus.redo()  # nothing left to redo: the server's message comes through
+    assert "nothing to redo" in str(e.value)
+
+    cactus.save_snapshot("moved")
+    cactus.update(translate=(0, 0.1, 0))
+    assert set(cactus.snapshots()) == {"moved"}
+    cactus.restore_snapshot("moved")
+    assert cactus.info.transforms[0].translation.x == 0.05
+    assert cactus.info.transforms[0].translation.y == 0
+    cactus.delete_snapshot("moved")
+    assert cactus.snapshots() == {}
