@@ -1128,6 +1128,24 @@ grpc::ServerUnaryReactor* DeformService::DeleteSnapshot(grpc::CallbackServerCont
                            });
 }
 
+// O(n) copy of a column the constraint set keeps: on the pool, not on a gRPC thread.
+grpc::ServerUnaryReactor* DeformService::GetHandleWeights(
+    grpc::CallbackServerContext* ctx, const v1::GetHandleWeightsRequest* request,
+    v1::HandleWeights* response) {
+  std::shared_ptr<Session> session;
+  const auto status = guarded(
+      [&] { session = session_for(*ctx, request->name(), Access::kView, "GetHandleWeights"); },
+      "GetHandleWeights");
+  if (!status.ok()) {
+    auto* reactor = ctx->DefaultReactor();
+    reactor->Finish(status);
+    return reactor;
+  }
+  return finish_on_pool(ctx, "GetHandleWeights", [session, request, response] {
+    *response = session->handle_weights(request->handle());
+  });
+}
+
 // Grabs run on the session's strand: they are ordered with SetConstraints, which renumbers
 // the handles and ends every grab.
 grpc::ServerUnaryReactor* DeformService::GrabHandles(grpc::CallbackServerContext* ctx,

@@ -102,6 +102,9 @@ class DeformService final : public v1::Deformation::CallbackService {
   grpc::ServerUnaryReactor* DeleteSnapshot(grpc::CallbackServerContext* ctx,
                                            const v1::DeleteSnapshotRequest* request,
                                            v1::DeleteSnapshotResponse* response) override;
+  grpc::ServerUnaryReactor* GetHandleWeights(grpc::CallbackServerContext* ctx,
+                                             const v1::GetHandleWeightsRequest* request,
+                                             v1::HandleWeights* response) override;
   grpc::ServerUnaryReactor* RotateTokens(grpc::CallbackServerContext* ctx,
                                          const v1::RotateTokensRequest* request,
                                          v1::Session* response) override;

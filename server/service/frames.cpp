@@ -64,6 +64,13 @@ std::string FrameLayout::pack_vertices(const Vertices& rows) const {
   return out;
 }
 
+std::string FrameLayout::pack_vertex_scalars(const Eigen::MatrixXd& rows, int col) const {
+  std::string out(sizeof(float) * static_cast<std::size_t>(input_vertices_), '\0');
+  float* f = reinterpret_cast<float*>(out.data());
+  for (int i = 0; i < input_vertices_; ++i) f[i] = static_cast<float>(rows(input_vertex(i), col));
+  return out;
+}
+
 std::string FrameLayout::pack_triangles(const Eigen::VectorXf& per_triangle) const {
   // Base-GLB triangle l is engine triangle l (the loader keeps the triangle order).
   std::string out(sizeof(float) * static_cast<std::size_t>(per_triangle.size()), '\0');

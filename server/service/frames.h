@@ -26,6 +26,8 @@ class FrameLayout {
 
   // float32 LE, 3 per base-GLB vertex, from engine-order rows.
   std::string pack_vertices(const Vertices& engine_rows) const;
+  // float32 LE, 1 per base-GLB vertex, from column `col` of engine-order rows.
+  std::string pack_vertex_scalars(const Eigen::MatrixXd& engine_rows, int col) const;
   // float32 LE, 1 per base-GLB triangle.
   std::string pack_triangles(const Eigen::VectorXf& per_triangle) const;
   // Fills positions / normals / energies / measures of a proto frame.

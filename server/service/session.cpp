@@ -1023,6 +1023,24 @@ void Session::broadcast_frame(const std::string& client_id) {
   broadcast(std::move(event));
 }
 
+pb::HandleWeights Session::handle_weights(int handle) const {
+  std::shared_ptr<const ConstraintSet> cs;
+  pb::HandleWeights out;
+  {
+    std::lock_guard lock(mutex_);
+    if (!cs_) fail(grpc::StatusCode::FAILED_PRECONDITION, kNoConstraints);
+    cs = cs_;
+    out.set_version(version_);
+  }
+  if (handle < 0 || handle >= cs->num_handles())
+    fail(grpc::StatusCode::INVALID_ARGUMENT,
+         "GetHandleWeights: handle " + std::to_string(handle) + " is not a handle of " + name_ +
+             " (it has " + std::to_string(cs->num_handles()) + ")");
+  out.set_handle(handle);
+  out.set_weights(mesh_->layout->pack_vertex_scalars(cs->harmonic_basis(), handle));
+  return out;
+}
+
 pb::Presence Session::presence() const {
   pb::Presence out;
   roster_.describe(&out);

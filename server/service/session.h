@@ -129,6 +129,8 @@ class Session : public std::enable_shared_from_this<Session> {
   pb::GrabHandlesResponse release(const pb::ReleaseHandlesRequest& request);
   void expire_leases();  // called periodically (SessionStore's sweeper)
   pb::Presence presence() const;
+  // Φ_handle in base-GLB order (GetHandleWeights). Throws ServiceError.
+  pb::HandleWeights handle_weights(int handle) const;
   // Capability tokens (access.h): what the presented token hashes grant, and new tokens
   // (the old ones stop working at once).
   Access grant(const std::vector<TokenHash>& token_hashes) const;

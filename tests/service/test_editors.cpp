@@ -5,6 +5,7 @@
 #include "handle_update.h"
 
 #include <condition_variable>
+#include <cstring>
 #include <map>
 #include <mutex>
 #include <thread>
@@ -377,4 +378,41 @@ TEST(Editors, BadInputsGetPreciseErrors) {
   pb::GrabHandlesResponse resp;
   st = e.t.bare_stub->GrabHandles(as(bare.edit_token()).get(), g, &resp);
   EXPECT_EQ(st.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+}
+
+TEST(Editors, HandleWeightsAreTheHarmonicFieldForASoftSelectionPreview) {
+  TwoHandles e;
+  pb::GetHandleWeightsRequest r;
+  r.set_name(e.s.name());
+  r.set_handle(1);
+  pb::HandleWeights w;
+  auto st = e.t.bare_stub->GetHandleWeights(as(e.s.view_token()).get(), r, &w);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  ASSERT_EQ(w.weights().size(), 4u * 144);  // 12×12 grid, float32 per vertex
+  std::vector<float> phi(144);
+  std::memcpy(phi.data(), w.weights().data(), w.weights().size());
+  const auto& c = e.s.constraints();
+  for (int id : c.handles(1).ids()) EXPECT_EQ(phi[static_cast<std::size_t>(id)], 1.0f);
+  for (int id : c.handles(0).ids()) EXPECT_EQ(phi[static_cast<std::size_t>(id)], 0.0f);
+  for (int id : c.fixed().ids()) EXPECT_EQ(phi[static_cast<std::size_t>(id)], 0.0f);
+  // The maximum principle: free vertices lie strictly between.
+  int inside = 0;
+  for (float v : phi) {
+    EXPECT_GE(v, 0.0f);
+    EXPECT_LE(v, 1.0f);
+    inside += v > 0.0f && v < 1.0f;
+  }
+  EXPECT_GT(inside, 100);
+  r.set_handle(2);
+  st = e.t.bare_stub->GetHandleWeights(as(e.s.view_token()).get(), r, &w);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("handle 2 is not a handle"), std::string::npos);
+  pb::Session bare;
+  ASSERT_TRUE(e.t.upload(grid_off(4), "g.off", &bare).ok());
+  r.set_name(bare.name());
+  r.set_handle(0);
+  st = e.t.bare_stub->GetHandleWeights(as(bare.view_token()).get(), r, &w);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+  st = e.t.bare_stub->GetHandleWeights(as("not-a-token").get(), r, &w);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::PERMISSION_DENIED);
 }
