@@ -60,7 +60,18 @@ struct PresenceWatcher {
     std::unique_lock lock(mutex);
     return cv.wait_for(lock, std::chrono::seconds(20), [&] { return pred(); });
   }
-  // The participant with `id` in the latest presence, or null.
+  // A copy of participant `id` in the latest presence (empty if absent), read under the
+  // lock: the reader thread replaces `presence` at any time.
+  pb::Participant copy_of(const std::string& id) {
+    std::lock_guard lock(mutex);
+    const auto* p = find(id);
+    return p ? *p : pb::Participant{};
+  }
+  int participants() {
+    std::lock_guard lock(mutex);
+    return presence.participants_size();
+  }
+  // The participant with `id` in the latest presence, or null (hold `mutex`: in wait()).
   const pb::Participant* find(const std::string& id) const {
     for (const auto& p : presence.participants())
       if (p.client_id() == id) return &p;
@@ -146,14 +157,15 @@ TEST(Editors, WatchersSeePresenceLiveAndAVanishedClientHoldsNothing) {
   const pb::Participant alice = who("alice", "Alice"), viewer = who("v-9", "Vera");
   PresenceWatcher w(e.t, e.s.name(), e.s.view_token(), &viewer);
   ASSERT_TRUE(w.wait([&] { return w.find("v-9") != nullptr; }));
-  EXPECT_FALSE(w.find("v-9")->editor());  // the view token
-  EXPECT_TRUE(w.find("v-9")->watching());
-  EXPECT_EQ(w.find("v-9")->color().size(), 7u);  // one picked for it
+  const pb::Participant vera = w.copy_of("v-9");
+  EXPECT_FALSE(vera.editor());  // the view token
+  EXPECT_TRUE(vera.watching());
+  EXPECT_EQ(vera.color().size(), 7u);  // one picked for it
   {
     auto a = std::make_unique<PresenceWatcher>(e.t, e.s.name(), e.s.edit_token(), &alice);
     ASSERT_TRUE(w.wait([&] { return w.find("alice") != nullptr; }));
-    EXPECT_TRUE(w.find("alice")->editor());
-    EXPECT_EQ(w.find("alice")->display_name(), "Alice");
+    EXPECT_TRUE(w.copy_of("alice").editor());
+    EXPECT_EQ(w.copy_of("alice").display_name(), "Alice");
     ASSERT_TRUE(e.grab(alice, {1}).ok());
     ASSERT_TRUE(w.wait([&] {
       const auto* p = w.find("alice");
@@ -169,7 +181,7 @@ TEST(Editors, WatchersSeePresenceLiveAndAVanishedClientHoldsNothing) {
   // A watcher without a client identity is counted but not listed.
   PresenceWatcher anon(e.t, e.s.name(), e.s.view_token(), nullptr);
   ASSERT_TRUE(anon.wait([&] { return anon.presences > 0; }));
-  EXPECT_EQ(anon.presence.participants_size(), 2);  // Vera watching, Bob grabbing
+  EXPECT_EQ(anon.participants(), 2);  // Vera watching, Bob grabbing
 }
 
 TEST(Editors, LeaseExpiryReachesWatchers) {
