@@ -107,27 +107,35 @@ std::string write_off(const Vertices& V, const Triangles& F, const Vertices* N) 
   return out;
 }
 
-std::string write_ply(const Vertices& V, const Triangles& F, const Vertices* N) {
-  std::string out = "ply\nformat ascii 1.0\ncomment hdeform\nelement vertex ";
-  reserve_text(out, V, F, N);
+namespace {
+
+// The PLY header both encodings share: doubles per vertex, a uchar-counted int list per face.
+void append_ply_header(std::string& out, const char* format, const Vertices& V,
+                       const Triangles& F, const Vertices* N) {
+  out += "ply\nformat ";
+  out += format;
+  out += " 1.0\ncomment hdeform\nelement vertex ";
   append_int(out, V.rows());
   out += "\nproperty double x\nproperty double y\nproperty double z\n";
   if (N) out += "property double nx\nproperty double ny\nproperty double nz\n";
   out += "element face ";
   append_int(out, F.rows());
   out += "\nproperty list uchar int vertex_indices\nend_header\n";
+}
+
+}  // namespace
+
+std::string write_ply(const Vertices& V, const Triangles& F, const Vertices* N) {
+  std::string out;
+  reserve_text(out, V, F, N);
+  append_ply_header(out, "ascii", V, F, N);
   append_vertices_and_faces(out, V, F, N);
   return out;
 }
 
 std::string write_ply_binary(const Vertices& V, const Triangles& F, const Vertices* N) {
-  std::string out = "ply\nformat binary_little_endian 1.0\ncomment hdeform\nelement vertex ";
-  append_int(out, V.rows());
-  out += "\nproperty double x\nproperty double y\nproperty double z\n";
-  if (N) out += "property double nx\nproperty double ny\nproperty double nz\n";
-  out += "element face ";
-  append_int(out, F.rows());
-  out += "\nproperty list uchar int vertex_indices\nend_header\n";
+  std::string out;
+  append_ply_header(out, "binary_little_endian", V, F, N);
   static_assert(std::endian::native == std::endian::little, "binary PLY is written as is");
   const int per_vertex = N ? 6 : 3;
   const std::size_t header = out.size();

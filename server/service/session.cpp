@@ -819,59 +819,43 @@ void Session::close_drag(const std::string& client_id) {
 }
 
 pb::Session Session::undo(const pb::UndoRequest& request) {
-  touch();
   close_drag(request.client_id());  // an unfinished drag is the step to undo
-  EditState target;
-  Step step;
-  std::int64_t undone = 0;
-  {
-    std::lock_guard lock(mutex_);
-    const Step& t = history_.undo_target(request.client_id(), request.step());
-    const EditState current = edit_state_locked();
-    history_.check_unchanged(t, current, t.after, "Undo");
-    target = current;
-    apply_side(target, t, t.before);
-    step.constraints = t.constraints;
-    step.beta = t.beta;
-    step.handles = t.handles;
-    step.info.set_target(t.info.id());
-    step.info.set_summary("undo step " + std::to_string(t.info.id()) + " (" + t.info.author() +
-                          ": " + t.info.summary() + ")");
-    undone = t.info.id();
-  }
-  step.info.set_kind(pb::STEP_KIND_UNDO);
-  step.info.set_client_id(request.client_id());
-  pb::Session out = commit_edit(std::move(target), nullptr, std::move(step), true);
-  std::lock_guard lock(mutex_);
-  history_.mark_undone(undone, request.client_id());
-  return out;
+  return revert(request, true);
 }
 
-pb::Session Session::redo(const pb::UndoRequest& request) {
+pb::Session Session::redo(const pb::UndoRequest& request) { return revert(request, false); }
+
+pb::Session Session::revert(const pb::UndoRequest& request, bool undo) {
   touch();
   EditState target;
   Step step;
-  std::int64_t redone = 0;
+  std::int64_t target_id = 0;
   {
     std::lock_guard lock(mutex_);
-    const Step& t = history_.redo_target(request.client_id(), request.step());
+    const Step& t = undo ? history_.undo_target(request.client_id(), request.step())
+                         : history_.redo_target(request.client_id(), request.step());
+    // Undo goes from the step's after to its before; redo the other way.
+    const EditState& from = undo ? t.after : t.before;
+    const EditState& to = undo ? t.before : t.after;
     const EditState current = edit_state_locked();
-    history_.check_unchanged(t, current, t.before, "Redo");
+    history_.check_unchanged(t, current, from, undo ? "Undo" : "Redo");
     target = current;
-    apply_side(target, t, t.after);
+    apply_side(target, t, to);
     step.constraints = t.constraints;
     step.beta = t.beta;
     step.handles = t.handles;
     step.info.set_target(t.info.id());
-    step.info.set_summary("redo step " + std::to_string(t.info.id()) + " (" + t.info.author() +
-                          ": " + t.info.summary() + ")");
-    redone = t.info.id();
+    step.info.set_summary(std::string(undo ? "undo" : "redo") + " step " +
+                          std::to_string(t.info.id()) + " (" + t.info.author() + ": " +
+                          t.info.summary() + ")");
+    target_id = t.info.id();
   }
-  step.info.set_kind(pb::STEP_KIND_REDO);
+  step.info.set_kind(undo ? pb::STEP_KIND_UNDO : pb::STEP_KIND_REDO);
   step.info.set_client_id(request.client_id());
   pb::Session out = commit_edit(std::move(target), nullptr, std::move(step), true);
   std::lock_guard lock(mutex_);
-  history_.mark_redone(redone, request.client_id());
+  if (undo) history_.mark_undone(target_id, request.client_id());
+  else history_.mark_redone(target_id, request.client_id());
   return out;
 }
 

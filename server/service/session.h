@@ -209,6 +209,8 @@ class Session : public std::enable_shared_from_this<Session> {
                           bool send_frame);
   std::string author_of(const std::string& client_id) const;
   void close_drag(const std::string& client_id);  // an open drag becomes its step
+  // Undo (undo = true) or Redo: the step's reverse or itself, as a new step.
+  pb::Session revert(const pb::UndoRequest& request, bool undo);
   void describe_locked(pb::Session* out) const;
   // A state change under the lock: new version, stale frame dropped, `out` describes it.
   void changed_locked(pb::Session* out);
