@@ -153,6 +153,16 @@ int main(int argc, char** argv) {
       ->envname("HDEFORM_MAX_SNAPSHOTS")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  app.add_option("--max-animation-frames", request.max_animation_frames,
+                 "sampled frames in one ExportAnimation (each is a solve)")
+      ->envname("HDEFORM_MAX_ANIMATION_FRAMES")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--max-animation-bytes", request.max_animation_bytes,
+                 "size of one ExportAnimation GLB (bytes; checked before any solve)")
+      ->envname("HDEFORM_MAX_ANIMATION_BYTES")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   app.add_option("--max-upload-inflight-mb", max_upload_inflight_mb,
                  "upload bytes held by unfinished uploads, all clients together (MiB)")
       ->envname("HDEFORM_MAX_UPLOAD_INFLIGHT_MB")

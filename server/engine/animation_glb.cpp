@@ -43,35 +43,49 @@ float* AnimationGlb::block(std::size_t frame, int attribute) {
   return reinterpret_cast<float*>(data_.data() + offset);
 }
 
-void AnimationGlb::add_frame(const Vertices& V, const Vertices& N, const Eigen::MatrixXf* C) {
+void AnimationGlb::write(std::size_t k, int a, const Eigen::Ref<const Eigen::MatrixXd>& X) {
+  float* out = block(k, a);
+  const float* base = block(0, a);
+  const auto n = static_cast<Eigen::Index>(n_);
+  for (Eigen::Index i = 0; i < n; ++i)
+    for (int c = 0; c < 3; ++c) {
+      const std::size_t at = static_cast<std::size_t>(3 * i + c);
+      // Frame 0 is the base; later frames are deltas against its float32 values, so
+      // base + delta is the frame to float32 rounding of the delta alone.
+      const float f = k == 0 ? static_cast<float>(X(i, c))
+                             : static_cast<float>(X(i, c) - static_cast<double>(base[at]));
+      out[at] = f;
+      if (a == 0) {
+        auto& lo = lo_[k][static_cast<std::size_t>(c)];
+        auto& hi = hi_[k][static_cast<std::size_t>(c)];
+        lo = std::min(lo, double{f});
+        hi = std::max(hi, double{f});
+      }
+    }
+}
+
+void AnimationGlb::add_frame(const Vertices& V, const Vertices& N) {
   if (added_ >= times_.size()) throw std::logic_error("AnimationGlb: more frames than times");
   const auto n = static_cast<Eigen::Index>(n_);
-  if (V.rows() != n || N.rows() != n || (colors_ && (!C || C->rows() != n || C->cols() != 3)))
+  if (V.rows() != n || N.rows() != n || V.cols() != 3 || N.cols() != 3)
     throw std::logic_error("AnimationGlb: frame of the wrong shape");
-  const std::size_t k = added_;
-  for (int a = 0; a < attributes(); ++a) {
-    float* out = block(k, a);
-    const float* base = block(0, a);
-    for (Eigen::Index i = 0; i < n; ++i)
-      for (int c = 0; c < 3; ++c) {
-        const double v = a == 0 ? V(i, c) : a == 1 ? N(i, c) : static_cast<double>((*C)(i, c));
-        const std::size_t at = static_cast<std::size_t>(3 * i + c);
-        // Frame 0 is the base; later frames are deltas against its float32 values, so
-        // base + delta is the frame to float32 rounding of the delta alone.
-        const float f = k == 0 ? static_cast<float>(v)
-                               : static_cast<float>(v - static_cast<double>(base[at]));
-        out[at] = f;
-        if (a == 0) {
-          lo_[k][static_cast<std::size_t>(c)] = std::min(lo_[k][static_cast<std::size_t>(c)], double{f});
-          hi_[k][static_cast<std::size_t>(c)] = std::max(hi_[k][static_cast<std::size_t>(c)], double{f});
-        }
-      }
-  }
+  write(added_, 0, V);
+  write(added_, 1, N);
   ++added_;
 }
 
+void AnimationGlb::set_colors(std::size_t frame, const Eigen::MatrixXf& C) {
+  if (!colors_ || frame != colored_ || frame >= added_)
+    throw std::logic_error("AnimationGlb: colours out of order");
+  if (C.rows() != static_cast<Eigen::Index>(n_) || C.cols() != 3)
+    throw std::logic_error("AnimationGlb: colours of the wrong shape");
+  write(frame, 2, C.cast<double>());
+  ++colored_;
+}
+
 std::string AnimationGlb::finish() {
-  if (added_ != times_.size()) throw std::logic_error("AnimationGlb: frames missing");
+  if (added_ != times_.size() || (colors_ && colored_ != added_))
+    throw std::logic_error("AnimationGlb: frames or colours missing");
   const std::size_t K = times_.size(), m = static_cast<std::size_t>(F_.rows());
   const std::size_t frames_bytes = data_.size();
   const std::size_t index_offset = frames_bytes;

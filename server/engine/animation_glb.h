@@ -27,25 +27,28 @@ class AnimationGlb {
   AnimationGlb(Triangles F, Eigen::Index vertices, std::vector<double> times, bool colors,
                bool up_z);
 
-  // Frames in order, exactly times.size() of them. V, N: n×3 model units / unit normals;
-  // C: n×3 (only when colors). Throws std::logic_error on a wrong count or shape.
-  void add_frame(const Vertices& V, const Vertices& N, const Eigen::MatrixXf* C = nullptr);
+  // Frames in order, exactly times.size() of them. V, N: n×3 model units / unit normals.
+  // Throws std::logic_error on a wrong count or shape.
+  void add_frame(const Vertices& V, const Vertices& N);
+  // With colours: each frame's n×3 colours, in frame order, once that frame was added (a
+  // caller that scales colours by every frame's energy sets them after the last frame).
+  void set_colors(std::size_t frame, const Eigen::MatrixXf& C);
   std::size_t frames_added() const { return added_; }
 
-  // The GLB, after the last frame (throws std::logic_error before).
+  // The GLB, after the last frame and its colours (throws std::logic_error before).
   std::string finish();
 
  private:
-  float* block(std::size_t frame, int attribute);  // attribute: 0 POSITION, 1 NORMAL, 2 COLOR_0
+  float* block(std::size_t frame, int attribute);
+  void write(std::size_t frame, int attribute, const Eigen::Ref<const Eigen::MatrixXd>& X);  // attribute: 0 POSITION, 1 NORMAL, 2 COLOR_0
   int attributes() const { return colors_ ? 3 : 2; }
 
   Triangles F_;
   std::size_t n_;
   std::vector<double> times_;
   bool colors_, up_z_;
-  std::size_t added_ = 0;
+  std::size_t added_ = 0, colored_ = 0;
   std::vector<unsigned char> data_;  // [frame 0 attributes | indices | frames 1.. | anim]
-  std::vector<Eigen::Vector3f> base_;  // frame 0, per attribute (deltas are against it)
   std::vector<std::vector<double>> lo_, hi_;  // per frame: POSITION min/max (deltas for k ≥ 1)
 };
 

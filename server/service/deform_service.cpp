@@ -198,37 +198,42 @@ class CreateSessionReactor final : public grpc::ServerReadReactor<v1::CreateSess
 };
 
 // ---------------------------------------------------------------------------------------
-// GetMesh: the file is produced on the session's strand, then streamed in ≤ 1 MiB chunks.
-class MeshWriter final : public grpc::ServerWriteReactor<v1::MeshChunk> {
- public:
-  MeshWriter(std::shared_ptr<Session> session, const v1::GetMeshRequest& request)
-      : session_(std::move(session)) {
-    const bool rest = request.rest();
-    const auto format = request.format();
-    const auto up = request.up();
-    const auto ply = request.ply_encoding();
-    session_->post([this, rest, format, up, ply] {
-      const auto status =
-          guarded([&] { data_ = session_->mesh_file(rest, format, up, ply); }, "GetMesh");
-      if (!status.ok()) {
-        Finish(status);
-        return;
-      }
-      std::lock_guard lock(mutex_);
-      next_locked();
-    });
-  }
+// A server-streaming call that ends at once with `status`.
+template <class Message>
+grpc::ServerWriteReactor<Message>* failed_stream(grpc::Status status) {
+  class Fail final : public grpc::ServerWriteReactor<Message> {
+   public:
+    explicit Fail(grpc::Status s) { this->Finish(std::move(s)); }
+    void OnDone() override { delete this; }
+  };
+  return new Fail(std::move(status));
+}
 
+// A file streamed in ≤ 1 MiB chunks once it is produced (GetMesh, ExportAnimation).
+class ChunkWriter : public grpc::ServerWriteReactor<v1::MeshChunk> {
+ public:
   void OnWriteDone(bool ok) override {
     std::lock_guard lock(mutex_);
     if (!ok) {
-      Finish({grpc::StatusCode::CANCELLED, "GetMesh: the client went away"});
+      Finish({grpc::StatusCode::CANCELLED, "the client went away"});
       return;
     }
     next_locked();
   }
 
   void OnDone() override { delete this; }
+
+ protected:
+  // Starts streaming `data` (once), or ends the call with `status` when it is not OK.
+  void produced(const grpc::Status& status, std::string data) {
+    if (!status.ok()) {
+      Finish(status);
+      return;
+    }
+    std::lock_guard lock(mutex_);
+    data_ = std::move(data);
+    next_locked();
+  }
 
  private:
   void next_locked() {
@@ -245,11 +250,79 @@ class MeshWriter final : public grpc::ServerWriteReactor<v1::MeshChunk> {
     StartWrite(&chunk_);
   }
 
-  std::shared_ptr<Session> session_;
   std::mutex mutex_;
   std::string data_;
   std::size_t offset_ = 0;
   v1::MeshChunk chunk_;
+};
+
+// GetMesh: the file is produced on the session's strand, then streamed.
+class MeshWriter final : public ChunkWriter {
+ public:
+  MeshWriter(std::shared_ptr<Session> session, const v1::GetMeshRequest& request)
+      : session_(std::move(session)) {
+    const bool rest = request.rest();
+    const auto format = request.format();
+    const auto up = request.up();
+    const auto ply = request.ply_encoding();
+    session_->post([this, rest, format, up, ply] {
+      std::string data;
+      const auto status =
+          guarded([&] { data = session_->mesh_file(rest, format, up, ply); }, "GetMesh");
+      produced(status, std::move(data));
+    });
+  }
+
+ private:
+  std::shared_ptr<Session> session_;
+};
+
+// ExportAnimation: one pool task per sampled frame, like a Sweep (never the session's
+// strand, never a worker for the whole export); stops at the next frame when the client
+// leaves or its deadline passes, the session is deleted or the server stops. Counted with
+// the Sweeps under --max-sweeps.
+class AnimationWriter final : public ChunkWriter {
+ public:
+  AnimationWriter(DeformService* svc, grpc::CallbackServerContext* ctx,
+                  std::shared_ptr<Session> session, Session::AnimationPlan plan)
+      : svc_(svc), ctx_(ctx), session_(std::move(session)), plan_(std::move(plan)) {
+    svc_->pool().submit([this] { step(); });
+  }
+
+ private:
+  void step() {
+    std::string data;
+    bool done = false;
+    const auto status = guarded(
+        [&] {
+          if (ctx_->IsCancelled()) throw Cancelled("ExportAnimation cancelled by the client");
+          if (std::chrono::system_clock::now() > ctx_->deadline())
+            fail(grpc::StatusCode::DEADLINE_EXCEEDED,
+                 "ExportAnimation deadline exceeded after " + std::to_string(plan_.next) +
+                     " of " + std::to_string(plan_.times.size()) + " frames");
+          if (svc_->stopping()) fail(grpc::StatusCode::UNAVAILABLE, "the server is stopping");
+          if (session_->closed()) fail(grpc::StatusCode::NOT_FOUND, session_->name() + " was deleted");
+          session_->animation_frame(plan_);
+          if (plan_.next == plan_.times.size()) {
+            data = session_->animation_finish(plan_);
+            done = true;
+          }
+        },
+        "ExportAnimation");
+    if (status.ok() && !done) {
+      svc_->pool().submit([this] { step(); });
+      return;
+    }
+    plan_ = {};  // the frames' memory goes before the bytes are streamed
+    --svc_->running_sweeps();
+    malloc_trim_after_sweep();
+    produced(status, std::move(data));
+  }
+
+  DeformService* svc_;
+  grpc::CallbackServerContext* ctx_;
+  std::shared_ptr<Session> session_;
+  Session::AnimationPlan plan_;
 };
 
 // ---------------------------------------------------------------------------------------
@@ -312,10 +385,10 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
     std::lock_guard lock(mutex_);
     if (finished_ || closing_) return;
     // Latest wins: a newer frame replaces a waiting frame, a newer state a waiting state, a
-    // newer presence a waiting presence.
+    // newer presence a waiting presence, a newer timeline a waiting timeline.
     const auto kind = event->event_case();
     if (kind == v1::SessionEvent::kFrame || kind == v1::SessionEvent::kState ||
-        kind == v1::SessionEvent::kPresence) {
+        kind == v1::SessionEvent::kPresence || kind == v1::SessionEvent::kTimeline) {
       for (auto it = pending_.begin(); it != pending_.end(); ++it)
         if ((*it)->event_case() == kind) {
           pending_.erase(it);
@@ -866,12 +939,7 @@ grpc::ServerWriteReactor<v1::MeshChunk>* DeformService::GetMesh(
   const auto status = guarded(
       [&] { session = session_for(*ctx, request->name(), Access::kView, "GetMesh"); }, "GetMesh");
   if (!status.ok()) {
-    class Fail final : public grpc::ServerWriteReactor<v1::MeshChunk> {
-     public:
-      explicit Fail(grpc::Status s) { Finish(std::move(s)); }
-      void OnDone() override { delete this; }
-    };
-    return new Fail(status);
+    return failed_stream<v1::MeshChunk>(status);
   }
   return new MeshWriter(std::move(session), *request);
 }
@@ -964,21 +1032,11 @@ grpc::ServerWriteReactor<v1::SessionEvent>* DeformService::WatchSession(
       },
       "WatchSession");
   if (!status.ok()) {
-    class Fail final : public grpc::ServerWriteReactor<v1::SessionEvent> {
-     public:
-      explicit Fail(grpc::Status s) { Finish(std::move(s)); }
-      void OnDone() override { delete this; }
-    };
-    return new Fail(status);
+    return failed_stream<v1::SessionEvent>(status);
   }
   // Each watcher's memory is bounded (one pending frame, one state); their number is too.
   if (static_cast<std::size_t>(session->observers()) >= options_.request.max_watchers) {
-    class Fail final : public grpc::ServerWriteReactor<v1::SessionEvent> {
-     public:
-      explicit Fail(grpc::Status s) { Finish(std::move(s)); }
-      void OnDone() override { delete this; }
-    };
-    return new Fail({grpc::StatusCode::RESOURCE_EXHAUSTED,
+    return failed_stream<v1::SessionEvent>({grpc::StatusCode::RESOURCE_EXHAUSTED,
                      session->name() + " has " + std::to_string(session->observers()) +
                          " watchers, the limit (--max-watchers)"});
   }
@@ -987,12 +1045,7 @@ grpc::ServerWriteReactor<v1::SessionEvent>* DeformService::WatchSession(
     const auto joined = guarded(
         [&] { session->join(request->client(), can_edit(*ctx, *session)); }, "WatchSession");
     if (!joined.ok()) {
-      class Fail final : public grpc::ServerWriteReactor<v1::SessionEvent> {
-       public:
-        explicit Fail(grpc::Status s) { Finish(std::move(s)); }
-        void OnDone() override { delete this; }
-      };
-      return new Fail(joined);
+      return failed_stream<v1::SessionEvent>(joined);
     }
     client_id = request->client().client_id();
   }
@@ -1144,6 +1197,57 @@ grpc::ServerUnaryReactor* DeformService::GetHandleWeights(
   return finish_on_pool(ctx, "GetHandleWeights", [session, request, response] {
     *response = session->handle_weights(request->handle());
   });
+}
+
+// Timeline: set on the strand (ordered with SetConstraints, which clears it); read anywhere.
+grpc::ServerUnaryReactor* DeformService::SetTimeline(grpc::CallbackServerContext* ctx,
+                                                     const v1::SetTimelineRequest* request,
+                                                     v1::Timeline* response) {
+  return finish_on_session(ctx, "SetTimeline", request->name(), Access::kEdit,
+                           [this, request, response](Session& s) {
+                             *response = s.set_timeline(*request);
+                             store_.save(s);
+                           });
+}
+
+grpc::ServerUnaryReactor* DeformService::GetTimeline(grpc::CallbackServerContext* ctx,
+                                                     const v1::GetTimelineRequest* request,
+                                                     v1::Timeline* response) {
+  return finish_inline(ctx, "GetTimeline", [&] {
+    *response = session_for(*ctx, request->name(), Access::kView, "GetTimeline")->timeline();
+  });
+}
+
+grpc::ServerUnaryReactor* DeformService::PoseAt(grpc::CallbackServerContext* ctx,
+                                                const v1::PoseAtRequest* request,
+                                                v1::Keyframe* response) {
+  return finish_inline(ctx, "PoseAt", [&] {
+    *response =
+        session_for(*ctx, request->name(), Access::kView, "PoseAt")->pose_at(request->time_s());
+  });
+}
+
+grpc::ServerWriteReactor<v1::MeshChunk>* DeformService::ExportAnimation(
+    grpc::CallbackServerContext* ctx, const v1::ExportAnimationRequest* request) {
+  std::shared_ptr<Session> session;
+  Session::AnimationPlan plan;
+  const auto status = guarded(
+      [&] {
+        session = session_for(*ctx, request->name(), Access::kEdit, "ExportAnimation");
+        plan = session->animation_plan(*request);
+        if (++running_sweeps_ > options_.request.max_concurrent_sweeps) {
+          --running_sweeps_;
+          fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
+               "too many sweeps and animation exports running (" +
+                   std::to_string(options_.request.max_concurrent_sweeps) +
+                   ", --max-sweeps); retry later");
+        }
+      },
+      "ExportAnimation");
+  if (!status.ok()) {
+    return failed_stream<v1::MeshChunk>(status);
+  }
+  return new AnimationWriter(this, ctx, std::move(session), std::move(plan));
 }
 
 // Grabs run on the session's strand: they are ordered with SetConstraints, which renumbers

@@ -105,6 +105,17 @@ class DeformService final : public v1::Deformation::CallbackService {
   grpc::ServerUnaryReactor* GetHandleWeights(grpc::CallbackServerContext* ctx,
                                              const v1::GetHandleWeightsRequest* request,
                                              v1::HandleWeights* response) override;
+  grpc::ServerUnaryReactor* SetTimeline(grpc::CallbackServerContext* ctx,
+                                        const v1::SetTimelineRequest* request,
+                                        v1::Timeline* response) override;
+  grpc::ServerUnaryReactor* GetTimeline(grpc::CallbackServerContext* ctx,
+                                        const v1::GetTimelineRequest* request,
+                                        v1::Timeline* response) override;
+  grpc::ServerUnaryReactor* PoseAt(grpc::CallbackServerContext* ctx,
+                                   const v1::PoseAtRequest* request,
+                                   v1::Keyframe* response) override;
+  grpc::ServerWriteReactor<v1::MeshChunk>* ExportAnimation(
+      grpc::CallbackServerContext* ctx, const v1::ExportAnimationRequest* request) override;
   grpc::ServerUnaryReactor* RotateTokens(grpc::CallbackServerContext* ctx,
                                          const v1::RotateTokensRequest* request,
                                          v1::Session* response) override;

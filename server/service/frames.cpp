@@ -50,6 +50,13 @@ std::vector<int> FrameLayout::base_vertices(const std::vector<int>& engine_ids) 
 }
 
 int FrameLayout::vertex_count() const { return input_vertices_; }
+Eigen::MatrixXd FrameLayout::to_base(const Eigen::MatrixXd& engine_rows) const {
+  if (identity_) return engine_rows;
+  Eigen::MatrixXd out(input_vertices_, engine_rows.cols());
+  for (int i = 0; i < input_vertices_; ++i) out.row(i) = engine_rows.row(input_vertex(i));
+  return out;
+}
+
 int FrameLayout::triangle_count() const { return static_cast<int>(layout_.input_triangles.rows()); }
 
 std::string FrameLayout::pack_vertices(const Vertices& rows) const {

@@ -40,6 +40,10 @@ class FrameLayout {
   // A glTF upload's own file with the deformed positions and normals (rewrite_gltf.h).
   std::string input_gltf(std::string_view original, const std::string& filename,
                          const Vertices& engine_positions) const;
+  // Engine-order rows rearranged into the base-GLB layout (one row per base vertex), and
+  // the base GLB's triangles.
+  Eigen::MatrixXd to_base(const Eigen::MatrixXd& engine_rows) const;
+  const Triangles& base_triangles() const { return layout_.input_triangles; }
   // The rest mesh as GLB, built once.
   const std::string& base_glb() const;
 

@@ -21,6 +21,8 @@ struct RequestLimits {
   std::chrono::milliseconds max_lease{60'000};  // --max-lease-ms: longest GrabHandles lease
   std::size_t max_history = 1000;            // --max-history: steps kept per session
   std::size_t max_snapshots = 64;            // --max-snapshots: named snapshots per session
+  std::size_t max_animation_frames = 600;    // --max-animation-frames: samples per export
+  std::size_t max_animation_bytes = 256u << 20;  // --max-animation-bytes: an export's GLB
 };
 
 // Throws ServiceError RESOURCE_EXHAUSTED "WHAT: COUNT exceeds the limit of LIMIT (FLAG)".

@@ -289,6 +289,7 @@ pb::Session Session::commit_edit(EditState target, std::shared_ptr<const Constra
   const bool constraints_changed = target.cs_key != current_key;
   pb::Session out;
   pb::HistoryStep info;
+  bool timeline_cleared = false;
   {
     std::lock_guard lock(mutex_);
     step.before = edit_state_locked();
@@ -314,9 +315,17 @@ pb::Session Session::commit_edit(EditState target, std::shared_ptr<const Constra
     step.info.set_beta_changed(step.beta);
     step.info.mutable_handles()->Assign(step.handles.begin(), step.handles.end());
     info = history_.record(std::move(step));
+    // The keys' transforms are per handle of the old set: they mean nothing for the new one.
+    timeline_cleared = constraints_changed && timeline_.keys_size() > 0;
+    if (timeline_cleared) {
+      timeline_ = pb::Timeline();
+      timeline_.set_version(version_);
+      timeline_.set_author(info.author());
+    }
   }
   broadcast_state();
   broadcast_step(info);
+  if (timeline_cleared) broadcast_timeline();
   if (constraints_changed && roster_.release_all()) broadcast_presence();  // renumbered
   if (send_frame) broadcast_frame(info.client_id());
   return out;
@@ -631,6 +640,7 @@ pb::Snapshot Session::export_snapshot(bool include_mesh, std::int64_t* version) 
   if (cs_ && given_) *s.mutable_constraints() = *given_;
   beta_to_proto(beta_, s.mutable_beta());
   for (const auto& t : transforms_) to_proto(t, s.add_transforms());
+  if (timeline_.keys_size() > 0) *s.mutable_timeline() = timeline_;
   return s;
 }
 
@@ -659,8 +669,10 @@ void Session::restore(const pb::Snapshot& s) {
   std::vector<HandleTransform> transforms =
       s.transforms_size() > 0 ? from_proto(s.transforms(), *cs)
                               : std::vector<HandleTransform>(cs->num_handles());
+  if (s.timeline().keys_size() > 0) parse_timeline(s.timeline(), *cs);  // a bad one is refused
   std::lock_guard lock(mutex_);
   transforms_ = std::move(transforms);
+  timeline_ = s.timeline();
   ++version_;
   last_frame_.reset();
 }
@@ -893,6 +905,7 @@ pb::NamedSnapshot Session::save_snapshot(const pb::SaveSnapshotRequest& request)
   named.set_time_unix_ms(unix_ms_now());
   std::int64_t version = 0;
   *named.mutable_snapshot() = export_snapshot(false, &version);
+  named.mutable_snapshot()->clear_timeline();  // a named snapshot is the pose, not the timeline
   named.set_version(version);
   std::lock_guard lock(mutex_);
   if (!snapshots_.count(request.snapshot()))
@@ -1103,6 +1116,11 @@ void Session::add_watcher(std::shared_ptr<EventSink> sink) {
   auto who = std::make_shared<pb::SessionEvent>();
   *who->mutable_presence() = presence();  // who is here, before anyone moves
   sink->push(std::move(who));
+  if (auto t = timeline(); t.keys_size() > 0) {
+    auto event = std::make_shared<pb::SessionEvent>();
+    *event->mutable_timeline() = std::move(t);
+    sink->push(std::move(event));
+  }
   broadcast_state();  // the others see the new observer count
 }
 

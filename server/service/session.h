@@ -6,12 +6,14 @@
 
 #include "access.h"
 #include "cache.h"
+#include "animation_glb.h"
 #include "deformer.h"
 #include "hdeform/v1/deform.pb.h"
 #include "mesh_library.h"
 #include "history.h"
 #include "request_limits.h"
 #include "roster.h"
+#include "timeline.h"
 #include "worker_pool.h"
 
 #include <google/protobuf/repeated_field.h>
@@ -74,6 +76,29 @@ class Session : public std::enable_shared_from_this<Session> {
   void delete_snapshot(const std::string& snapshot);
   // Durable state: the named snapshots as stored (a fresh session only).
   void adopt_snapshots(const google::protobuf::RepeatedPtrField<pb::NamedSnapshot>& snapshots);
+
+  // Timeline (timeline.h; docs/api.md "Timeline and animation"). set_timeline runs on the
+  // strand: it is checked against the constraint set, which a SetConstraints may replace
+  // (that clears the timeline: its transforms are per handle).
+  pb::Timeline set_timeline(const pb::SetTimelineRequest& request);
+  pb::Timeline timeline() const;
+  pb::Keyframe pose_at(double time_s) const;
+  // ExportAnimation in steps, like a Sweep: plan() checks the request and its limits and
+  // captures the state; frame() solves the next sample (any thread, never the strand);
+  // finish() writes the GLB.
+  struct AnimationPlan {
+    std::shared_ptr<const ConstraintSet> cs;
+    ParsedTimeline timeline;
+    SessionBeta beta;  // the session's, where no key sets β
+    std::vector<double> times;
+    bool energies = false;
+    std::shared_ptr<AnimationGlb> glb;
+    std::vector<Eigen::VectorXf> vertex_energies;  // per frame (energies only)
+    std::size_t next = 0;
+  };
+  AnimationPlan animation_plan(const pb::ExportAnimationRequest& request) const;
+  void animation_frame(AnimationPlan& plan) const;
+  std::string animation_finish(AnimationPlan& plan) const;
 
   struct Update {
     std::int64_t sequence = 0;
@@ -196,6 +221,7 @@ class Session : public std::enable_shared_from_this<Session> {
                                   const char* op) const;
   void broadcast_presence();
   void broadcast_step(const pb::HistoryStep& step);
+  void broadcast_timeline();
   // A frame of the current state to every watcher (after undo, redo, restore).
   void broadcast_frame(const std::string& client_id);
   EditState edit_state_locked() const;
@@ -247,6 +273,7 @@ class Session : public std::enable_shared_from_this<Session> {
   std::shared_ptr<const pb::Constraints> given_;
   History history_;
   std::map<std::string, pb::NamedSnapshot> snapshots_;  // by name
+  pb::Timeline timeline_;  // as set (checked against cs_), with version and author
   SessionBeta beta_;
   std::vector<HandleTransform> transforms_;
   std::int64_t version_ = 1;

@@ -68,7 +68,10 @@ TEST(AnimationGlb, TargetsReproduceEveryFrameAndWeightsAreOneHot) {
   const auto s = bending_strip(K);
   const std::vector<double> times = {0, 0.25, 0.5, 0.6};
   AnimationGlb glb(s.F, s.V[0].rows(), times, true, false);
-  for (int f = 0; f < K; ++f) glb.add_frame(s.V[f], s.N[f], &s.C[f]);
+  for (int f = 0; f < K; ++f) glb.add_frame(s.V[f], s.N[f]);
+  EXPECT_THROW(glb.finish(), std::logic_error);  // colours missing
+  EXPECT_THROW(glb.set_colors(1, s.C[1]), std::logic_error);  // out of order
+  for (int f = 0; f < K; ++f) glb.set_colors(static_cast<std::size_t>(f), s.C[f]);
   const std::string bytes = glb.finish();
   EXPECT_LE(bytes.size(), AnimationGlb::bytes_for(14, 12, K, true));
   const auto model = load(bytes);
