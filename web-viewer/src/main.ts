@@ -34,6 +34,7 @@ import { setupViewButtons } from "./panels/view_buttons";
 import { setupHistoryPanel } from "./panels/history_panel";
 import { setupSnapshotsPanel } from "./panels/snapshots_panel";
 import { setupWeightsView } from "./weights/weights_view";
+import { HeldOutline } from "./viewport/held_outline";
 import { setupUndoRedo } from "./history/undo_redo";
 import { setupUndoShortcuts } from "./history/undo_shortcuts";
 import { CursorFeedback } from "./selection/cursor_feedback";
@@ -126,6 +127,7 @@ setupTransformFields(app, gizmo);
 setupPresencePanel(editors, sync);
 setupViewButtons(app, viewport);
 const weights = setupWeightsView(app);
+const outline = new HeldOutline(viewport, state);
 setupShortcuts(app, gizmo, viewport, () => weights.toggle());
 setupOnboarding(app);
 setupBetaPanel(app);
@@ -169,4 +171,5 @@ installTestHook(app, {
   history: history.list,
   snapshots,
   weights,
+  outline,
 });

@@ -23,6 +23,7 @@ import type { SnapshotsPanel } from "./panels/snapshots_panel";
 import { StepKind } from "./gen/hdeform/v1/deform_pb";
 import type { WeightsView } from "./weights/weights_view";
 import { decodeWeights, weightRamp } from "./weights/weight_ramp";
+import type { HeldOutline } from "./viewport/held_outline";
 
 declare global {
   interface Window {
@@ -46,6 +47,7 @@ export interface HookParts {
   history: HistoryList;
   snapshots: SnapshotsPanel;
   weights: WeightsView;
+  outline: HeldOutline;
 }
 
 export function installTestHook({ state, client, banner, status }: App, parts: HookParts): void {
@@ -185,6 +187,8 @@ export function installTestHook({ state, client, banner, status }: App, parts: H
     },
     /** The colours the mesh display draws (3 per vertex, or per corner when split). */
     displayColours: () => Array.from(parts.display.colours()),
+    /** Handles another editor holds, outlined: label, colour, boundary edges. */
+    heldOutlines: () => parts.outline.summary(),
     /** The session's handle transforms as the server has them (GetSession): rotation and scale too. */
     serverTransforms: async () =>
       (await client.getSession({ name: state.sessionName })).transforms.map((t) => ({

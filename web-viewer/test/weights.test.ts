@@ -1,9 +1,10 @@
 // The handle-weight preview's pure parts: the ramp, decoding GetHandleWeights' bytes, dropping
-// stale answers.
+// stale answers; and the held-handle outline's region boundary.
 import assert from "node:assert/strict";
 import { describe, it } from "node:test";
 import { ramp } from "../src/colormap";
 import { keyAction, SHORTCUTS } from "../src/keymap";
+import { regionBoundaryEdges, weldByPosition } from "../src/viewport/region_boundary";
 import { decodeWeights, WEIGHT_STOPS, weightRamp } from "../src/weights/weight_ramp";
 import { WeightsRequests } from "../src/weights/weights_requests";
 
@@ -89,5 +90,46 @@ describe("V toggles the weights", () => {
     assert.equal(keyAction({ key: "V", shiftKey: true }), "toggleWeights");
     assert.equal(keyAction({ key: "v", ctrlKey: true }), null);
     assert.ok(SHORTCUTS.some(([k, what]) => k === "V" && /weights/.test(what)));
+  });
+});
+
+describe("region boundary (held-handle outline)", () => {
+  // A 3×3 grid of vertices (ids 3 j + i), two triangles per cell.
+  const grid = () => {
+    const idx: number[] = [];
+    for (let j = 0; j < 2; j++)
+      for (let i = 0; i < 2; i++) {
+        const v = 3 * j + i;
+        idx.push(v, v + 1, v + 4, v, v + 4, v + 3);
+      }
+    const rest = new Float32Array(27);
+    for (let v = 0; v < 9; v++) rest.set([v % 3, Math.floor(v / 3), 0], 3 * v);
+    return { index: new Uint32Array(idx), rest };
+  };
+  const asSet = (pairs: number[]) => new Set(Array.from({ length: pairs.length / 2 }, (_, k) => [pairs[2 * k], pairs[2 * k + 1]].sort((a, b) => a - b).join("-")));
+
+  it("is the ring of edges around the region's triangles", () => {
+    const { index, rest } = grid();
+    const labels = new Int16Array(9).fill(1); // the whole grid
+    const edges = asSet(regionBoundaryEdges(index, labels, 1, weldByPosition(rest)));
+    assert.deepEqual(edges, new Set(["0-1", "1-2", "2-5", "5-8", "7-8", "6-7", "3-6", "0-3"]));
+  });
+  it("leaves out triangles with a corner outside the region, and other labels", () => {
+    const { index, rest } = grid();
+    const labels = new Int16Array(9).fill(-1);
+    for (const v of [0, 1, 3, 4]) labels[v] = 2; // the first cell only
+    assert.deepEqual(asSet(regionBoundaryEdges(index, labels, 2, weldByPosition(rest))), new Set(["0-1", "1-4", "3-4", "0-3"]));
+    assert.deepEqual(regionBoundaryEdges(index, labels, 1, weldByPosition(rest)), []);
+  });
+  it("draws no line along a seam (vertices at one position count as one)", () => {
+    // Two triangles that share an edge only through duplicated vertices (a UV seam).
+    const rest = new Float32Array([0, 0, 0, 1, 0, 0, 0, 1, 0, /* copies of 1 and 2: */ 1, 0, 0, 0, 1, 0, 1, 1, 0]);
+    const index = new Uint32Array([0, 1, 2, 3, 5, 4]);
+    const labels = new Int16Array(6).fill(1);
+    const weld = weldByPosition(rest);
+    assert.deepEqual(Array.from(weld), [0, 1, 2, 1, 2, 5]);
+    const edges = asSet(regionBoundaryEdges(index, labels, 1, weld));
+    assert.equal(edges.size, 4);
+    assert.ok(!edges.has("1-2") && !edges.has("3-4"));
   });
 });
