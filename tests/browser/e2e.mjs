@@ -37,6 +37,7 @@ import { join, resolve } from "node:path";
 import { editorChecks } from "./editor_checks.mjs";
 import { severalEditorsChecks } from "./several_editors_checks.mjs";
 import { historyChecks } from "./history_checks.mjs";
+import { weightsChecks } from "./weights_checks.mjs";
 
 /**
  * A flat 7×5 grid (x = 0.5 i, y = 0.5 j) as GLB in two vertex blocks that both carry the
@@ -306,15 +307,20 @@ try {
   const shot = (page, name) => page.screenshot({ path: join(artifacts, `${name}.png`) });
 
   // 0. The editor's usability checks (editor_checks.mjs) and several editors in one session
-  // (several_editors_checks.mjs), on sessions of their own. `--only editor` stops after them.
+  // (several_editors_checks.mjs), history and the weight preview, on sessions of their own.
+  // `--only editor` stops after them.
   const helpers = { context, base, log, check, sleep, shot, watchPage, waitLoaded, waitIdle, positions, maxDiff, artifacts };
-  // `--only history` runs just the history checks (history_checks.mjs).
-  if (args.only !== "history") {
+  // `--only history` runs just the history checks (history_checks.mjs), `--only weights` just
+  // the weight preview's (weights_checks.mjs).
+  const only = args.only;
+  if (only !== undefined && !["editor", "history", "weights"].includes(only)) throw new Error(`--only ${only}: one of editor, history, weights`);
+  if (only === undefined || only === "editor") {
     await editorChecks(helpers);
     await severalEditorsChecks(helpers);
   }
-  await historyChecks(helpers);
-  if (args.only === "editor" || args.only === "history") throw new StopHere();
+  if (only !== "weights") await historyChecks(helpers);
+  if (only !== "history") await weightsChecks(helpers);
+  if (only !== undefined) throw new StopHere();
 
   // 1. Open the cactus from the library.
   const page1 = context.pages()[0] ?? (await context.newPage());

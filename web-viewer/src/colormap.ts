@@ -1,5 +1,8 @@
 // Energy colour maps: viridis-like ramp, linear in [0, max] or truncated linear in [0, t].
-const STOPS: [number, number, number][] = [
+// Also the piecewise-linear ramp and legend drawing that other colour ramps share.
+export type Stops = readonly (readonly [number, number, number])[];
+
+const STOPS: Stops = [
   [0.267, 0.005, 0.329],
   [0.231, 0.322, 0.545],
   [0.129, 0.569, 0.549],
@@ -7,15 +10,21 @@ const STOPS: [number, number, number][] = [
   [0.993, 0.906, 0.144],
 ];
 
-export function ramp(t: number, out: Float32Array, at: number): void {
-  const x = Math.min(1, Math.max(0, Number.isFinite(t) ? t : 1)) * (STOPS.length - 1);
-  const i = Math.min(STOPS.length - 2, Math.floor(x));
+/** `stops` at t ∈ [0, 1] (clamped; NaN counts as 1), linearly between them, into out[at..at+2]. */
+export function sampleStops(stops: Stops, t: number, out: Float32Array, at: number): void {
+  const x = Math.min(1, Math.max(0, Number.isFinite(t) ? t : 1)) * (stops.length - 1);
+  const i = Math.min(stops.length - 2, Math.floor(x));
   const f = x - i;
-  const a = STOPS[i];
-  const b = STOPS[i + 1];
+  const a = stops[i];
+  const b = stops[i + 1];
   out[at] = a[0] + (b[0] - a[0]) * f;
   out[at + 1] = a[1] + (b[1] - a[1]) * f;
   out[at + 2] = a[2] + (b[2] - a[2]) * f;
+}
+
+/** The energy ramp. */
+export function ramp(t: number, out: Float32Array, at: number): void {
+  sampleStops(STOPS, t, out, at);
 }
 
 export type EnergyMapping = "off" | "linear" | "truncated";
@@ -29,6 +38,15 @@ export function scaleTop(mapping: EnergyMapping, energies: Float32Array, truncat
 }
 
 export function drawLegend(canvas: HTMLCanvasElement, top: number, mapping: EnergyMapping): void {
+  drawRampLegend(canvas, ramp, ["0", fmt(top / 2), (mapping === "truncated" ? "≥ " : "") + fmt(top)]);
+}
+
+/** A horizontal bar of `paint` over [0, 1] with labels at its left end, middle and right end. */
+export function drawRampLegend(
+  canvas: HTMLCanvasElement,
+  paint: (t: number, out: Float32Array, at: number) => void,
+  [left, middle, right]: [string, string, string],
+): void {
   const ctx = canvas.getContext("2d");
   if (!ctx) return;
   const w = canvas.width;
@@ -37,7 +55,7 @@ export function drawLegend(canvas: HTMLCanvasElement, top: number, mapping: Ener
   const rgb = new Float32Array(3);
   const barH = 14;
   for (let x = 0; x < w; x++) {
-    ramp(x / (w - 1), rgb, 0);
+    paint(x / (w - 1), rgb, 0);
     ctx.fillStyle = `rgb(${(rgb[0] * 255) | 0},${(rgb[1] * 255) | 0},${(rgb[2] * 255) | 0})`;
     ctx.fillRect(x, 0, 1, barH);
   }
@@ -45,11 +63,11 @@ export function drawLegend(canvas: HTMLCanvasElement, top: number, mapping: Ener
   ctx.font = "11px system-ui, sans-serif";
   ctx.textBaseline = "top";
   ctx.textAlign = "left";
-  ctx.fillText("0", 0, barH + 2);
+  ctx.fillText(left, 0, barH + 2);
   ctx.textAlign = "right";
-  ctx.fillText((mapping === "truncated" ? "≥ " : "") + fmt(top), w, barH + 2);
+  ctx.fillText(right, w, barH + 2);
   ctx.textAlign = "center";
-  ctx.fillText(fmt(top / 2), w / 2, barH + 2);
+  ctx.fillText(middle, w / 2, barH + 2);
 }
 
 export function fmt(v: number): string {

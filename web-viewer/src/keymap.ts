@@ -13,6 +13,7 @@ export type KeyAction =
   | "frameSelection" // F
   | "frameAll" // Home
   | "clearSelection" // Delete / Backspace: clear the region being assigned
+  | "toggleWeights" // V: the active handle's weights on the mesh (soft-selection preview)
   | "help"; // ?
 
 export interface KeyInput {
@@ -58,6 +59,9 @@ export function keyAction(ev: KeyInput): KeyAction | null {
     case "Delete":
     case "Backspace":
       return "clearSelection";
+    case "v":
+    case "V":
+      return "toggleWeights";
     case "?":
       return "help";
     default:
@@ -120,6 +124,7 @@ export const SHORTCUTS: [string, string][] = [
   ["F", "frame the active handle / selected region"],
   ["Home", "frame everything"],
   ["Delete", "clear the region being assigned"],
+  ["V", "show / hide the active handle's weights (0 = fixed, 1 = moves with it)"],
   ["Ctrl+Z (⌘Z)", "undo your last change"],
   ["Ctrl+Shift+Z · Ctrl+Y", "redo it"],
   ["?", "this list"],

@@ -33,6 +33,8 @@ import { setupOnboarding } from "./panels/onboarding";
 import { setupViewButtons } from "./panels/view_buttons";
 import { setupHistoryPanel } from "./panels/history_panel";
 import { setupSnapshotsPanel } from "./panels/snapshots_panel";
+import { setupWeightsView } from "./weights/weights_view";
+import { HeldOutline } from "./viewport/held_outline";
 import { setupUndoRedo } from "./history/undo_redo";
 import { setupUndoShortcuts } from "./history/undo_shortcuts";
 import { CursorFeedback } from "./selection/cursor_feedback";
@@ -124,7 +126,9 @@ setupHandleTools(app, gizmo, () => editors.multi);
 setupTransformFields(app, gizmo);
 setupPresencePanel(editors, sync);
 setupViewButtons(app, viewport);
-setupShortcuts(app, gizmo, viewport);
+const weights = setupWeightsView(app);
+const outline = new HeldOutline(viewport, state);
+setupShortcuts(app, gizmo, viewport, () => weights.toggle());
 setupOnboarding(app);
 setupBetaPanel(app);
 setupDisplayPanel(app, display);
@@ -166,4 +170,6 @@ installTestHook(app, {
   markers,
   history: history.list,
   snapshots,
+  weights,
+  outline,
 });

@@ -25,6 +25,13 @@ export interface MeshData {
 
 export type Mode = "orbit" | "vertex" | "brush" | "box" | "move";
 
+/** A handle's harmonic weight field Φ_j as GetHandleWeights answered it (weights/). */
+export interface HandleWeightField {
+  handle: number; // 0-based
+  values: Float32Array; // one per base-GLB vertex, in [0, 1]
+  version: bigint; // the session version the server read the constraints at
+}
+
 export interface StateEvents {
   mesh: MeshData; // a new mesh
   shape: void; // cur / normals changed
@@ -38,6 +45,8 @@ export interface StateEvents {
   mode: Mode;
   /** The gizmo changed handle h's (0-based) pose (a drag, a cancel, typed-in values). */
   pose: number;
+  /** The handle-weight preview was turned on or off. */
+  weightsToggle: boolean;
 }
 
 export class SessionState extends Emitter<StateEvents> {
@@ -60,6 +69,10 @@ export class SessionState extends Emitter<StateEvents> {
   mode: Mode = "orbit";
   /** Handle labels (1-based) another editor holds → that editor's colour (drawn so). */
   heldColours = new Map<number, string>();
+  /** The handle-weight preview is on (it replaces the region and energy colours while shown). */
+  weightsOn = false;
+  /** The field shown while the preview is on (null: not yet answered, or none). */
+  weights: HandleWeightField | null = null;
 
   constructor(readonly watchOnly: boolean) {
     super();
@@ -184,6 +197,25 @@ export class SessionState extends Emitter<StateEvents> {
   setMeasures(measures: Measures, solveMs: number): void {
     this.measures = measures;
     this.emit("measures", { measures, solveMs });
+  }
+
+  setWeightsOn(on: boolean): void {
+    if (this.weightsOn === on) return;
+    this.weightsOn = on;
+    if (!on) this.weights = null;
+    this.emit("weightsToggle", on);
+    this.emit("colours", undefined);
+  }
+
+  setWeights(field: HandleWeightField | null): void {
+    this.weights = field;
+    this.emit("colours", undefined);
+  }
+
+  /** The weight field to colour the mesh with, or null (preview off, not answered, stale mesh). */
+  get shownWeights(): Float32Array | null {
+    const w = this.weights;
+    return this.weightsOn && w && this.mesh && w.values.length === this.mesh.n ? w.values : null;
   }
 
   setMode(mode: Mode): void {

@@ -21,6 +21,9 @@ import type { RegionMarkers } from "./viewport/region_markers";
 import type { HistoryList } from "./history/history_list";
 import type { SnapshotsPanel } from "./panels/snapshots_panel";
 import { StepKind } from "./gen/hdeform/v1/deform_pb";
+import type { WeightsView } from "./weights/weights_view";
+import { decodeWeights, weightRamp } from "./weights/weight_ramp";
+import type { HeldOutline } from "./viewport/held_outline";
 
 declare global {
   interface Window {
@@ -43,6 +46,8 @@ export interface HookParts {
   markers: RegionMarkers;
   history: HistoryList;
   snapshots: SnapshotsPanel;
+  weights: WeightsView;
+  outline: HeldOutline;
 }
 
 export function installTestHook({ state, client, banner, status }: App, parts: HookParts): void {
@@ -157,6 +162,61 @@ export function installTestHook({ state, client, banner, status }: App, parts: H
         undone,
       })),
     snapshotNames: () => parts.snapshots.names(),
+    /** The weight preview: on, the field the page colours the mesh with, and its note. */
+    get weightsOn() {
+      return state.weightsOn;
+    },
+    weightsShown: () => {
+      const w = state.weights;
+      const values = state.shownWeights;
+      return values && w ? { handle: w.handle, version: Number(w.version), values: Array.from(values) } : null;
+    },
+    get weightsNote() {
+      return parts.weights.note;
+    },
+    /** GetHandleWeights for handle h (0-based), decoded as the page decodes it. */
+    serverWeights: async (h: number) => {
+      const r = await client.getHandleWeights({ name: state.sessionName, handle: h });
+      return { handle: r.handle, version: Number(r.version), values: Array.from(decodeWeights(r.weights, state.mesh!.n)) };
+    },
+    /** The weight ramp's colour at t, as the page computes it (float32). */
+    weightColour: (t: number) => {
+      const c = new Float32Array(3);
+      weightRamp(t, c, 0);
+      return Array.from(c);
+    },
+    /** The colours the mesh display draws (3 per vertex, or per corner when split). */
+    displayColours: () => Array.from(parts.display.colours()),
+    /** Handles another editor holds, outlined: label, colour, boundary edges. */
+    heldOutlines: () => parts.outline.summary(),
+    /** The session's handle transforms as the server has them (GetSession): rotation and scale too. */
+    serverTransforms: async () =>
+      (await client.getSession({ name: state.sessionName })).transforms.map((t) => ({
+        translation: [t.translation?.x ?? 0, t.translation?.y ?? 0, t.translation?.z ?? 0],
+        rotation: t.rotation ? { w: t.rotation.w, x: t.rotation.x, y: t.rotation.y, z: t.rotation.z } : null,
+        /** The server's 3×3 stretch S (row-major; it answers every scale so), identity when unset. */
+        stretch: t.scale.case === "stretch" ? [...t.scale.value.m] : [1, 0, 0, 0, 1, 0, 0, 0, 1],
+      })),
+    /**
+     * Rotate gizmo: the client point on `axis`'s ring nearest the camera, and the screen
+     * direction (unit) a drag there turns it (positive angle about the axis).
+     */
+    gizmoRingPoint: (axis: "x" | "y" | "z") => {
+      const { gizmo: g, pivotObject, camera } = viewport;
+      if (!g.object) return null;
+      const centre = pivotObject.getWorldPosition(new THREE.Vector3());
+      const factor = centre.distanceTo(camera.position) * Math.min((1.9 * Math.tan((Math.PI * camera.fov) / 360)) / camera.zoom, 7);
+      const radius = 0.5 * ((factor * g.size) / 4); // TransformControls' rotate rings: radius 0.5
+      const a = new THREE.Vector3(axis === "x" ? 1 : 0, axis === "y" ? 1 : 0, axis === "z" ? 1 : 0);
+      const eye = camera.position.clone().sub(centre).normalize();
+      const towards = eye.clone().addScaledVector(a, -eye.dot(a)).normalize(); // in the ring's plane
+      const at = centre.clone().addScaledVector(towards, radius);
+      const tangent = a.clone().cross(eye).normalize(); // TransformControls' angle: offset · (axis × eye)
+      const p = viewport.toClient(at);
+      const q = viewport.toClient(at.clone().addScaledVector(tangent, radius * 0.1));
+      const len = Math.hypot(q.x - p.x, q.y - p.y);
+      return { x: p.x, y: p.y, dir: { x: (q.x - p.x) / len, y: (q.y - p.y) / len } };
+    },
     /** The session's handle transforms as the server has them (GetSession), translations only. */
     serverTranslations: async () => (await client.getSession({ name: state.sessionName })).transforms.map((t) => [t.translation?.x ?? 0, t.translation?.y ?? 0, t.translation?.z ?? 0]),
     serverBeta: async () => (await client.getSession({ name: state.sessionName })).beta?.value ?? 0,

@@ -32,6 +32,11 @@ export function fromProtoTransform(t: HandleTransform, pivot: THREE.Vector3 | un
   const S = new THREE.Vector3(1, 1, 1);
   if (t.scale.case === "uniformScale") S.setScalar(t.scale.value);
   else if (t.scale.case === "axisScale") S.set(t.scale.value.x, t.scale.value.y, t.scale.value.z);
+  // The server answers every scale as `stretch` (its own form), so the axis scale this page
+  // sent comes back as a diagonal matrix: read back as the same per-axis scale. A stretch with
+  // off-diagonal terms (another client's) has no gizmo pose (three.js has no shear): its
+  // diagonal is shown.
+  else if (t.scale.case === "stretch" && t.scale.value.m.length === 9) S.set(t.scale.value.m[0], t.scale.value.m[4], t.scale.value.m[8]);
   const tr = new THREE.Vector3(t.translation?.x ?? 0, t.translation?.y ?? 0, t.translation?.z ?? 0);
   if (t.matrix.length === 16) {
     const M = new THREE.Matrix4().fromArray(t.matrix).transpose(); // row-major → three's column-major

@@ -1,5 +1,7 @@
 // The Display panel: energy colour map (off, linear, truncated at a value) with its legend,
-// and the wireframe overlay.
+// and the wireframe overlay. The energy map and the handle-weight preview (weights/) take turns:
+// turning one on turns the other off, and turning the preview off brings back the energy
+// mapping it replaced.
 import type { App } from "../app";
 import { drawLegend, fmt, scaleTop, type EnergyMapping } from "../colormap";
 import { $ } from "../dom";
@@ -27,12 +29,32 @@ export function setupDisplayPanel({ state, edits }: App, display: MeshDisplay): 
   state.on("energies", ({ first }) => {
     if (first && state.energyMapping === "truncated" && !truncTouched) defaultTruncation();
   });
-  select.addEventListener("change", () => {
-    state.energyMapping = select.value as EnergyMapping;
+  let replaced: EnergyMapping | null = null; // what the weight preview turned off
+  const setMapping = (mapping: EnergyMapping) => {
+    select.value = mapping;
+    state.energyMapping = mapping;
     trunc.classList.toggle("hidden", state.energyMapping !== "truncated");
     if (state.energyMapping === "truncated" && !truncTouched) defaultTruncation();
     if (state.energyMapping !== "off" && !state.mesh?.energies) edits.requestFrame();
     state.emit("colours", undefined);
+  };
+  select.addEventListener("change", () => {
+    const mapping = select.value as EnergyMapping;
+    if (mapping !== "off") {
+      replaced = null;
+      state.setWeightsOn(false);
+    }
+    setMapping(mapping);
+  });
+  state.on("weightsToggle", (on) => {
+    if (on && state.energyMapping !== "off") {
+      replaced = state.energyMapping;
+      setMapping("off");
+    } else if (!on && replaced) {
+      const back = replaced;
+      replaced = null;
+      setMapping(back);
+    }
   });
   trunc.addEventListener("input", () => {
     truncTouched = true;

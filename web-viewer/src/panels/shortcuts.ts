@@ -26,7 +26,7 @@ export function frameSelection(app: App, viewport: Viewport): void {
   else viewport.frameAll();
 }
 
-export function setupShortcuts(app: App, gizmo: HandleGizmo, viewport: Viewport): void {
+export function setupShortcuts(app: App, gizmo: HandleGizmo, viewport: Viewport, toggleWeights: () => void): void {
   const { state } = app;
   const overlay = $("shortcuts");
   $("shortcuts-list").innerHTML = SHORTCUTS.map(([k, what]) => `<tr><th><kbd>${k}</kbd></th><td>${what}</td></tr>`).join("");
@@ -72,6 +72,9 @@ export function setupShortcuts(app: App, gizmo: HandleGizmo, viewport: Viewport)
         state.assign(ids, -1);
         break;
       }
+      case "toggleWeights":
+        toggleWeights();
+        break;
       case "help":
         toggleHelp();
         break;

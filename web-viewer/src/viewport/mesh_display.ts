@@ -2,11 +2,13 @@
 // while the energy map is off; while it is on, split into three corners per triangle so that
 // per-triangle energy colours are exact (a shared vertex cannot carry its triangles' different
 // colours), and back to indexed when it goes off. The state's per-vertex arrays are copied
-// (indexed) or expanded through the index (split) on every change.
+// (indexed) or expanded through the index (split) on every change. The handle-weight preview
+// (per vertex, exclusive with the energy map) colours every vertex, regions included.
 import * as THREE from "three";
 import { ramp } from "../colormap";
 import { regionColour } from "../region_colours";
 import { energyTop } from "../energy_scale";
+import { weightRamp } from "../weights/weight_ramp";
 import type { MeshData, SessionState } from "../state";
 import type { Viewport } from "./viewport";
 
@@ -41,6 +43,11 @@ export class MeshDisplay {
       if (mesh && this.split !== (energyTop(this.state) !== null)) this.build(mesh);
       else this.updateColours();
     });
+  }
+
+  /** The colours drawn (per vertex when indexed, per corner when split), for the test hook. */
+  colours(): Float32Array {
+    return (this.geometry?.getAttribute("color").array as Float32Array | undefined) ?? new Float32Array(0);
   }
 
   /** Vertices the GPU is given per draw (split: 3 per triangle; indexed: the mesh's). */
@@ -113,6 +120,13 @@ export class MeshDisplay {
     const C = col.array as Float32Array;
     const { index, labels, energies } = mesh;
     const top = energyTop(this.state);
+    const weights = this.split ? null : this.state.shownWeights;
+    if (weights) {
+      for (let v = 0; v < mesh.n; v++) weightRamp(weights[v], C, 3 * v);
+      col.needsUpdate = true;
+      this.viewport.requestRender();
+      return;
+    }
     // Indexed: one colour per vertex; split: one per corner (vertex index[c], triangle c / 3).
     const corners = this.split ? index.length : mesh.n;
     for (let c = 0; c < corners; c++) {
