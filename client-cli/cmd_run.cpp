@@ -27,8 +27,30 @@ struct RunOptions {
   std::string job;
   std::string output_dir;
   bool dry_run = false;
+  bool animations_only = false;  // hdeform animate: the job's "animation" items only
   MeshOutputOptions out;
 };
+
+// The job's timeline for one constraint set: each key's resolved per-handle transforms.
+pb::Timeline timeline_for(const Job& job, const std::vector<std::vector<pb::HandleTransform>>& transforms,
+                          int handles, pb::BetaUnits units) {
+  pb::Timeline t;
+  t.set_easing(job.animation.easing == "smoothstep" ? pb::EASING_SMOOTHSTEP : pb::EASING_LINEAR);
+  for (const auto& key : job.animation.keys) {
+    pb::Keyframe* k = t.add_keys();
+    k->set_time_s(key.time);
+    if (key.transform_index == kRestTransform) {
+      for (int h = 0; h < handles; ++h) k->add_transforms();  // identity
+    } else {
+      for (const auto& tr : transforms[key.transform_index]) *k->add_transforms() = tr;
+    }
+    if (key.has_beta) {
+      k->mutable_beta()->set_value(key.beta);
+      k->mutable_beta()->set_units(units);
+    }
+  }
+  return t;
+}
 
 // Per mesh and constraint set, resolved before any call: {mesh} substituted, files read.
 struct Resolved {
@@ -142,6 +164,9 @@ std::string shown(const std::string& name) {
   return out;
 }
 
+// `run` and `animate` share one implementation: animate runs only the "animation" items.
+Command run_job(std::shared_ptr<RunOptions> opts, const GlobalOptions& global);
+
 }  // namespace
 
 Command add_run_command(CLI::App& app, const GlobalOptions& global) {
@@ -152,7 +177,26 @@ Command add_run_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("-o,--output-dir", opts->output_dir, "override the job's output_dir");
   add_mesh_output_options(*cmd, opts->out);
   cmd->add_flag("--dry-run", opts->dry_run, "check the job and list its items; no server calls");
+  return run_job(opts, global);
+}
 
+Command add_animate_command(CLI::App& app, const GlobalOptions& global) {
+  auto opts = std::make_shared<RunOptions>();
+  opts->animations_only = true;
+  auto* cmd = app.add_subcommand(
+      "animate", "a job's \"animation\" (docs/cli.md \"Animations\"): keyframes -> animated .glb "
+                 "per mesh x constraints x beta");
+  cmd->add_option("JOB", opts->job, "job file (.json) with an \"animation\"")
+      ->required()
+      ->check(CLI::ExistingFile);
+  cmd->add_option("-o,--output-dir", opts->output_dir, "override the job's output_dir");
+  cmd->add_flag("--dry-run", opts->dry_run, "check the job and list its items; no server calls");
+  return run_job(opts, global);
+}
+
+namespace {
+
+Command run_job(std::shared_ptr<RunOptions> opts, const GlobalOptions& global) {
   return [opts, &global]() -> int {
     const auto& o = *opts;
     Job job = parse_job(read_file(o.job), o.job, fs::path(o.job).parent_path().string());
@@ -168,16 +212,30 @@ Command add_run_command(CLI::App& app, const GlobalOptions& global) {
       for (std::size_t ci = 0; ci < job.constraints.size(); ++ci)
         resolved[{mi, ci}] = resolve(job, job.constraints[ci], job.meshes[mi].name);
 
-    const std::size_t total = job.item_count();
+    if (o.animations_only && !job.animation.present)
+      throw CliError(o.job + ": no \"animation\" in this job (docs/cli.md \"Animations\")");
+    // The "animation" entry as an item's transform column.
+    TransformEntry animation;
+    animation.name = "animation:" + job.animation.name;
+    animation.where = "animation";
+    const bool stills = !o.animations_only;
+    const std::size_t animations =
+        job.animation.present ? job.meshes.size() * job.constraints.size() * job.betas.size() : 0;
+    const std::size_t total = (stills ? job.item_count() : 0) + animations;
     if (o.dry_run) {
       std::size_t n = 0;
       for (const auto& m : job.meshes)
         for (const auto& c : job.constraints)
-          for (double b : job.betas)
-            for (const auto& t : job.transforms)
+          for (double b : job.betas) {
+            auto line = [&](const TransformEntry& t) {
               std::cout << "[" << ++n << "/" << total << "] " << shown(m.name) << " "
                         << shown(c.name) << " " << shown(t.name) << " beta=" << beta_tag(b)
                         << "\n";
+            };
+            if (stills)
+              for (const auto& t : job.transforms) line(t);
+            if (job.animation.present) line(animation);
+          }
       return 0;
     }
 
@@ -281,7 +339,7 @@ Command add_run_command(CLI::App& app, const GlobalOptions& global) {
             }
             setup_ms += ms_since(t0);
           }
-          for (std::size_t ti = 0; ti < job.transforms.size(); ++ti) {
+          for (std::size_t ti = 0; stills && ti < job.transforms.size(); ++ti) {
             const TransformEntry& t = job.transforms[ti];
             ++n;
             const auto start = std::chrono::steady_clock::now();
@@ -321,6 +379,37 @@ Command add_run_command(CLI::App& app, const GlobalOptions& global) {
               progress(m, c, t, beta, std::string("FAILED: ") + e.what());
             }
           }
+          if (!job.animation.present) continue;
+          // The animation of this mesh × constraints × β: each sampled frame is a full
+          // deformation on the server (SetTimeline + ExportAnimation).
+          ++n;
+          const auto start = std::chrono::steady_clock::now();
+          if (!beta_error.empty()) {
+            ++failed;
+            record(m, c, animation, beta, nullptr, 0, "", beta_error);
+            progress(m, c, animation, beta, "FAILED: " + beta_error);
+            continue;
+          }
+          try {
+            s->set_timeline(
+                timeline_for(job, r.transforms, r.constraints.handles_size(), units));
+            pb::ExportAnimationRequest req;
+            req.set_fps(job.animation.fps);
+            req.set_energies(job.animation.energies);
+            req.set_up(job.animation.up == "z" ? pb::UP_AXIS_Z : pb::UP_AXIS_Y);
+            const std::string file = animation_file_name(job, m, c, beta);
+            const fs::path path = output_path_inside(job.output_dir, file);
+            const std::string output = (fs::path(job.output_dir) / file).string();
+            const std::size_t bytes = s->export_animation(path.string(), req);
+            const double ms = ms_since(start);
+            record(m, c, animation, beta, nullptr, ms, output, "ok");
+            progress(m, c, animation, beta, "ok " + std::to_string(std::lround(ms)) + " ms");
+            std::cerr << "wrote " << output << " (" << bytes << " bytes)" << std::endl;
+          } catch (const CliError& e) {
+            ++failed;
+            record(m, c, animation, beta, nullptr, ms_since(start), "", e.what());
+            progress(m, c, animation, beta, std::string("FAILED: ") + e.what());
+          }
         }
       }
       if (session) session->close();  // before the next mesh's session is created
@@ -350,5 +439,7 @@ Command add_run_command(CLI::App& app, const GlobalOptions& global) {
     return 0;
   };
 }
+
+}  // namespace
 
 }  // namespace hdeform::cli

@@ -15,6 +15,7 @@ using Command = std::function<int()>;
 Command add_deform_command(CLI::App& app, const GlobalOptions& global);
 Command add_sweep_command(CLI::App& app, const GlobalOptions& global);
 Command add_run_command(CLI::App& app, const GlobalOptions& global);
+Command add_animate_command(CLI::App& app, const GlobalOptions& global);
 Command add_watch_command(CLI::App& app, const GlobalOptions& global);
 Command add_list_command(CLI::App& app, const GlobalOptions& global);
 Command add_sessions_command(CLI::App& app, const GlobalOptions& global);

@@ -533,6 +533,33 @@ pb::Snapshot SessionClient::export_snapshot(bool include_mesh) {
   return snap;
 }
 
+pb::Timeline SessionClient::set_timeline(const pb::Timeline& timeline) {
+  pb::SetTimelineRequest req;
+  req.set_name(name_);
+  *req.mutable_timeline() = timeline;
+  pb::Timeline out;
+  call("SetTimeline", [&](grpc::ClientContext& ctx) {
+    return conn_->stub().SetTimeline(&ctx, req, &out);
+  }, timeout());
+  return out;
+}
+
+std::size_t SessionClient::export_animation(const std::string& path,
+                                            const pb::ExportAnimationRequest& request) {
+  pb::ExportAnimationRequest req = request;
+  req.set_name(name_);
+  std::string bytes;
+  call("ExportAnimation", [&](grpc::ClientContext& ctx) {
+    bytes.clear();
+    auto reader = conn_->stub().ExportAnimation(&ctx, req);
+    pb::MeshChunk chunk;
+    while (reader->Read(&chunk)) bytes += chunk.data();
+    return reader->Finish();
+  }, timeout(), "solving and writing the animation");
+  write_file(path, bytes);
+  return bytes.size();
+}
+
 void SessionClient::remove() {
   pb::DeleteSessionRequest req;
   req.set_name(name_);

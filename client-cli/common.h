@@ -146,6 +146,9 @@ class SessionClient {
   std::size_t download(const std::string& path, pb::MeshFormat format, bool rest = false,
                        const MeshOutputOptions& options = {});
   pb::Snapshot export_snapshot(bool include_mesh);
+  pb::Timeline set_timeline(const pb::Timeline& timeline);
+  // ExportAnimation into `path` (an animated GLB); returns the number of bytes.
+  std::size_t export_animation(const std::string& path, const pb::ExportAnimationRequest& request);
   void remove();
 
  private:

@@ -69,6 +69,12 @@ std::string item_file_name(const Job& job, const MeshEntry& m, const ConstraintE
          job.format;
 }
 
+std::string animation_file_name(const Job& job, const MeshEntry& m, const ConstraintEntry& c,
+                                double beta) {
+  return m.file_part + "-" + c.file_part + "-" + job.animation.file_part + "-b" + beta_tag(beta) +
+         ".glb";
+}
+
 fs::path output_path_inside(const fs::path& dir, const std::string& file_name) {
   if (!is_plain_file_name(file_name))
     throw CliError("'" + file_name + "' is not a plain file name");
@@ -260,7 +266,7 @@ class Parser {
     job.file = file_;
     job.dir = dir_;
     keys(doc, "", {"name", "output_dir", "summary", "format", "beta_units", "betas", "meshes",
-                   "constraints", "transforms", "description"});
+                   "constraints", "transforms", "description", "animation"});
     if (doc.contains("description")) str(doc["description"], "description");
     job.name = doc.contains("name") ? name(doc["name"], "name") : fs::path(file_).stem().string();
     if (job.name.empty()) job.name = "job";
@@ -346,8 +352,74 @@ class Parser {
                                          std::to_string(c.handle_count()) +
                                          " handles of constraints " + quote_name(c.name));
     }
+    if (doc.contains("animation")) job.animation = animation(doc["animation"], job);
     check_names(job);
     return job;
+  }
+
+  AnimationEntry animation(const json& a, const Job& job) const {
+    const std::string w = "animation";
+    keys(a, w, {"name", "fps", "easing", "energies", "up", "keys"});
+    AnimationEntry e;
+    e.present = true;
+    if (a.contains("name")) {
+      e.name = name(a["name"], w + ".name");
+      e.file_part = file_name_part(e.name);
+    }
+    if (a.contains("fps")) {
+      e.fps = number(a["fps"], w + ".fps");
+      if (e.fps <= 0 || e.fps > kMaxAnimationFps) fail(w + ".fps", g17(e.fps) + " is not in (0, 120]");
+    }
+    if (a.contains("easing")) {
+      e.easing = str(a["easing"], w + ".easing");
+      if (e.easing != "linear" && e.easing != "smoothstep")
+        fail(w + ".easing", "expected \"linear\" or \"smoothstep\"");
+    }
+    if (a.contains("energies")) {
+      if (!a["energies"].is_boolean()) fail(w + ".energies", "expected true or false");
+      e.energies = a["energies"].get<bool>();
+    }
+    if (a.contains("up")) {
+      e.up = str(a["up"], w + ".up");
+      if (e.up != "y" && e.up != "z") fail(w + ".up", "expected \"y\" or \"z\"");
+    }
+    if (!a.contains("keys")) fail(w + ".keys", "missing (a non-empty array)");
+    const json& ks = array(a["keys"], w + ".keys", "keys");
+    for (std::size_t i = 0; i < ks.size(); ++i) {
+      AnimationKey k;
+      k.where = w + ".keys[" + std::to_string(i) + "]";
+      keys(ks[i], k.where, {"time", "transform", "beta"});
+      if (!ks[i].contains("time") || !ks[i].contains("transform"))
+        fail(k.where, "expected \"time\" and \"transform\" (and optionally \"beta\")");
+      k.time = number(ks[i]["time"], k.where + ".time");
+      if (k.time < 0) fail(k.where + ".time", g17(k.time) + " is negative");
+      if (i > 0 && !(k.time > e.keys.back().time))
+        fail(k.where + ".time", g17(k.time) + " is not after the previous key's " +
+                                    g17(e.keys.back().time));
+      k.transform = name(ks[i]["transform"], k.where + ".transform");
+      k.transform_index = kRestTransform;
+      for (std::size_t t = 0; t < job.transforms.size(); ++t)
+        if (job.transforms[t].name == k.transform) k.transform_index = t;
+      if (k.transform_index == kRestTransform && k.transform != "rest")
+        fail(k.where + ".transform", quote_name(k.transform) +
+                                         " is not the name of a \"transforms\" entry (or \"rest\")");
+      if (ks[i].contains("beta")) {
+        k.has_beta = true;
+        k.beta = number(ks[i]["beta"], k.where + ".beta");
+        if (k.beta < 0 || k.beta >= 1) fail(k.where + ".beta", beta_tag(k.beta) + " is outside [0, 1)");
+      }
+      e.keys.push_back(std::move(k));
+    }
+    for (double b : job.betas)
+      if (is_auto(b))
+        fail("betas", "\"auto\" cannot be animated (the timeline needs one β per item); give "
+                      "numbers, or β per key");
+    if (job.format == "glb")
+      for (const auto& t : job.transforms)
+        if (lower(t.file_part) == lower(e.file_part))
+          fail(w + ".name", quote_name(e.name) + " gives the same file names as " + t.where +
+                                ": rename one");
+    return e;
   }
 
   MeshEntry mesh(const json& m, const std::string& w) const {

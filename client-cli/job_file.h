@@ -62,6 +62,30 @@ struct TransformEntry {
                                           // numbers are checked, def files not yet read
 };
 
+// "animation": keyframes that name entries of "transforms" (docs/cli.md "Animations"). Each
+// mesh × constraint set × β gets one animated GLB (SetTimeline + ExportAnimation).
+struct AnimationKey {
+  std::string where;      // "animation.keys[1]"
+  double time = 0;        // seconds
+  std::string transform;  // a "transforms" entry's name, or "rest" (identity)
+  std::size_t transform_index = 0;  // into Job::transforms; kRestTransform for "rest"
+  bool has_beta = false;  // β from this key on (in the job's beta_units)
+  double beta = 0;
+};
+inline constexpr std::size_t kRestTransform = static_cast<std::size_t>(-1);
+constexpr double kMaxAnimationFps = 120;
+
+struct AnimationEntry {
+  bool present = false;
+  std::string name = "animation";
+  std::string file_part = "animation";
+  double fps = 24;
+  std::string easing = "linear";  // linear | smoothstep
+  bool energies = false;
+  std::string up = "y";           // y | z
+  std::vector<AnimationKey> keys;
+};
+
 struct Job {
   std::string file;  // for messages
   std::string dir;   // relative input paths resolve here
@@ -74,6 +98,7 @@ struct Job {
   std::vector<MeshEntry> meshes;
   std::vector<ConstraintEntry> constraints;
   std::vector<TransformEntry> transforms;
+  AnimationEntry animation;
 
   std::size_t item_count() const {
     return meshes.size() * constraints.size() * betas.size() * transforms.size();
@@ -102,6 +127,9 @@ std::string subst_mesh(std::string s, const std::string& mesh);
 // The output file of one item: MESH-CONSTRAINTS-TRANSFORM-bBETA.EXT (a plain file name).
 std::string item_file_name(const Job& job, const MeshEntry& m, const ConstraintEntry& c,
                            const TransformEntry& t, double beta);
+// The animated GLB of one mesh × constraints × β: MESH-CONSTRAINTS-ANIMATION-bBETA.glb.
+std::string animation_file_name(const Job& job, const MeshEntry& m, const ConstraintEntry& c,
+                                double beta);
 // "auto" or %.6g.
 std::string beta_tag(double beta);
 

@@ -75,6 +75,7 @@ int main(int argc, char** argv) {
   reg(add_deform_command);
   reg(add_sweep_command);
   reg(add_run_command);
+  reg(add_animate_command);
   reg(add_watch_command);
   reg(add_list_command);
   reg(add_sessions_command);
