@@ -134,6 +134,59 @@ TEST(ParseJob, TypeErrorsNameTheField) {
   EXPECT_EQ(error_of(kMinimal), "");
 }
 
+TEST(ParseJob, AnimationKeysNameTransformsAndAreChecked) {
+  const std::string transforms = R"("transforms": [{"name": "bend", "rotate": "x,30"}], )";
+  auto anim = [&](const std::string& body) {
+    return with(transforms + R"("animation": )" + body);
+  };
+  const Job job = parse_job(
+      anim(R"({"name": "wave", "fps": 12, "easing": "smoothstep", "energies": true, "up": "z",
+               "keys": [{"time": 0, "transform": "rest"}, {"time": 1.5, "transform": "bend",
+                         "beta": 0.25}]})"),
+      "job.json", "");
+  ASSERT_TRUE(job.animation.present);
+  EXPECT_EQ(job.animation.fps, 12);
+  EXPECT_EQ(job.animation.easing, "smoothstep");
+  EXPECT_TRUE(job.animation.energies);
+  ASSERT_EQ(job.animation.keys.size(), 2u);
+  EXPECT_EQ(job.animation.keys[0].transform_index, kRestTransform);
+  EXPECT_EQ(job.animation.keys[1].transform_index, 0u);
+  EXPECT_TRUE(job.animation.keys[1].has_beta);
+  EXPECT_EQ(animation_file_name(job, job.meshes[0], job.constraints[0], 0),
+            "cactus-c0-wave-b0.glb");
+  EXPECT_FALSE(parse_job(kMinimal, "job.json", "").animation.present);
+
+  EXPECT_EQ(error_of(anim(R"({"keys": [{"time": 2, "transform": "rest"},
+                                        {"time": 1, "transform": "bend"}]})")),
+            "job.json: animation.keys[1].time: 1 is not after the previous key's 2");
+  EXPECT_EQ(error_of(anim(R"({"keys": [{"time": 0, "transform": "twist"}]})")),
+            "job.json: animation.keys[0].transform: 'twist' is not the name of a \"transforms\" "
+            "entry (or \"rest\")");
+  EXPECT_NE(error_of(anim(R"({"fps": 500, "keys": [{"time": 0, "transform": "rest"}]})"))
+                .find("animation.fps: 500 is not in (0, 120]"),
+            std::string::npos);
+  EXPECT_NE(error_of(anim(R"({"keys": [{"time": 0, "transform": "rest", "beta": 1}]})"))
+                .find("animation.keys[0].beta"),
+            std::string::npos);
+  EXPECT_NE(error_of(anim(R"({"keys": []})")).find("animation.keys"), std::string::npos);
+  EXPECT_NE(error_of(anim(R"({"keys": [{"time": 0}]})")).find("expected \"time\" and"),
+            std::string::npos);
+  EXPECT_NE(error_of(anim(R"({"up": "x", "keys": [{"time": 0, "transform": "rest"}]})"))
+                .find("animation.up"),
+            std::string::npos);
+  EXPECT_NE(error_of(anim(R"({"loop": 1, "keys": [{"time": 0, "transform": "rest"}]})"))
+                .find("unknown key"),
+            std::string::npos);
+  EXPECT_NE(error_of(with(transforms + R"("betas": ["auto"], "animation": {"keys": [{"time": 0,
+                               "transform": "rest"}]})"))
+                .find("cannot be animated"),
+            std::string::npos);
+  // The animation's files must not collide with the still items' files.
+  EXPECT_NE(error_of(anim(R"({"name": "bend", "keys": [{"time": 0, "transform": "rest"}]})"))
+                .find("same file names as transforms[0]"),
+            std::string::npos);
+}
+
 TEST(MeshCheck, FindsNonFiniteCoordinates) {
   EXPECT_EQ(count_non_finite_coordinates("# hdeform\nv 0 1 2\nv nan 1 -inf\nf 1 2 3\n", "obj"), 2u);
   EXPECT_EQ(count_non_finite_coordinates("# information\nv 0 1 2\n", "obj"), 0u);
