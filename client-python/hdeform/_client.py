@@ -429,6 +429,52 @@ class Session:
     def delete_snapshot(self, name):
         self._call("DeleteSnapshot", pb.DeleteSnapshotRequest(name=self.name, snapshot=name))
 
+    # --- timeline and animation (docs/api.md "Timeline and animation") ------------------
+    def set_timeline(self, keys, easing="linear"):
+        """Replace the session's timeline. `keys`: (time_s, transforms) or (time_s, transforms,
+        beta) tuples, or dicts time=/transforms=/beta=; transforms one per handle as in
+        update(); beta a number in area units or (value, "raw"|"area"), from that key on.
+        An empty list clears it. Returns the hdeform.v1.Timeline as stored."""
+        t = pb.Timeline(easing={"linear": pb.EASING_LINEAR,
+                                "smoothstep": pb.EASING_SMOOTHSTEP}[easing])
+        for key in keys:
+            if isinstance(key, dict):
+                time, transforms, beta = key["time"], key["transforms"], key.get("beta")
+            else:
+                time, transforms, beta = (tuple(key) + (None,))[:3]
+            k = t.keys.add(time_s=float(time))
+            k.transforms.extend(self._transforms(transforms, {}))
+            if beta is not None:
+                value, units = beta if isinstance(beta, tuple) else (beta, "area")
+                k.beta.CopyFrom(pb.Beta(value=float(value), units=_units(units)))
+        return self._call("SetTimeline", pb.SetTimelineRequest(
+            name=self.name, timeline=t, client_id=self.client_id))
+
+    def timeline(self):
+        """The session's hdeform.v1.Timeline (no keys: none)."""
+        return self._call("GetTimeline", pb.GetTimelineRequest(name=self.name))
+
+    def pose_at(self, time_s):
+        """The interpolated pose at `time_s`: an hdeform.v1.Keyframe (transforms per handle,
+        beta when a key set one). update(transforms=list(k.transforms)) shows it."""
+        return self._call("PoseAt", pb.PoseAtRequest(name=self.name, time_s=float(time_s)))
+
+    def export_animation(self, path=None, fps=24, energies=False, up="y", start=0.0, end=0.0):
+        """The timeline as an animated GLB (bytes; also written to `path` if given): one morph
+        target per sampled frame, each a full deformation, driven by a weights animation."""
+        req = pb.ExportAnimationRequest(
+            name=self.name, fps=float(fps), energies=energies, start_s=float(start),
+            end_s=float(end), up={"y": pb.UP_AXIS_Y, "z": pb.UP_AXIS_Z}[up])
+        try:
+            data = b"".join(c.data for c in self.client.stub.ExportAnimation(
+                req, metadata=_metadata(self.token)))
+        except grpc.RpcError as e:
+            raise from_rpc_error(e) from None
+        if path is not None:
+            with open(path, "wb") as f:
+                f.write(data)
+        return data
+
     def watch(self, encoding="float32"):
         """A Watch: iterate it for every Frame of this session (from any client); it is
         subscribed when watch() returns."""

@@ -233,3 +233,25 @@ def test_undo_redo_history_and_snapshots(cactus):
     assert cactus.info.transforms[0].translation.y == 0
     cactus.delete_snapshot("moved")
     assert cactus.snapshots() == {}
+
+
+def test_timeline_pose_and_animated_glb(cactus, tmp_path):
+    import struct
+    t = cactus.set_timeline([(0, [None]), (1, [dict(translate=(0, 0, 0.2))], 0.25),
+                             (2, [dict(translate=(0, 0, 0.4), rotate=(0.9659258262890683, 0.25881904510252074, 0, 0))])],
+                            easing="smoothstep")
+    assert len(t.keys) == 3 and len(cactus.timeline().keys) == 3
+    mid = cactus.pose_at(0.5)  # smoothstep(0.5) = 0.5: halfway to the first move
+    assert abs(mid.transforms[0].translation.z - 0.1) < 1e-12
+    assert not mid.HasField("beta") and cactus.pose_at(1.5).beta.value == 0.25
+    data = cactus.export_animation(tmp_path / "anim.glb", fps=4)
+    assert data[:4] == b"glTF" and (tmp_path / "anim.glb").read_bytes() == data
+    # GLB header: magic, version 2, total length.
+    assert struct.unpack("<4sII", data[:12])[1:] == (2, len(data))
+    with pytest.raises(hdeform.Error) as e:
+        cactus.export_animation(fps=1000)
+    assert "fps" in str(e.value)
+    cactus.set_timeline([])
+    with pytest.raises(hdeform.Error) as e:
+        cactus.pose_at(1)
+    assert "no timeline" in str(e.value)
