@@ -427,14 +427,10 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
     }
     current_ = std::move(pending_.front());
     pending_.pop_front();
-    // Encoded here, not at broadcast: only frames that are written cost an encoding. A
-    // FLOAT32 watcher writes the shared event as it is.
-    if (current_->event_case() == v1::SessionEvent::kFrame &&
-        encoding_for(current_->frame(), format_) != v1::FRAME_ENCODING_FLOAT32) {
-      auto encoded = std::make_shared<v1::SessionEvent>();
-      encode_frame_to(current_->frame(), format_, false, encoded->mutable_frame());
-      current_ = std::move(encoded);
-    }
+    // Encoded here, not at broadcast: only frames that are written cost an encoding, and
+    // the session's watchers share one encode per encoding. A FLOAT32 watcher writes the
+    // shared event as it is.
+    current_ = session_->encoded_frames().get(std::move(current_), format_);
     writing_ = true;
     StartWrite(current_.get());
   }

@@ -8,6 +8,7 @@
 #include "cache.h"
 #include "animation_glb.h"
 #include "deformer.h"
+#include "encoded_frames.h"
 #include "hdeform/v1/deform.pb.h"
 #include "mesh_library.h"
 #include "history.h"
@@ -174,6 +175,8 @@ class Session : public std::enable_shared_from_this<Session> {
   };
   Persisted& persisted() { return persisted_; }
   void add_watcher(std::shared_ptr<EventSink> sink);  // also sends the current state
+  // Frames as the watchers asked for them, one encode per encoding (encoded_frames.h).
+  EncodedFrameCache& encoded_frames() { return encoded_frames_; }
   void remove_watcher(const EventSink* sink);
   int observers() const;
   void stream_opened() { ++streams_; touch(); }
@@ -300,6 +303,7 @@ class Session : public std::enable_shared_from_this<Session> {
   SessionTokens tokens_;
   Persisted persisted_;
   Roster roster_;
+  EncodedFrameCache encoded_frames_;
 
   std::atomic<int> streams_{0};
   std::atomic<std::size_t> coalesce_waiting_{0};

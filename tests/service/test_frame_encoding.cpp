@@ -3,6 +3,7 @@
 // over loopback: UpdateHandles, Deform and WatchSession in every encoding, exact frames as
 // float32 on request, omitted buffers, and coalescing pipelined updates.
 #include "frame_decode.h"
+#include "service/encoded_frames.h"
 #include "service/frame_encoding.h"
 #include "service_fixture.h"
 
@@ -220,6 +221,39 @@ TEST(FrameEncoding, ExactFramesGoAsFloat32OnlyWhenAsked) {
   EXPECT_EQ(svc::encoding_for(f, fmt), pb::FRAME_ENCODING_FLOAT32);
   f.set_exact(false);
   EXPECT_EQ(svc::encoding_for(f, fmt), pb::FRAME_ENCODING_MESHOPT);
+}
+
+// Watchers of one session share each frame's encodes: one per encoding, for the newest frame.
+TEST(FrameEncoding, WatchersShareOneEncodePerEncoding) {
+  service::EncodedFrameCache cache;
+  auto first = std::make_shared<pb::SessionEvent>();
+  *first->mutable_frame() = random_frame(500, 900, 11);
+  std::shared_ptr<const pb::SessionEvent> event = first;
+  pb::FrameFormat meshopt, quantized, float32;
+  meshopt.set_encoding(pb::FRAME_ENCODING_MESHOPT);
+  quantized.set_encoding(pb::FRAME_ENCODING_QUANTIZED);
+  const auto a = cache.get(event, meshopt);
+  const auto b = cache.get(event, meshopt);
+  EXPECT_EQ(a, b);  // the same encoded event, not an equal one
+  EXPECT_EQ(cache.encodes(), 1);
+  pb::Frame expected;
+  ASSERT_TRUE(service::encode_frame_to(event->frame(), meshopt, false, &expected));
+  EXPECT_TRUE(google::protobuf::util::MessageDifferencer::Equals(a->frame(), expected));
+  const auto q = cache.get(event, quantized);
+  EXPECT_NE(q, a);
+  EXPECT_EQ(q->frame().encoding(), pb::FRAME_ENCODING_QUANTIZED);
+  EXPECT_EQ(cache.get(event, float32), event);  // FLOAT32 goes out as broadcast
+  EXPECT_EQ(cache.encodes(), 2);
+  // A newer frame replaces the older one's encodings.
+  auto second = std::make_shared<pb::SessionEvent>();
+  *second->mutable_frame() = random_frame(500, 900, 12);
+  const auto c = cache.get(second, meshopt);
+  EXPECT_NE(c->frame().vertices(), a->frame().vertices());
+  EXPECT_EQ(cache.encodes(), 3);
+  // Non-frame events pass through.
+  auto state = std::make_shared<pb::SessionEvent>();
+  state->mutable_state()->set_version(4);
+  EXPECT_EQ(cache.get(state, meshopt), state);
 }
 
 TEST(FrameDecode, MalformedFramesAreRefusedWithTheirReason) {
