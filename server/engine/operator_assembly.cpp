@@ -1,0 +1,213 @@
+#include "operator_assembly.h"
+
+#include "column_assembly.h"
+
+#include <algorithm>
+#include <utility>
+
+namespace hdeform {
+
+namespace {
+
+// The corner (0, 1, 2) of vertex v in triangle l. Precondition: v is a vertex of l.
+int corner(const Triangles& F, Eigen::Index l, int v) {
+  return F(l, 0) == v ? 0 : (F(l, 1) == v ? 1 : 2);
+}
+
+// Column 3l+d of Gᵀ D₃ᵀ B₃ D₃ (≤ 6 vertices: l's own and the opposite ones across its
+// interior edges), summed over l's edges in ascending order as the sparse product
+// SparseMatrix(DGᵀ) · B₃D₃ sums them: the jump row of edge e times ±len_e.
+struct JumpColumn {
+  int size = 0;
+  int vertex[6];
+  double value[6];
+  void add(int v, double x) {
+    for (int k = 0; k < size; ++k)
+      if (vertex[k] == v) {
+        value[k] += x;
+        return;
+      }
+    vertex[size] = v;
+    value[size++] = x;
+  }
+  void build(const Triangles& F, const TriangleGradients& grads,
+             const std::vector<InteriorEdge>& edges, const std::array<int, 3>& own, int l,
+             int d) {
+    size = 0;
+    for (int e : own) {
+      if (e < 0) continue;
+      const int a = edges[e].tri[0], b = edges[e].tri[1];
+      const double s = l == a ? edges[e].length : -edges[e].length;  // B₃D₃'s entry
+      // Row 3e+d of D₃G: ∇φ of a's corners minus ∇φ of b's (gradient_jumps' triplet sums).
+      for (int i = 0; i < 3; ++i) {
+        const int w = F(a, i);
+        double x = grads(a, 3 * i + d);
+        for (int j = 0; j < 3; ++j)
+          if (F(b, j) == w) x = x + -grads(b, 3 * j + d);
+        add(w, x * s);
+      }
+      for (int j = 0; j < 3; ++j) {
+        const int w = F(b, j);
+        if (F(a, 0) == w || F(a, 1) == w || F(a, 2) == w) continue;
+        add(w, -grads(b, 3 * j + d) * s);
+      }
+    }
+  }
+};
+
+}  // namespace
+
+std::vector<InteriorEdge> interior_edges(const Vertices& V, const Triangles& F,
+                                         const VertexTriangles& vt) {
+  const auto n = static_cast<Eigen::Index>(vt.offsets.size()) - 1;
+  std::vector<int> first(static_cast<std::size_t>(n) + 1, 0);  // edges owned by vertex a < b
+  std::vector<InteriorEdge> edges;
+  // Each vertex a owns the edges (a, b > a): its (b, triangle) pairs sorted, a pair of
+  // equal b with exactly two triangles is an interior edge. Two passes: count, then fill.
+#pragma omp parallel
+  {
+    std::vector<std::pair<int, int>> around;  // (b, triangle)
+    auto collect = [&](Eigen::Index a) {
+      around.clear();
+      for (int k = vt.offsets[a]; k < vt.offsets[a + 1]; ++k) {
+        const int l = vt.triangles[static_cast<std::size_t>(k)];
+        for (int c = 0; c < 3; ++c)
+          if (F(l, c) > a) around.emplace_back(F(l, c), l);
+      }
+      std::sort(around.begin(), around.end());
+    };
+    auto for_each_edge = [&](auto&& emit) {
+      for (std::size_t i = 0; i < around.size();) {
+        std::size_t j = i;
+        while (j < around.size() && around[j].first == around[i].first) ++j;
+        if (j - i == 2) emit(around[i].first, around[i].second, around[i + 1].second);
+        i = j;
+      }
+    };
+#pragma omp for schedule(static)
+    for (Eigen::Index a = 0; a < n; ++a) {
+      collect(a);
+      int count = 0;
+      for_each_edge([&](int, int, int) { ++count; });
+      first[a + 1] = count;
+    }
+#pragma omp single
+    {
+      for (Eigen::Index a = 0; a < n; ++a) first[a + 1] += first[a];
+      edges.resize(static_cast<std::size_t>(first[n]));
+    }
+#pragma omp for schedule(static)
+    for (Eigen::Index a = 0; a < n; ++a) {
+      collect(a);
+      int k = first[a];
+      const Eigen::Vector3d xa = V.row(a).transpose();
+      for_each_edge([&](int b, int l0, int l1) {
+        const Eigen::Vector3d xb = V.row(b).transpose();
+        edges[static_cast<std::size_t>(k++)] = {{l0, l1}, (xa - xb).norm()};
+      });
+    }
+  }
+  return edges;
+}
+
+std::vector<std::array<int, 3>> triangle_edges(const std::vector<InteriorEdge>& edges,
+                                               Eigen::Index num_triangles) {
+  std::vector<std::array<int, 3>> own(static_cast<std::size_t>(num_triangles), {-1, -1, -1});
+  std::vector<unsigned char> count(static_cast<std::size_t>(num_triangles), 0);
+  for (std::size_t e = 0; e < edges.size(); ++e)  // ascending e: each list comes out sorted
+    for (int t : edges[e].tri) own[t][count[t]++] = static_cast<int>(e);
+  return own;
+}
+
+SparseMatrix assemble_gradient(const Triangles& F, const TriangleGradients& grads,
+                               const VertexTriangles& vt) {
+  const auto n = static_cast<Eigen::Index>(vt.offsets.size()) - 1;
+  SparseMatrix G(3 * F.rows(), n);
+  int* outer = G.outerIndexPtr();
+  for (Eigen::Index v = 0; v <= n; ++v) outer[v] = 3 * vt.offsets[v];
+  G.resizeNonZeros(outer[n]);
+  int* inner = G.innerIndexPtr();
+  double* values = G.valuePtr();
+#pragma omp parallel for schedule(static)
+  for (Eigen::Index v = 0; v < n; ++v) {
+    int k = outer[v];
+    for (int t = vt.offsets[v]; t < vt.offsets[v + 1]; ++t) {  // ascending triangles
+      const int l = vt.triangles[static_cast<std::size_t>(t)], i = corner(F, l, static_cast<int>(v));
+      for (int d = 0; d < 3; ++d) {
+        inner[k] = 3 * l + d;
+        values[k++] = grads(l, 3 * i + d);
+      }
+    }
+  }
+  return G;
+}
+
+SparseMatrix assemble_gta(const Triangles& F, const TriangleGradients& grads,
+                          const Eigen::VectorXd& areas, int n) {
+  const Eigen::Index m = F.rows();
+  SparseMatrix GtA(n, 3 * m);
+  int* outer = GtA.outerIndexPtr();
+  for (Eigen::Index c = 0; c <= 3 * m; ++c) outer[c] = static_cast<int>(3 * c);
+  GtA.resizeNonZeros(9 * m);
+  int* inner = GtA.innerIndexPtr();
+  double* values = GtA.valuePtr();
+#pragma omp parallel for schedule(static)
+  for (Eigen::Index l = 0; l < m; ++l) {
+    int order[3] = {0, 1, 2};  // corners by ascending vertex id: a column's row order
+    std::sort(order, order + 3, [&](int p, int q) { return F(l, p) < F(l, q); });
+    for (int d = 0; d < 3; ++d)
+      for (int k = 0; k < 3; ++k) {
+        const Eigen::Index at = 9 * l + 3 * d + k;
+        inner[at] = F(l, order[k]);
+        values[at] = grads(l, 3 * order[k] + d) * areas[l];
+      }
+  }
+  return GtA;
+}
+
+SparseMatrix assemble_laplacian(const Triangles& F, const TriangleGradients& grads,
+                                const Eigen::VectorXd& areas, const VertexTriangles& vt) {
+  const auto n = static_cast<Eigen::Index>(vt.offsets.size()) - 1;
+  // Column v of GtA · G: G's column v (rows 3l+d, l ascending) times GtA's columns 3l+d.
+  return assemble_columns(n, n, true, [&](Eigen::Index v, ColumnAccumulator& acc) {
+    for (int t = vt.offsets[v]; t < vt.offsets[v + 1]; ++t) {
+      const int l = vt.triangles[static_cast<std::size_t>(t)], i = corner(F, l, static_cast<int>(v));
+      for (int d = 0; d < 3; ++d) {
+        const double y = grads(l, 3 * i + d);
+        for (int j = 0; j < 3; ++j) acc.add(F(l, j), (grads(l, 3 * j + d) * areas[l]) * y);
+      }
+    }
+  });
+}
+
+SparseMatrix assemble_gtdbd(const Triangles& F, const TriangleGradients& grads,
+                            const std::vector<InteriorEdge>& edges, int n) {
+  const auto own = triangle_edges(edges, F.rows());
+  return assemble_columns(n, 3 * F.rows(), false, [&](Eigen::Index c, ColumnAccumulator& acc) {
+    const int l = static_cast<int>(c / 3), d = static_cast<int>(c % 3);
+    JumpColumn col;
+    col.build(F, grads, edges, own[static_cast<std::size_t>(l)], l, d);
+    for (int k = 0; k < col.size; ++k) acc.add(col.vertex[k], col.value[k]);
+  });
+}
+
+SparseMatrix assemble_regularizer(const Triangles& F, const TriangleGradients& grads,
+                                  const std::vector<InteriorEdge>& edges,
+                                  const VertexTriangles& vt) {
+  const auto n = static_cast<Eigen::Index>(vt.offsets.size()) - 1;
+  const auto own = triangle_edges(edges, F.rows());
+  // Column v of GtDBD · G: G's column v (rows 3l+d, l ascending) times GtDBD's columns 3l+d.
+  return assemble_columns(n, n, false, [&](Eigen::Index v, ColumnAccumulator& acc) {
+    JumpColumn col;
+    for (int t = vt.offsets[v]; t < vt.offsets[v + 1]; ++t) {
+      const int l = vt.triangles[static_cast<std::size_t>(t)], i = corner(F, l, static_cast<int>(v));
+      for (int d = 0; d < 3; ++d) {
+        const double y = grads(l, 3 * i + d);
+        col.build(F, grads, edges, own[static_cast<std::size_t>(l)], l, d);
+        for (int k = 0; k < col.size; ++k) acc.add(col.vertex[k], col.value[k] * y);
+      }
+    }
+  });
+}
+
+}  // namespace hdeform
