@@ -23,10 +23,13 @@ class ColumnAccumulator {
   explicit ColumnAccumulator(Eigen::Index rows)
       : mark_(static_cast<std::size_t>(rows), -1), value_(static_cast<std::size_t>(rows)) {}
   // Begins a column (every call a fresh one, even for a column computed before).
-  void start() {
+  // `values` false: only the rows are wanted (a rule may then add any value).
+  void start(bool values = true) {
     ++stamp_;
     rows_.clear();
+    values_ = values;
   }
+  bool values() const { return values_; }
   void add(int row, double v) {
     const auto r = static_cast<std::size_t>(row);
     if (mark_[r] != stamp_) {
@@ -47,12 +50,14 @@ class ColumnAccumulator {
   std::vector<double> value_;
   std::vector<int> rows_;
   std::int64_t stamp_ = 0;
+  bool values_ = true;
 };
 
 // A (rows × cols) with column c given by column(c, acc) calling acc.add(row, value). With
 // drop_zeros, entries that sum to exactly 0 are left out (Eigen's pruned(0, 0)); otherwise
 // every added row is an entry. `column` must be thread-safe and deterministic: it is called
-// twice per column, possibly from different threads.
+// twice per column, possibly from different threads; without drop_zeros the first call only
+// counts rows (acc.values() false), so a rule may skip computing values there.
 template <class Column>
 SparseMatrix assemble_columns(Eigen::Index rows, Eigen::Index cols, bool drop_zeros,
                               Column&& column) {
@@ -63,7 +68,7 @@ SparseMatrix assemble_columns(Eigen::Index rows, Eigen::Index cols, bool drop_ze
     ColumnAccumulator acc(rows);
 #pragma omp for schedule(static)
     for (Eigen::Index c = 0; c < cols; ++c) {
-      acc.start();
+      acc.start(drop_zeros);
       column(c, acc);
       int count = static_cast<int>(acc.rows().size());
       if (drop_zeros)

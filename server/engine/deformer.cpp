@@ -118,11 +118,25 @@ std::shared_ptr<const PreparedMesh> PreparedMesh::create(TriMesh mesh) {
   timings.edges_ms = lap();
   pm->L_ = assemble_laplacian(F, pm->grads_, pm->areas_, pm->vertex_triangles_);
   timings.laplacian_ms = lap();
-  pm->Reg_ = assemble_regularizer(F, pm->grads_, pm->edges_, pm->vertex_triangles_);
-  timings.regularizer_ms = lap();
   pm->component_ = vertex_components(pm->n(), F, pm->num_components_);
   timings.components_ms = lap();
   return pm;
+}
+
+const SparseMatrix& PreparedMesh::Reg() const {
+  std::call_once(reg_once_, [this] {
+    const auto t0 = std::chrono::steady_clock::now();
+    Reg_ = assemble_regularizer(mesh_.F, grads_, edges_, vertex_triangles_);
+    reg_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    reg_ready_.store(true, std::memory_order_release);
+  });
+  return Reg_;
+}
+
+PreparedMesh::BuildTimings PreparedMesh::build_timings() const {
+  BuildTimings t = timings_;
+  if (reg_ready_.load(std::memory_order_acquire)) t.regularizer_ms = reg_ms_;
+  return t;
 }
 
 SparseMatrix PreparedMesh::G() const {
@@ -144,7 +158,8 @@ double PreparedMesh::raw_beta(Beta beta) const {
 std::size_t PreparedMesh::memory_bytes() const {
   return sizeof(*this) + static_cast<std::size_t>(mesh_.V.size()) * sizeof(double) +
          static_cast<std::size_t>(mesh_.F.size()) * sizeof(int) + sparse_bytes(L_) +
-         sparse_bytes(Reg_) + unreferenced_.size() * sizeof(int) +
+         (reg_ready_.load(std::memory_order_acquire) ? sparse_bytes(Reg_) : 0) +
+         unreferenced_.size() * sizeof(int) +
          static_cast<std::size_t>(grads_.size()) * sizeof(double) +
          static_cast<std::size_t>(areas_.size() + normals_.size()) * sizeof(double) +
          edges_.size() * sizeof(InteriorEdge) + component_.size() * sizeof(int) +

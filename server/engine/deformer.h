@@ -8,6 +8,7 @@
 #include "transform.h"
 #include "vertex_normals.h"
 
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <map>
@@ -48,7 +49,9 @@ class PreparedMesh {
   const std::vector<InteriorEdge>& edges() const { return edges_; }
   const VertexTriangles& vertex_triangles() const { return vertex_triangles_; }
   const SparseMatrix& L() const { return L_; }                   // Gᵀ A G
-  const SparseMatrix& Reg() const { return Reg_; }               // Gᵀ D₃ᵀ B₃ D₃ G
+  // Gᵀ D₃ᵀ B₃ D₃ G: only β > 0 needs it, so it is built on the first call (thread-safe; a
+  // call that builds it costs O(m) on all OpenMP threads) and kept.
+  const SparseMatrix& Reg() const;
   SparseMatrix GtA() const;                                      // Gᵀ A (n × 3m)
   SparseMatrix GtDBD() const;                                    // Gᵀ D₃ᵀ B₃ D₃ (n × 3m)
   double total_area() const { return total_area_; }
@@ -63,20 +66,24 @@ class PreparedMesh {
   double raw_beta(Beta beta) const;
   std::size_t memory_bytes() const;
   // Where create() spent its time (ms, wall; docs/benchmarks.md "Session open and memory"):
-  // validation, per-triangle geometry (areas, normals, gradients, G), interior edges and the
-  // vertex→triangle table, L (with Gᵀ A), the regularizer (D₃G, Gᵀ D₃ᵀ B₃ D₃, Reg), the
-  // connected components.
+  // validation, per-triangle geometry (areas, normals, gradients), the vertex→triangle
+  // table and interior edges, L, the connected components; and Reg's build (0 until the
+  // first Reg() call, which is not part of create()).
   struct BuildTimings {
     double validate_ms = 0, geometry_ms = 0, edges_ms = 0, laplacian_ms = 0,
            regularizer_ms = 0, components_ms = 0;
   };
-  const BuildTimings& build_timings() const { return timings_; }
+  BuildTimings build_timings() const;
 
  private:
   PreparedMesh() = default;
   BuildTimings timings_;
   TriMesh mesh_;
-  SparseMatrix L_, Reg_;
+  SparseMatrix L_;
+  mutable std::once_flag reg_once_;  // Reg_ and reg_ms_ are written once, under it
+  mutable SparseMatrix Reg_;
+  mutable double reg_ms_ = 0;
+  mutable std::atomic<bool> reg_ready_{false};
   TriangleGradients grads_;
   Eigen::VectorXd areas_;
   Vertices normals_;

@@ -14,42 +14,54 @@ int corner(const Triangles& F, Eigen::Index l, int v) {
   return F(l, 0) == v ? 0 : (F(l, 1) == v ? 1 : 2);
 }
 
-// Column 3l+d of Gᵀ D₃ᵀ B₃ D₃ (≤ 6 vertices: l's own and the opposite ones across its
+// Columns 3l+0..2 of Gᵀ D₃ᵀ B₃ D₃ (≤ 6 vertices: l's own and the opposite ones across its
 // interior edges), summed over l's edges in ascending order as the sparse product
-// SparseMatrix(DGᵀ) · B₃D₃ sums them: the jump row of edge e times ±len_e.
-struct JumpColumn {
+// SparseMatrix(DGᵀ) · B₃D₃ sums them: the jump row 3e+d of edge e times ±len_e. With
+// `values` false only the vertices are found (the pattern).
+struct JumpColumns {
   int size = 0;
   int vertex[6];
-  double value[6];
-  void add(int v, double x) {
+  double value[3][6];
+  int slot(int v) {  // v's position, appended if new (its values then start unassigned)
     for (int k = 0; k < size; ++k)
-      if (vertex[k] == v) {
-        value[k] += x;
-        return;
-      }
+      if (vertex[k] == v) return k;
     vertex[size] = v;
-    value[size++] = x;
+    return -1 - size++;
+  }
+  void add(int v, const double (&x)[3], bool values) {
+    const int k = slot(v);
+    if (!values) return;
+    for (int d = 0; d < 3; ++d)  // the first term assigns, as the product does
+      if (k < 0) value[d][-1 - k] = x[d];
+      else value[d][k] += x[d];
   }
   void build(const Triangles& F, const TriangleGradients& grads,
              const std::vector<InteriorEdge>& edges, const std::array<int, 3>& own, int l,
-             int d) {
+             bool values) {
     size = 0;
     for (int e : own) {
       if (e < 0) continue;
       const int a = edges[e].tri[0], b = edges[e].tri[1];
       const double s = l == a ? edges[e].length : -edges[e].length;  // B₃D₃'s entry
       // Row 3e+d of D₃G: ∇φ of a's corners minus ∇φ of b's (gradient_jumps' triplet sums).
+      double x[3] = {0, 0, 0};
       for (int i = 0; i < 3; ++i) {
         const int w = F(a, i);
-        double x = grads(a, 3 * i + d);
-        for (int j = 0; j < 3; ++j)
-          if (F(b, j) == w) x = x + -grads(b, 3 * j + d);
-        add(w, x * s);
+        int j = 0;
+        while (j < 3 && F(b, j) != w) ++j;
+        if (values)
+          for (int d = 0; d < 3; ++d) {
+            const double g = grads(a, 3 * i + d);
+            x[d] = (j < 3 ? g + -grads(b, 3 * j + d) : g) * s;
+          }
+        add(w, x, values);
       }
       for (int j = 0; j < 3; ++j) {
         const int w = F(b, j);
         if (F(a, 0) == w || F(a, 1) == w || F(a, 2) == w) continue;
-        add(w, -grads(b, 3 * j + d) * s);
+        if (values)
+          for (int d = 0; d < 3; ++d) x[d] = -grads(b, 3 * j + d) * s;
+        add(w, x, values);
       }
     }
   }
@@ -185,9 +197,9 @@ SparseMatrix assemble_gtdbd(const Triangles& F, const TriangleGradients& grads,
   const auto own = triangle_edges(edges, F.rows());
   return assemble_columns(n, 3 * F.rows(), false, [&](Eigen::Index c, ColumnAccumulator& acc) {
     const int l = static_cast<int>(c / 3), d = static_cast<int>(c % 3);
-    JumpColumn col;
-    col.build(F, grads, edges, own[static_cast<std::size_t>(l)], l, d);
-    for (int k = 0; k < col.size; ++k) acc.add(col.vertex[k], col.value[k]);
+    JumpColumns col;
+    col.build(F, grads, edges, own[static_cast<std::size_t>(l)], l, acc.values());
+    for (int k = 0; k < col.size; ++k) acc.add(col.vertex[k], acc.values() ? col.value[d][k] : 0.0);
   });
 }
 
@@ -198,13 +210,17 @@ SparseMatrix assemble_regularizer(const Triangles& F, const TriangleGradients& g
   const auto own = triangle_edges(edges, F.rows());
   // Column v of GtDBD · G: G's column v (rows 3l+d, l ascending) times GtDBD's columns 3l+d.
   return assemble_columns(n, n, false, [&](Eigen::Index v, ColumnAccumulator& acc) {
-    JumpColumn col;
+    JumpColumns col;
     for (int t = vt.offsets[v]; t < vt.offsets[v + 1]; ++t) {
       const int l = vt.triangles[static_cast<std::size_t>(t)], i = corner(F, l, static_cast<int>(v));
-      for (int d = 0; d < 3; ++d) {
+      col.build(F, grads, edges, own[static_cast<std::size_t>(l)], l, acc.values());
+      if (!acc.values()) {  // counting pass: the rows only
+        for (int k = 0; k < col.size; ++k) acc.add(col.vertex[k], 0.0);
+        continue;
+      }
+      for (int d = 0; d < 3; ++d) {  // G's rows 3l+d in order: the product's summation order
         const double y = grads(l, 3 * i + d);
-        col.build(F, grads, edges, own[static_cast<std::size_t>(l)], l, d);
-        for (int k = 0; k < col.size; ++k) acc.add(col.vertex[k], col.value[k] * y);
+        for (int k = 0; k < col.size; ++k) acc.add(col.vertex[k], col.value[d][k] * y);
       }
     }
   });
