@@ -226,4 +226,68 @@ SparseMatrix assemble_regularizer(const Triangles& F, const TriangleGradients& g
   });
 }
 
+void assemble_wide_free_rows(const Triangles& F, const TriangleGradients& grads,
+                             const Eigen::VectorXd& areas, const std::vector<InteriorEdge>& edges,
+                             const VertexTriangles& vt, const std::vector<int>& free_,
+                             SparseMatrixR& area, SparseMatrixR& reg) {
+  const auto nF = static_cast<Eigen::Index>(free_.size());
+  const auto own = triangle_edges(edges, F.rows());
+  area.resize(nF, 3 * F.rows());
+  int* outer = area.outerIndexPtr();
+  // Row v's triangles, ascending: v's own, and across each interior edge of those the
+  // triangle that does not contain v (v is its opposite vertex there, so in its support).
+  auto row_triangles = [&](int v, std::vector<int>& T) {
+    T.clear();
+    for (int t = vt.offsets[v]; t < vt.offsets[v + 1]; ++t) {
+      const int l = vt.triangles[static_cast<std::size_t>(t)];
+      T.push_back(l);
+      for (int e : own[static_cast<std::size_t>(l)]) {
+        if (e < 0) continue;
+        const int o = edges[e].tri[0] == l ? edges[e].tri[1] : edges[e].tri[0];
+        if (F(o, 0) != v && F(o, 1) != v && F(o, 2) != v) T.push_back(o);
+      }
+    }
+    std::sort(T.begin(), T.end());
+    T.erase(std::unique(T.begin(), T.end()), T.end());
+  };
+#pragma omp parallel
+  {
+    std::vector<int> T;
+#pragma omp for schedule(static)
+    for (Eigen::Index i = 0; i < nF; ++i) {
+      row_triangles(free_[static_cast<std::size_t>(i)], T);
+      outer[i + 1] = 3 * static_cast<int>(T.size());
+    }
+#pragma omp single
+    {
+      for (Eigen::Index i = 0; i < nF; ++i) outer[i + 1] += outer[i];
+      area.resizeNonZeros(outer[nF]);
+      reg = area;  // the same offsets; indices and values are filled below
+    }
+#pragma omp for schedule(static)
+    for (Eigen::Index i = 0; i < nF; ++i) {
+      const int v = free_[static_cast<std::size_t>(i)];
+      row_triangles(v, T);
+      int k = outer[i];
+      JumpColumns col;
+      for (int l : T) {
+        col.build(F, grads, edges, own[static_cast<std::size_t>(l)], l, true);
+        int slot = 0;
+        while (slot < col.size && col.vertex[slot] != v) ++slot;
+        const bool has_d = slot < col.size;
+        const bool has_a = F(l, 0) == v || F(l, 1) == v || F(l, 2) == v;
+        const int c = has_a ? corner(F, l, v) : 0;
+        for (int d = 0; d < 3; ++d, ++k) {
+          const double a = has_a ? grads(l, 3 * c + d) * areas[l] : 0.0;
+          const double r = has_d ? col.value[d][slot] : 0.0;
+          area.innerIndexPtr()[k] = reg.innerIndexPtr()[k] = 3 * l + d;
+          // As Eigen's `X + 0.0 * Y` on the union pattern (system_blocks.h).
+          area.valuePtr()[k] = (has_a ? a : 0.0) + (has_d ? 0.0 * r : 0.0);
+          reg.valuePtr()[k] = (has_d ? r : 0.0) + (has_a ? 0.0 * a : 0.0);
+        }
+      }
+    }
+  }
+}
+
 }  // namespace hdeform

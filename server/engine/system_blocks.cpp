@@ -128,11 +128,11 @@ Blocks split(const SparseMatrix& K, const SparseMatrix* GtW, const BlockLayout& 
   return out;
 }
 
-void split_union(const SparseMatrix& K1, const SparseMatrix& K2, const SparseMatrix& GtW1,
-                 const SparseMatrix& GtW2, const BlockLayout& layout, Blocks& out1,
+void split_union(const SparseMatrix& K1, const SparseMatrix& K2, const SparseMatrix* GtW1,
+                 const SparseMatrix* GtW2, const BlockLayout& layout, Blocks& out1,
                  Blocks& out2) {
   split_square(K1, &K2, layout, out1, &out2);
-  split_rows(GtW1, &GtW2, layout, out1.GtW_F, &out2.GtW_F);
+  if (GtW1 && GtW2) split_rows(*GtW1, GtW2, layout, out1.GtW_F, &out2.GtW_F);
 }
 
 SparseMatrixR free_rows_gta(const Triangles& F, const TriangleGradients& grads,

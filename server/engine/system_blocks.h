@@ -29,9 +29,10 @@ Blocks split(const SparseMatrix& K, const SparseMatrix* GtW, const BlockLayout& 
 
 // The blocks of two systems on the union of their patterns, each with explicit zeros where
 // only the other has an entry (so K₁ and K₂ blocks share one structure and combine value by
-// value). Values as Eigen's `K₁ + 0.0 * K₂` and `K₂ + 0.0 * K₁` give them.
-void split_union(const SparseMatrix& K1, const SparseMatrix& K2, const SparseMatrix& GtW1,
-                 const SparseMatrix& GtW2, const BlockLayout& layout, Blocks& out1, Blocks& out2);
+// value). Values as Eigen's `K₁ + 0.0 * K₂` and `K₂ + 0.0 * K₁` give them. With GtW1 and
+// GtW2 null only FF and FC are filled (assemble_wide_free_rows builds the GtW_F of β > 0).
+void split_union(const SparseMatrix& K1, const SparseMatrix& K2, const SparseMatrix* GtW1,
+                 const SparseMatrix* GtW2, const BlockLayout& layout, Blocks& out1, Blocks& out2);
 
 // (Gᵀ A)_F straight from the per-triangle gradients (no n × 3m Gᵀ A): row v of Gᵀ A holds
 // a_l ∇φ_v of each triangle l around v. Preconditions as operator_assembly.h.

@@ -116,7 +116,7 @@ TEST(OperatorAssembly, EqualsTheTripletAndProductBuild) {
   }
 }
 
-// The blocks against the triplet split that built them before, on the bar's constraints.
+// The blocks against the triplet split that built them before, on a model's constraints.
 Blocks triplet_split(const SparseMatrix& K, const SparseMatrix& GtW, const BlockLayout& b) {
   std::vector<Eigen::Triplet<double>> ff, fc, gw;
   for (Eigen::Index c = 0; c < K.outerSize(); ++c)
@@ -140,8 +140,11 @@ Blocks triplet_split(const SparseMatrix& K, const SparseMatrix& GtW, const Block
   return out;
 }
 
-TEST(OperatorAssembly, BlocksEqualTheTripletSplit) {
-  const test::Benchmark b = test::load_benchmark("bar");
+class OperatorAssemblyBlocks : public testing::TestWithParam<const char*> {};
+
+// bar: closed; plane: a boundary (triangles with fewer than three interior edges).
+TEST_P(OperatorAssemblyBlocks, EqualTheTripletSplit) {
+  const test::Benchmark b = test::load_benchmark(GetParam());
   const PreparedMesh& pm = *b.mesh;
   std::vector<int> region_of(static_cast<std::size_t>(pm.n()), -1), block_index(region_of.size());
   for (int v : b.constraints.fixed) region_of[v] = 0;
@@ -164,7 +167,10 @@ TEST(OperatorAssembly, BlocksEqualTheTripletSplit) {
               narrow_ref.GtW_F, "GtA_F*");
 
   Blocks area, reg;
-  split_union(pm.L(), pm.Reg(), GtA, GtDBD, layout, area, reg);
+  split_union(pm.L(), pm.Reg(), &GtA, &GtDBD, layout, area, reg);
+  SparseMatrixR area_rows, reg_rows;  // what the engine uses for β > 0
+  assemble_wide_free_rows(pm.mesh().F, pm.gradients(), pm.areas(), pm.edges(),
+                          pm.vertex_triangles(), free_, area_rows, reg_rows);
   const SparseMatrix Lw = pm.L() + 0.0 * pm.Reg(), Rw = pm.Reg() + 0.0 * pm.L();
   const SparseMatrix Aw = GtA + 0.0 * GtDBD, Dw = GtDBD + 0.0 * GtA;
   const Blocks area_ref = triplet_split(Lw, Aw, layout), reg_ref = triplet_split(Rw, Dw, layout);
@@ -174,13 +180,18 @@ TEST(OperatorAssembly, BlocksEqualTheTripletSplit) {
   expect_same(reg.FF, reg_ref.FF, "wide FF2");
   expect_same(reg.FC, reg_ref.FC, "wide FC2");
   expect_same(reg.GtW_F, reg_ref.GtW_F, "wide GW2");
+  expect_same(area_rows, area_ref.GtW_F, "wide GW1*");
+  expect_same(reg_rows, reg_ref.GtW_F, "wide GW2*");
 
   // The column loops run on the OpenMP threads: one thread gives the same bits.
   const int threads = omp_get_max_threads();
   omp_set_num_threads(1);
   const Blocks narrow1 = split(pm.L(), &GtA, layout);
   Blocks area1, reg1;
-  split_union(pm.L(), pm.Reg(), GtA, GtDBD, layout, area1, reg1);
+  split_union(pm.L(), pm.Reg(), &GtA, &GtDBD, layout, area1, reg1);
+  SparseMatrixR area_rows1, reg_rows1;
+  assemble_wide_free_rows(pm.mesh().F, pm.gradients(), pm.areas(), pm.edges(),
+                          pm.vertex_triangles(), free_, area_rows1, reg_rows1);
   const SparseMatrixR gta1 =
       free_rows_gta(pm.mesh().F, pm.gradients(), pm.areas(), pm.vertex_triangles(), free_);
   omp_set_num_threads(threads);
@@ -191,7 +202,11 @@ TEST(OperatorAssembly, BlocksEqualTheTripletSplit) {
   EXPECT_TRUE(same_bits(reg1.FF, reg.FF));
   EXPECT_TRUE(same_bits(reg1.FC, reg.FC));
   EXPECT_TRUE(same_bits(reg1.GtW_F, reg.GtW_F));
+  EXPECT_TRUE(same_bits(area_rows1, area_rows));
+  EXPECT_TRUE(same_bits(reg_rows1, reg_rows));
 }
+
+INSTANTIATE_TEST_SUITE_P(Models, OperatorAssemblyBlocks, testing::Values("bar", "plane"));
 
 // Each column (vertex, edge) is computed by one thread in a fixed order: one and two
 // threads must give the same bits.
