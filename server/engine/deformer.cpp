@@ -178,7 +178,9 @@ struct BetaSystem {
 };
 
 struct ConstraintSet::WideBlocks {
-  Blocks area, reg;  // same structure: K_β = (1−β)·area + β·reg, likewise (GᵀW_β)_F
+  // Same structure: K_β = (1−β)·area + β·reg (FF and FC; GtW_F is left empty, see
+  // build_system_locked).
+  Blocks area, reg;
 };
 
 ConstraintSet::ConstraintSet(std::shared_ptr<const PreparedMesh> mesh, Constraints constraints)
@@ -303,14 +305,10 @@ std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_
   } else {
     auto t0 = Clock::now();
     if (!wide_) {
-      // Same structure for both parts: each is the other plus explicit zeros. (GᵀW)_F's two
-      // parts straight from the gradients: no n × 3m Gᵀ A or Gᵀ D₃ᵀ B₃ D₃ (0.65 GB at 1M).
+      // Same structure for both parts: each is the other plus explicit zeros.
       auto w = std::make_shared<WideBlocks>();
-      const PreparedMesh& pm = *mesh_;
-      split_union(pm.L(), pm.Reg(), nullptr, nullptr, BlockLayout{region_of_, block_index_, nF, nC},
-                  w->area, w->reg);
-      assemble_wide_free_rows(pm.mesh().F, pm.gradients(), pm.areas(), pm.edges(),
-                              pm.vertex_triangles(), free_, w->area.GtW_F, w->reg.GtW_F);
+      split_union(mesh_->L(), mesh_->Reg(), nullptr, nullptr,
+                  BlockLayout{region_of_, block_index_, nF, nC}, w->area, w->reg);
       std::lock_guard lock(mutex_);  // memory_bytes() reads wide_ under mutex_ alone
       wide_ = std::move(w);
     }
@@ -321,7 +319,11 @@ std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_
     sys->factor = factor_wide(sys->K_FF);
     t0 = Clock::now();
     sys->K_FC = combine(1.0 - raw_beta, wide_->area.FC, raw_beta, wide_->reg.FC);
-    sys->GtW_F = combine(1.0 - raw_beta, wide_->area.GtW_F, raw_beta, wide_->reg.GtW_F);
+    // (GᵀW_β)_F straight from the gradients for this β: its two parts are not kept (they
+    // would be 2 × 0.45 GB at 1M) and no n × 3m Gᵀ A or Gᵀ D₃ᵀ B₃ D₃ is formed.
+    const PreparedMesh& pm = *mesh_;
+    sys->GtW_F = assemble_wide_free_rows(pm.mesh().F, pm.gradients(), pm.areas(), pm.edges(),
+                                         pm.vertex_triangles(), free_, 1.0 - raw_beta, raw_beta);
     timings.rest_ms = ms(t0);
   }
   const Factorization::Timings& f = sys->factor->timings();
@@ -624,8 +626,7 @@ std::size_t ConstraintSet::memory_bytes() const {
   for (const auto& [key, fs] : by_field_)
     bytes += fs.system->memory_bytes() + static_cast<std::size_t>(fs.beta.size()) * sizeof(double);
   if (wide_)
-    bytes += 2 * (sparse_bytes(wide_->area.FF) + sparse_bytes(wide_->area.FC) +
-                  sparse_bytes(wide_->area.GtW_F));
+    bytes += 2 * (sparse_bytes(wide_->area.FF) + sparse_bytes(wide_->area.FC));
   return bytes;
 }
 

@@ -226,14 +226,20 @@ SparseMatrix assemble_regularizer(const Triangles& F, const TriangleGradients& g
   });
 }
 
-void assemble_wide_free_rows(const Triangles& F, const TriangleGradients& grads,
-                             const Eigen::VectorXd& areas, const std::vector<InteriorEdge>& edges,
-                             const VertexTriangles& vt, const std::vector<int>& free_,
-                             SparseMatrixR& area, SparseMatrixR& reg) {
+namespace {
+
+// The free rows of the β > 0 right-hand side pattern: calls emit(k, column, area, reg) for
+// every entry k of `out`'s structure (built here), area and reg being Gᵀ A's and
+// Gᵀ D₃ᵀ B₃ D₃'s values on the union pattern.
+template <class Emit>
+void wide_free_rows(const Triangles& F, const TriangleGradients& grads,
+                    const Eigen::VectorXd& areas, const std::vector<InteriorEdge>& edges,
+                    const VertexTriangles& vt, const std::vector<int>& free_, SparseMatrixR& out,
+                    Emit&& emit) {
   const auto nF = static_cast<Eigen::Index>(free_.size());
   const auto own = triangle_edges(edges, F.rows());
-  area.resize(nF, 3 * F.rows());
-  int* outer = area.outerIndexPtr();
+  out.resize(nF, 3 * F.rows());
+  int* outer = out.outerIndexPtr();
   // Row v's triangles, ascending: v's own, and across each interior edge of those the
   // triangle that does not contain v (v is its opposite vertex there, so in its support).
   auto row_triangles = [&](int v, std::vector<int>& T) {
@@ -261,8 +267,7 @@ void assemble_wide_free_rows(const Triangles& F, const TriangleGradients& grads,
 #pragma omp single
     {
       for (Eigen::Index i = 0; i < nF; ++i) outer[i + 1] += outer[i];
-      area.resizeNonZeros(outer[nF]);
-      reg = area;  // the same offsets; indices and values are filled below
+      out.resizeNonZeros(outer[nF]);
     }
 #pragma omp for schedule(static)
     for (Eigen::Index i = 0; i < nF; ++i) {
@@ -280,14 +285,39 @@ void assemble_wide_free_rows(const Triangles& F, const TriangleGradients& grads,
         for (int d = 0; d < 3; ++d, ++k) {
           const double a = has_a ? grads(l, 3 * c + d) * areas[l] : 0.0;
           const double r = has_d ? col.value[d][slot] : 0.0;
-          area.innerIndexPtr()[k] = reg.innerIndexPtr()[k] = 3 * l + d;
+          out.innerIndexPtr()[k] = 3 * l + d;
           // As Eigen's `X + 0.0 * Y` on the union pattern (system_blocks.h).
-          area.valuePtr()[k] = (has_a ? a : 0.0) + (has_d ? 0.0 * r : 0.0);
-          reg.valuePtr()[k] = (has_d ? r : 0.0) + (has_a ? 0.0 * a : 0.0);
+          emit(k, (has_a ? a : 0.0) + (has_d ? 0.0 * r : 0.0),
+               (has_d ? r : 0.0) + (has_a ? 0.0 * a : 0.0));
         }
       }
     }
   }
+}
+
+}  // namespace
+
+void assemble_wide_free_rows(const Triangles& F, const TriangleGradients& grads,
+                             const Eigen::VectorXd& areas, const std::vector<InteriorEdge>& edges,
+                             const VertexTriangles& vt, const std::vector<int>& free_,
+                             SparseMatrixR& area, SparseMatrixR& reg) {
+  // Two passes (the pair is the reference form; the engine builds the weighted sum).
+  wide_free_rows(F, grads, areas, edges, vt, free_, area,
+                 [&](int k, double a, double) { area.valuePtr()[k] = a; });
+  wide_free_rows(F, grads, areas, edges, vt, free_, reg,
+                 [&](int k, double, double r) { reg.valuePtr()[k] = r; });
+}
+
+SparseMatrixR assemble_wide_free_rows(const Triangles& F, const TriangleGradients& grads,
+                                      const Eigen::VectorXd& areas,
+                                      const std::vector<InteriorEdge>& edges,
+                                      const VertexTriangles& vt, const std::vector<int>& free_,
+                                      double w_area, double w_reg) {
+  SparseMatrixR out;
+  wide_free_rows(F, grads, areas, edges, vt, free_, out, [&](int k, double a, double r) {
+    out.valuePtr()[k] = w_area * a + w_reg * r;  // combine()'s arithmetic, value by value
+  });
+  return out;
 }
 
 }  // namespace hdeform

@@ -50,12 +50,21 @@ SparseMatrix assemble_regularizer(const Triangles& F, const TriangleGradients& g
                                   const VertexTriangles& vt);
 
 // The free rows of Gᵀ A and Gᵀ D₃ᵀ B₃ D₃ on the union of their patterns (row-major, the
-// β > 0 right-hand side's two parts): the same values as splitting `GtA + 0.0 * GtDBD` and
+// β > 0 right-hand side's two parts; the reference form of the weighted sum below): the same values as splitting `GtA + 0.0 * GtDBD` and
 // `GtDBD + 0.0 * GtA`, built per free vertex without either n × 3m matrix. Row v holds the
 // triangles around v and those across the far edge of each of them.
 void assemble_wide_free_rows(const Triangles& F, const TriangleGradients& grads,
                              const Eigen::VectorXd& areas, const std::vector<InteriorEdge>& edges,
                              const VertexTriangles& vt, const std::vector<int>& free_,
                              SparseMatrixR& area, SparseMatrixR& reg);
+
+// (Gᵀ W_β)_F = w_area · area + w_reg · reg of the two parts above, in one pass (the same
+// bits as combining them value by value): a β > 0 system's right-hand side matrix, built
+// for each β instead of keeping both parts (≈ 0.9 GB at 1M).
+SparseMatrixR assemble_wide_free_rows(const Triangles& F, const TriangleGradients& grads,
+                                      const Eigen::VectorXd& areas,
+                                      const std::vector<InteriorEdge>& edges,
+                                      const VertexTriangles& vt, const std::vector<int>& free_,
+                                      double w_area, double w_reg);
 
 }  // namespace hdeform

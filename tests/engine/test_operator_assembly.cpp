@@ -182,6 +182,13 @@ TEST_P(OperatorAssemblyBlocks, EqualTheTripletSplit) {
   expect_same(reg.GtW_F, reg_ref.GtW_F, "wide GW2");
   expect_same(area_rows, area_ref.GtW_F, "wide GW1*");
   expect_same(reg_rows, reg_ref.GtW_F, "wide GW2*");
+  const double beta = 0.37;  // the engine's (GᵀW_β)_F against combining the two parts
+  SparseMatrixR combined = area_rows;
+  for (Eigen::Index k = 0; k < combined.nonZeros(); ++k)
+    combined.valuePtr()[k] = (1 - beta) * area_rows.valuePtr()[k] + beta * reg_rows.valuePtr()[k];
+  expect_same(assemble_wide_free_rows(pm.mesh().F, pm.gradients(), pm.areas(), pm.edges(),
+                                      pm.vertex_triangles(), free_, 1 - beta, beta),
+              combined, "GtW_beta");
 
   // The column loops run on the OpenMP threads: one thread gives the same bits.
   const int threads = omp_get_max_threads();
