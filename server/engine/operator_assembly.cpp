@@ -67,6 +67,36 @@ struct JumpColumns {
   }
 };
 
+// Vertex v's entries in columns 3l+0..2 of Gᵀ D₃ᵀ B₃ D₃: JumpColumns' sums for one vertex
+// (the same terms in the same order), without the other five. False if v is not in the
+// columns' support.
+bool jump_values(const Triangles& F, const TriangleGradients& grads,
+                 const std::vector<InteriorEdge>& edges, const std::array<int, 3>& own, int l,
+                 int v, double (&out)[3]) {
+  bool any = false;
+  for (int e : own) {
+    if (e < 0) continue;
+    const int a = edges[e].tri[0], b = edges[e].tri[1];
+    int i = 0, j = 0;
+    while (i < 3 && F(a, i) != v) ++i;
+    while (j < 3 && F(b, j) != v) ++j;
+    if (i == 3 && j == 3) continue;
+    const double s = l == a ? edges[e].length : -edges[e].length;
+    for (int d = 0; d < 3; ++d) {
+      double x;
+      if (i < 3) {
+        const double g = grads(a, 3 * i + d);
+        x = (j < 3 ? g + -grads(b, 3 * j + d) : g) * s;
+      } else {
+        x = -grads(b, 3 * j + d) * s;
+      }
+      out[d] = any ? out[d] + x : x;  // the first term assigns, as the product does
+    }
+    any = true;
+  }
+  return any;
+}
+
 }  // namespace
 
 std::vector<InteriorEdge> interior_edges(const Vertices& V, const Triangles& F,
@@ -274,17 +304,14 @@ void wide_free_rows(const Triangles& F, const TriangleGradients& grads,
       const int v = free_[static_cast<std::size_t>(i)];
       row_triangles(v, T);
       int k = outer[i];
-      JumpColumns col;
       for (int l : T) {
-        col.build(F, grads, edges, own[static_cast<std::size_t>(l)], l, true);
-        int slot = 0;
-        while (slot < col.size && col.vertex[slot] != v) ++slot;
-        const bool has_d = slot < col.size;
+        double jump[3] = {0, 0, 0};
+        const bool has_d = jump_values(F, grads, edges, own[static_cast<std::size_t>(l)], l, v, jump);
         const bool has_a = F(l, 0) == v || F(l, 1) == v || F(l, 2) == v;
         const int c = has_a ? corner(F, l, v) : 0;
         for (int d = 0; d < 3; ++d, ++k) {
           const double a = has_a ? grads(l, 3 * c + d) * areas[l] : 0.0;
-          const double r = has_d ? col.value[d][slot] : 0.0;
+          const double r = has_d ? jump[d] : 0.0;
           out.innerIndexPtr()[k] = 3 * l + d;
           // As Eigen's `X + 0.0 * Y` on the union pattern (system_blocks.h).
           emit(k, (has_a ? a : 0.0) + (has_d ? 0.0 * r : 0.0),
