@@ -3,7 +3,9 @@
 #include "guidance.h"
 #include "harmonic.h"
 #include "mesh_io.h"
+#include "operator_assembly.h"
 #include "solver.h"
+#include "system_blocks.h"
 #include "validate.h"
 #include "vertex_normals.h"
 
@@ -65,40 +67,6 @@ std::vector<int> vertex_components(int n, const Triangles& F, int& count) {
   return comp;
 }
 
-// The rows of the free vertices / the (free, constrained) blocks of a symmetric matrix.
-struct Blocks {
-  SparseMatrix FF, FC;  // K_FF (full symmetric), K_FC
-  SparseMatrixR GtW_F;  // (Gᵀ W)_F, row-major: the right-hand side is one product
-};
-
-Blocks split(const SparseMatrix& K, const SparseMatrix& GtW, const std::vector<int>& region_of,
-             const std::vector<int>& block_index, Eigen::Index nF, Eigen::Index nC) {
-  std::vector<Eigen::Triplet<double>> ff, fc, gw;
-  ff.reserve(K.nonZeros());
-  for (Eigen::Index c = 0; c < K.outerSize(); ++c)
-    for (SparseMatrix::InnerIterator it(K, c); it; ++it) {
-      const int r = static_cast<int>(it.row());
-      if (region_of[r] >= 0) continue;
-      if (region_of[c] < 0)
-        ff.emplace_back(block_index[r], block_index[c], it.value());
-      else
-        fc.emplace_back(block_index[r], block_index[c], it.value());
-    }
-  for (Eigen::Index c = 0; c < GtW.outerSize(); ++c)
-    for (SparseMatrix::InnerIterator it(GtW, c); it; ++it) {
-      const int r = static_cast<int>(it.row());
-      if (region_of[r] < 0) gw.emplace_back(block_index[r], static_cast<int>(c), it.value());
-    }
-  Blocks b;
-  b.FF.resize(nF, nF);
-  b.FF.setFromTriplets(ff.begin(), ff.end());
-  b.FC.resize(nF, nC);
-  b.FC.setFromTriplets(fc.begin(), fc.end());
-  b.GtW_F.resize(nF, GtW.cols());
-  b.GtW_F.setFromTriplets(gw.begin(), gw.end());
-  return b;
-}
-
 // values(out) = a·values(x) + b·values(y) for matrices of identical structure.
 template <typename Sparse>
 Sparse combine(double a, const Sparse& x, double b, const Sparse& y) {
@@ -123,33 +91,59 @@ std::string fmt_result_error(int handle, const HandleTransform& t) {
 
 // ---------------------------------------------------------------------------------------
 std::shared_ptr<const PreparedMesh> PreparedMesh::create(TriMesh mesh) {
+  using Clock = std::chrono::steady_clock;
+  auto t0 = Clock::now();
+  auto lap = [&t0] {  // ms since the previous lap
+    const auto now = Clock::now();
+    const double ms = std::chrono::duration<double, std::milli>(now - t0).count();
+    t0 = now;
+    return ms;
+  };
   const ValidationResult checked = validate_mesh(mesh);
   std::shared_ptr<PreparedMesh> pm(new PreparedMesh());
   pm->unreferenced_ = checked.unreferenced;
   pm->mesh_ = std::move(mesh);
   const Vertices& V = pm->mesh_.V;
   const Triangles& F = pm->mesh_.F;
+  BuildTimings& timings = pm->timings_;
+  timings.validate_ms = lap();
 
   pm->areas_ = triangle_areas(V, F);
   pm->total_area_ = pm->areas_.sum();
   pm->normals_ = triangle_normals(V, F);
   pm->grads_ = hat_gradients(V, F);
-  pm->G_ = grad(V, F);
-  pm->edges_ = interior_edges(V, F);
+  timings.geometry_ms = lap();
   pm->vertex_triangles_ = VertexTriangles::build(pm->n(), F);
-
-  // A as a 3m vector, so Gᵀ A is a column scaling of Gᵀ.
-  Eigen::VectorXd a3(3 * F.rows());
-  for (Eigen::Index l = 0; l < F.rows(); ++l) a3.segment<3>(3 * l).setConstant(pm->areas_[l]);
-  const SparseMatrix Gt = pm->G_.transpose();
-  pm->GtA_ = Gt * a3.asDiagonal();
-  pm->L_ = (pm->GtA_ * pm->G_).pruned(0.0, 0.0);
-  const SparseMatrix DG = gradient_jumps(pm->G_, pm->edges_);
-  pm->GtDBD_ = SparseMatrix(DG.transpose()) * weighted_differences(pm->edges_, F.rows());
-  pm->Reg_ = pm->GtDBD_ * pm->G_;
+  pm->edges_ = interior_edges(V, F, pm->vertex_triangles_);
+  timings.edges_ms = lap();
+  pm->L_ = assemble_laplacian(F, pm->grads_, pm->areas_, pm->vertex_triangles_);
+  timings.laplacian_ms = lap();
   pm->component_ = vertex_components(pm->n(), F, pm->num_components_);
+  timings.components_ms = lap();
   return pm;
 }
+
+const SparseMatrix& PreparedMesh::Reg() const {
+  std::call_once(reg_once_, [this] {
+    const auto t0 = std::chrono::steady_clock::now();
+    Reg_ = assemble_regularizer(mesh_.F, grads_, edges_, vertex_triangles_);
+    reg_ms_ = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    reg_ready_.store(true, std::memory_order_release);
+  });
+  return Reg_;
+}
+
+PreparedMesh::BuildTimings PreparedMesh::build_timings() const {
+  BuildTimings t = timings_;
+  if (reg_ready_.load(std::memory_order_acquire)) t.regularizer_ms = reg_ms_;
+  return t;
+}
+
+SparseMatrix PreparedMesh::G() const {
+  return assemble_gradient(mesh_.F, grads_, vertex_triangles_);
+}
+SparseMatrix PreparedMesh::GtA() const { return assemble_gta(mesh_.F, grads_, areas_, n()); }
+SparseMatrix PreparedMesh::GtDBD() const { return assemble_gtdbd(mesh_.F, grads_, edges_, n()); }
 
 double PreparedMesh::raw_beta(Beta beta) const {
   if (!std::isfinite(beta.value) || beta.value < 0.0 || beta.value >= 1.0)
@@ -163,8 +157,9 @@ double PreparedMesh::raw_beta(Beta beta) const {
 
 std::size_t PreparedMesh::memory_bytes() const {
   return sizeof(*this) + static_cast<std::size_t>(mesh_.V.size()) * sizeof(double) +
-         static_cast<std::size_t>(mesh_.F.size()) * sizeof(int) + sparse_bytes(G_) +
-         sparse_bytes(L_) + sparse_bytes(Reg_) + sparse_bytes(GtA_) + sparse_bytes(GtDBD_) +
+         static_cast<std::size_t>(mesh_.F.size()) * sizeof(int) + sparse_bytes(L_) +
+         (reg_ready_.load(std::memory_order_acquire) ? sparse_bytes(Reg_) : 0) +
+         unreferenced_.size() * sizeof(int) +
          static_cast<std::size_t>(grads_.size()) * sizeof(double) +
          static_cast<std::size_t>(areas_.size() + normals_.size()) * sizeof(double) +
          edges_.size() * sizeof(InteriorEdge) + component_.size() * sizeof(int) +
@@ -183,11 +178,14 @@ struct BetaSystem {
 };
 
 struct ConstraintSet::WideBlocks {
-  Blocks area, reg;  // same structure: K_β = (1−β)·area + β·reg, likewise (GᵀW_β)_F
+  // Same structure: K_β = (1−β)·area + β·reg (FF and FC; GtW_F is left empty, see
+  // build_system_locked).
+  Blocks area, reg;
 };
 
 ConstraintSet::ConstraintSet(std::shared_ptr<const PreparedMesh> mesh, Constraints constraints)
     : mesh_(std::move(mesh)), constraints_(std::move(constraints)) {
+  const auto open_start = std::chrono::steady_clock::now();
   const int n = mesh_->n();
   const int k = num_handles();
   if (k == 0) throw InvalidInput("constraints: at least one handle region is required");
@@ -250,10 +248,17 @@ ConstraintSet::ConstraintSet(std::shared_ptr<const PreparedMesh> mesh, Constrain
     centroids_[j] = c / static_cast<double>(constraints_.handles[j].size());
   }
 
+  open_timings_.checks_ms = std::chrono::duration<double, std::milli>(
+                              std::chrono::steady_clock::now() - open_start).count();
+
   // β = 0 is always needed: its factorization of L_FF also yields the harmonic basis.
   const auto sys0 = system(0.0);
+  open_timings_.system = last_build_timings();
+  const auto basis_start = std::chrono::steady_clock::now();
   basis_ = hdeform::harmonic_basis(mesh_->L(), *sys0->factor, free_, constrained_, block_index_,
                           region_of_, k);
+  open_timings_.basis_ms = std::chrono::duration<double, std::milli>(
+                               std::chrono::steady_clock::now() - basis_start).count();
 }
 
 ConstraintSet::~ConstraintSet() = default;
@@ -288,9 +293,12 @@ std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_
   if (raw_beta == 0.0) {
     // The Laplacian's own narrow pattern (SPEC: factoring β = 0 on the wide one is slower).
     auto t0 = Clock::now();
-    Blocks b = split(mesh_->L(), mesh_->GtA(), region_of_, block_index_, nF, nC);
+    Blocks b = split(mesh_->L(), nullptr, BlockLayout{region_of_, block_index_, nF, nC});
+    b.GtW_F = free_rows_gta(mesh_->mesh().F, mesh_->gradients(), mesh_->areas(),
+                            mesh_->vertex_triangles(), free_);
     timings.blocks_ms = ms(t0);
-    sys->factor = std::make_shared<Factorization>(b.FF);
+    // Its symbolic analysis is never reused (β > 0 has its own, wider pattern): not kept.
+    sys->factor = std::make_shared<Factorization>(b.FF, /*keep_analysis=*/false);
     sys->K_FF = std::move(b.FF);
     sys->K_FC = std::move(b.FC);
     sys->GtW_F = std::move(b.GtW_F);
@@ -298,13 +306,9 @@ std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_
     auto t0 = Clock::now();
     if (!wide_) {
       // Same structure for both parts: each is the other plus explicit zeros.
-      const SparseMatrix Lw = mesh_->L() + 0.0 * mesh_->Reg();
-      const SparseMatrix Rw = mesh_->Reg() + 0.0 * mesh_->L();
-      const SparseMatrix Aw = mesh_->GtA() + 0.0 * mesh_->GtDBD();
-      const SparseMatrix Dw = mesh_->GtDBD() + 0.0 * mesh_->GtA();
       auto w = std::make_shared<WideBlocks>();
-      w->area = split(Lw, Aw, region_of_, block_index_, nF, nC);
-      w->reg = split(Rw, Dw, region_of_, block_index_, nF, nC);
+      split_union(mesh_->L(), mesh_->Reg(), nullptr, nullptr,
+                  BlockLayout{region_of_, block_index_, nF, nC}, w->area, w->reg);
       std::lock_guard lock(mutex_);  // memory_bytes() reads wide_ under mutex_ alone
       wide_ = std::move(w);
     }
@@ -315,7 +319,11 @@ std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_
     sys->factor = factor_wide(sys->K_FF);
     t0 = Clock::now();
     sys->K_FC = combine(1.0 - raw_beta, wide_->area.FC, raw_beta, wide_->reg.FC);
-    sys->GtW_F = combine(1.0 - raw_beta, wide_->area.GtW_F, raw_beta, wide_->reg.GtW_F);
+    // (GᵀW_β)_F straight from the gradients for this β: its two parts are not kept (they
+    // would be 2 × 0.45 GB at 1M) and no n × 3m Gᵀ A or Gᵀ D₃ᵀ B₃ D₃ is formed.
+    const PreparedMesh& pm = *mesh_;
+    sys->GtW_F = assemble_wide_free_rows(pm.mesh().F, pm.gradients(), pm.areas(), pm.edges(),
+                                         pm.vertex_triangles(), free_, 1.0 - raw_beta, raw_beta);
     timings.rest_ms = ms(t0);
   }
   const Factorization::Timings& f = sys->factor->timings();
@@ -384,15 +392,16 @@ std::shared_ptr<const BetaSystem> ConstraintSet::local_system(const LocalBeta& f
     wB.segment<3>(3 * e).setConstant(
         0.5 * (field.beta[edge.tri[0]] + field.beta[edge.tri[1]]) * edge_scale);
   }
-  const SparseMatrix J = gradient_jumps(pm.G(), pm.edges());
+  const SparseMatrix G = pm.G();
+  const SparseMatrix J = gradient_jumps(G, pm.edges());
   const SparseMatrix GtW_reg =
       SparseMatrix(J.transpose()) * (wB.asDiagonal() * weighted_differences(pm.edges(), m));
   const SparseMatrix GtW = pm.GtA() * wA.asDiagonal() + GtW_reg;
   // Onto the β > 0 pattern (explicit zeros kept), so the shared analysis applies.
-  const SparseMatrix K = (GtW * pm.G()) + 0.0 * (pm.L() + pm.Reg());
+  const SparseMatrix K = (GtW * G) + 0.0 * (pm.L() + pm.Reg());
   const auto nF = static_cast<Eigen::Index>(free_.size());
   const auto nC = static_cast<Eigen::Index>(constrained_.size());
-  Blocks b = split(K, GtW, region_of_, block_index_, nF, nC);
+  Blocks b = split(K, &GtW, BlockLayout{region_of_, block_index_, nF, nC});
   auto sys = std::make_shared<BetaSystem>();
   sys->factor = factor_wide(b.FF);
   sys->K_FF = std::move(b.FF);
@@ -617,8 +626,7 @@ std::size_t ConstraintSet::memory_bytes() const {
   for (const auto& [key, fs] : by_field_)
     bytes += fs.system->memory_bytes() + static_cast<std::size_t>(fs.beta.size()) * sizeof(double);
   if (wide_)
-    bytes += 2 * (sparse_bytes(wide_->area.FF) + sparse_bytes(wide_->area.FC) +
-                  sparse_bytes(wide_->area.GtW_F));
+    bytes += 2 * (sparse_bytes(wide_->area.FF) + sparse_bytes(wide_->area.FC));
   return bytes;
 }
 

@@ -8,6 +8,7 @@
 #include "transform.h"
 #include "vertex_normals.h"
 
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <map>
@@ -30,23 +31,29 @@ struct Beta {
 // Rest-pose operators of one mesh. Immutable after create(): share it freely.
 class PreparedMesh {
  public:
-  // Validates the mesh (throws InvalidInput naming the problem) and builds G, A, L,
-  // the interior edges and the regularizer. Cost O(m) plus two sparse products.
+  // Validates the mesh (throws InvalidInput naming the problem) and builds the per-triangle
+  // gradients, areas and normals, the interior edges, L and the regularizer, straight into
+  // compressed storage on all OpenMP threads (operator_assembly.h). Cost O(m).
   static std::shared_ptr<const PreparedMesh> create(TriMesh mesh);
 
   const TriMesh& mesh() const { return mesh_; }
   int n() const { return mesh_.num_vertices(); }
   int m() const { return mesh_.num_triangles(); }
-  const SparseMatrix& G() const { return G_; }
+  // G, Gᵀ A and Gᵀ D₃ᵀ B₃ D₃ are not stored (the engine needs them only to build a local β
+  // field's system or the first β > 0 blocks): each call assembles it from the per-triangle
+  // gradients, O(m), in parallel. The same bits as the stored copies had.
+  SparseMatrix G() const;                                         // 3m × n
   const TriangleGradients& gradients() const { return grads_; }  // G's blocks, per triangle
   const Eigen::VectorXd& areas() const { return areas_; }        // a_l (units²)
   const Vertices& normals() const { return normals_; }           // n_l at rest
   const std::vector<InteriorEdge>& edges() const { return edges_; }
   const VertexTriangles& vertex_triangles() const { return vertex_triangles_; }
   const SparseMatrix& L() const { return L_; }                   // Gᵀ A G
-  const SparseMatrix& Reg() const { return Reg_; }               // Gᵀ D₃ᵀ B₃ D₃ G
-  const SparseMatrix& GtA() const { return GtA_; }               // Gᵀ A (n × 3m)
-  const SparseMatrix& GtDBD() const { return GtDBD_; }           // Gᵀ D₃ᵀ B₃ D₃ (n × 3m)
+  // Gᵀ D₃ᵀ B₃ D₃ G: only β > 0 needs it, so it is built on the first call (thread-safe; a
+  // call that builds it costs O(m) on all OpenMP threads) and kept.
+  const SparseMatrix& Reg() const;
+  SparseMatrix GtA() const;                                      // Gᵀ A (n × 3m)
+  SparseMatrix GtDBD() const;                                    // Gᵀ D₃ᵀ B₃ D₃ (n × 3m)
   double total_area() const { return total_area_; }
   // Vertices no triangle uses: kept (ids stay stable) and pinned at rest.
   const std::vector<int>& unreferenced() const { return unreferenced_; }
@@ -58,11 +65,25 @@ class PreparedMesh {
   // factor that scales the mesh to unit area. Throws InvalidInput unless 0 ≤ β < 1.
   double raw_beta(Beta beta) const;
   std::size_t memory_bytes() const;
+  // Where create() spent its time (ms, wall; docs/benchmarks.md "Session open and memory"):
+  // validation, per-triangle geometry (areas, normals, gradients), the vertex→triangle
+  // table and interior edges, L, the connected components; and Reg's build (0 until the
+  // first Reg() call, which is not part of create()).
+  struct BuildTimings {
+    double validate_ms = 0, geometry_ms = 0, edges_ms = 0, laplacian_ms = 0,
+           regularizer_ms = 0, components_ms = 0;
+  };
+  BuildTimings build_timings() const;
 
  private:
   PreparedMesh() = default;
+  BuildTimings timings_;
   TriMesh mesh_;
-  SparseMatrix G_, L_, Reg_, GtA_, GtDBD_;
+  SparseMatrix L_;
+  mutable std::once_flag reg_once_;  // Reg_ and reg_ms_ are written once, under it
+  mutable SparseMatrix Reg_;
+  mutable double reg_ms_ = 0;
+  mutable std::atomic<bool> reg_ready_{false};
   TriangleGradients grads_;
   Eigen::VectorXd areas_;
   Vertices normals_;
@@ -208,8 +229,16 @@ class ConstraintSet {
            rest_ms = 0;
   };
   BuildTimings last_build_timings() const;
+  // Where the constructor spent its time (ms, wall): the constraint checks and block
+  // indices, the β = 0 system (its BuildTimings), the harmonic basis.
+  struct OpenTimings {
+    double checks_ms = 0, basis_ms = 0;
+    BuildTimings system;
+  };
+  const OpenTimings& open_timings() const { return open_timings_; }
 
  private:
+  OpenTimings open_timings_;
   std::shared_ptr<const BetaSystem> system(double raw_beta) const;
   // Builds the system for raw β; build_mutex_ must be held (it guards wide_ and
   // wide_symbolic_, which this may create).

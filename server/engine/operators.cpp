@@ -7,12 +7,15 @@
 
 namespace hdeform {
 
+// The per-triangle loops below run on all OpenMP threads: each triangle's values depend on
+// that triangle alone, so the bits do not depend on the thread count.
 namespace {
 Eigen::Vector3d row(const Vertices& V, int i) { return V.row(i).transpose(); }
 }  // namespace
 
 Eigen::VectorXd triangle_areas(const Vertices& V, const Triangles& F) {
   Eigen::VectorXd a(F.rows());
+#pragma omp parallel for schedule(static)
   for (Eigen::Index l = 0; l < F.rows(); ++l) {
     const Eigen::Vector3d e1 = row(V, F(l, 1)) - row(V, F(l, 0));
     const Eigen::Vector3d e2 = row(V, F(l, 2)) - row(V, F(l, 0));
@@ -23,6 +26,7 @@ Eigen::VectorXd triangle_areas(const Vertices& V, const Triangles& F) {
 
 Vertices triangle_normals(const Vertices& V, const Triangles& F) {
   Vertices N(F.rows(), 3);
+#pragma omp parallel for schedule(static)
   for (Eigen::Index l = 0; l < F.rows(); ++l) {
     const Eigen::Vector3d e1 = row(V, F(l, 1)) - row(V, F(l, 0));
     const Eigen::Vector3d e2 = row(V, F(l, 2)) - row(V, F(l, 0));
@@ -33,6 +37,7 @@ Vertices triangle_normals(const Vertices& V, const Triangles& F) {
 
 TriangleGradients hat_gradients(const Vertices& V, const Triangles& F) {
   TriangleGradients grads(F.rows(), 9);
+#pragma omp parallel for schedule(static)
   for (Eigen::Index l = 0; l < F.rows(); ++l) {
     const Eigen::Vector3d x[3] = {row(V, F(l, 0)), row(V, F(l, 1)), row(V, F(l, 2))};
     const Eigen::Vector3d c = (x[1] - x[0]).cross(x[2] - x[0]);

@@ -68,12 +68,14 @@ double ms_since(std::chrono::steady_clock::time_point t0) {
 }
 }  // namespace
 
-Factorization::Factorization(const SparseMatrix& K_FF) : size_(static_cast<int>(K_FF.rows())) {
+Factorization::Factorization(const SparseMatrix& K_FF, bool keep_analysis)
+    : size_(static_cast<int>(K_FF.rows())) {
   if (size_ == 0) return;
   const auto t0 = std::chrono::steady_clock::now();
   llt_.analyzePattern(K_FF);
   check("analysis");
-  analysis_.adopt_analysis(llt_);  // before the numeric factorization fills in values
+  // Before the numeric factorization fills in values.
+  if (keep_analysis) analysis_.adopt_analysis(llt_);
   timings_.analysis_ms = ms_since(t0);
   const auto t1 = std::chrono::steady_clock::now();
   llt_.factorize(K_FF);
@@ -86,6 +88,8 @@ Factorization::Factorization(const Factorization& analysis, const SparseMatrix& 
     : size_(static_cast<int>(K_FF.rows())) {
   if (size_ == 0) return;
   const auto t0 = std::chrono::steady_clock::now();
+  if (!analysis.analysis_.factor())
+    throw std::logic_error("Factorization: the analysis was built without keep_analysis");
   llt_.adopt_analysis(analysis.analysis_);  // analysis_ is immutable: no lock needed
   timings_.analysis_ms = ms_since(t0);       // the copy of the symbolic factor
   const auto t1 = std::chrono::steady_clock::now();

@@ -48,8 +48,11 @@ class Factorization {
   // Analyse (METIS) and factorize. Throws InvalidInput if K_FF is not positive definite
   // (the constraint set leaves a part of the mesh unconstrained). A 0×0 K_FF (no free
   // vertex) is valid: nothing is factored and solve() returns an empty matrix.
-  explicit Factorization(const SparseMatrix& K_FF);
-  // Numeric factorization of K_FF reusing `analysis`'s symbolic factor (same pattern).
+  // keep_analysis: keep a copy of the symbolic analysis (the factor's integer structure) so
+  // later β can start from it; a factorization no other one will seed passes false.
+  explicit Factorization(const SparseMatrix& K_FF, bool keep_analysis = true);
+  // Numeric factorization of K_FF reusing `analysis`'s symbolic factor (same pattern);
+  // `analysis` must have been built with keep_analysis.
   Factorization(const Factorization& analysis, const SparseMatrix& K_FF);
 
   // X = K_FF⁻¹ B for n×3 column-major B and X (ld = size()); X may alias B. threads ∈
