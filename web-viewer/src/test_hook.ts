@@ -247,6 +247,7 @@ export function installTestHook({ state, client, banner, status }: App, parts: H
       easing: parts.timeline.easing,
       author: parts.timeline.author,
       playing: parts.player.playing,
+      liveMeshShown: parts.display.object?.visible ?? false,
       playTime: parts.player.playing ? parts.player.time : null,
       scrubbing: parts.scrub.active,
       posesApplied: parts.scrub.applied,
@@ -288,11 +289,18 @@ export function installTestHook({ state, client, banner, status }: App, parts: H
     sampleAnimation: async (base64: string, times: number[]) => {
       const bytes = Uint8Array.from(atob(base64), (c) => c.charCodeAt(0));
       const { scene, mesh, clip } = await loadAnimation(bytes);
-      const mixer = new THREE.AnimationMixer(scene);
-      mixer.clipAction(clip).play();
       const samples = times.map((t) => {
+        // A fresh mixer per time, played once and held at the end: with the default repeat,
+        // setTime(duration) would wrap to time 0, and a finished action would not move again.
+        const mixer = new THREE.AnimationMixer(scene);
+        const action = mixer.clipAction(clip).setLoop(THREE.LoopOnce, 1);
+        action.clampWhenFinished = true;
+        action.play();
         mixer.setTime(t);
-        return { t, influences: Array.from(mesh.morphTargetInfluences ?? []), positions: Array.from(morphedPositions(mesh)) };
+        const sample = { t, influences: Array.from(mesh.morphTargetInfluences ?? []), positions: Array.from(morphedPositions(mesh)) };
+        mixer.stopAllAction();
+        mixer.uncacheRoot(scene);
+        return sample;
       });
       return {
         duration: clip.duration,
