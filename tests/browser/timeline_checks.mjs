@@ -154,6 +154,7 @@ export async function timelineChecks({ context, base, log, check, sleep, shot, w
   const from = await hook(() => window.hdeform.rulerPoint(0.3));
   const to = await hook(() => window.hdeform.rulerPoint(1.5));
   const posesBefore = (await tl()).posesApplied;
+  const stepsBefore = (await hook(() => window.hdeform.history())).length;
   await page.mouse.move(from.x, from.y + 6);
   await page.mouse.down();
   for (let i = 1; i <= 12; i++) {
@@ -170,11 +171,14 @@ export async function timelineChecks({ context, base, log, check, sleep, shot, w
     await hook(() => window.hdeform.serverPositions()),
   ];
   const applied = (await tl()).posesApplied - posesBefore;
+  await sleep(300); // the step event
+  const newSteps = (await hook(() => window.hdeform.history())).slice(0, (await hook(() => window.hdeform.history())).length - stepsBefore);
   check(
     Math.abs(mid - 1.5) < 0.02 && tfDiff(atMid, sess) < 1e-9 && tfDiff(atMid, keyed[1].transforms) > 1e-3 && tfDiff(atMid, keyed[2].transforms) > 1e-3,
     `scrubbed to ${mid} s (${applied} poses applied on the way): the session's transforms are PoseAt(${mid}) (max |Δ| ${tfDiff(atMid, sess).toExponential(1)}), between keys 2 and 3`,
   );
   check(maxDiff(shown, solved) < 1e-6, `…and the page shows the server's shape of that pose (max |Δ| ${maxDiff(shown, solved).toExponential(1)})`);
+  check(newSteps.length === 1 && newSteps[0].kind === "MOVE" && newSteps[0].author === "Tia", `…as one history step (${newSteps.map((s) => `${s.kind} "${s.summary}"`).join(", ")})`);
   await shot(page, "timeline-02-scrubbed");
   await rulerClick(1, page, 3); // 3 px right of key 2: snaps onto it
   await settle();

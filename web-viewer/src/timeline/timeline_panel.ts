@@ -115,7 +115,7 @@ export function setupTimelinePanel(app: App, sync: Sync, editors: Editors, scrub
     easingSelect.value = String(easing);
     easingSelect.disabled = state.watchOnly;
     const noKeys = keys.length === 0;
-    play.disabled = (noKeys && !player.playing) || state.watchOnly;
+    play.disabled = !player.playing && (noKeys || busy || state.watchOnly);
     exportButton.disabled = noKeys || busy;
     setKeyButton.disabled = !editable();
   }
