@@ -38,6 +38,7 @@ import { editorChecks } from "./editor_checks.mjs";
 import { severalEditorsChecks } from "./several_editors_checks.mjs";
 import { historyChecks } from "./history_checks.mjs";
 import { weightsChecks } from "./weights_checks.mjs";
+import { timelineChecks } from "./timeline_checks.mjs";
 
 /**
  * A flat 7×5 grid (x = 0.5 i, y = 0.5 j) as GLB in two vertex blocks that both carry the
@@ -309,17 +310,19 @@ try {
   // 0. The editor's usability checks (editor_checks.mjs) and several editors in one session
   // (several_editors_checks.mjs), history and the weight preview, on sessions of their own.
   // `--only editor` stops after them.
-  const helpers = { context, base, log, check, sleep, shot, watchPage, waitLoaded, waitIdle, positions, maxDiff, artifacts };
+  const helpers = { context, base, log, check, sleep, shot, watchPage, waitLoaded, waitIdle, positions, maxDiff, artifacts, requireViewer: require };
   // `--only history` runs just the history checks (history_checks.mjs), `--only weights` just
-  // the weight preview's (weights_checks.mjs).
+  // the weight preview's (weights_checks.mjs), `--only timeline` the timeline strip's
+  // (timeline_checks.mjs).
   const only = args.only;
-  if (only !== undefined && !["editor", "history", "weights"].includes(only)) throw new Error(`--only ${only}: one of editor, history, weights`);
+  if (only !== undefined && !["editor", "history", "weights", "timeline"].includes(only)) throw new Error(`--only ${only}: one of editor, history, weights, timeline`);
   if (only === undefined || only === "editor") {
     await editorChecks(helpers);
     await severalEditorsChecks(helpers);
   }
-  if (only !== "weights") await historyChecks(helpers);
-  if (only !== "history") await weightsChecks(helpers);
+  if (only === undefined || only === "editor" || only === "history") await historyChecks(helpers);
+  if (only === undefined || only === "editor" || only === "weights") await weightsChecks(helpers);
+  if (only === undefined || only === "editor" || only === "timeline") await timelineChecks(helpers);
   if (only !== undefined) throw new StopHere();
 
   // 1. Open the cactus from the library.

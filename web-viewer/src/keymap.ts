@@ -14,6 +14,7 @@ export type KeyAction =
   | "frameAll" // Home
   | "clearSelection" // Delete / Backspace: clear the region being assigned
   | "toggleWeights" // V: the active handle's weights on the mesh (soft-selection preview)
+  | "setKey" // K: a timeline key at the playhead (Blender's "insert keyframe" is I; K is free here)
   | "help"; // ?
 
 export interface KeyInput {
@@ -62,6 +63,9 @@ export function keyAction(ev: KeyInput): KeyAction | null {
     case "v":
     case "V":
       return "toggleWeights";
+    case "k":
+    case "K":
+      return "setKey";
     case "?":
       return "help";
     default:
@@ -125,6 +129,8 @@ export const SHORTCUTS: [string, string][] = [
   ["Home", "frame everything"],
   ["Delete", "clear the region being assigned"],
   ["V", "show / hide the active handle's weights (0 = fixed, 1 = moves with it)"],
+  ["K", "timeline: set a key (every handle's pose) at the playhead"],
+  ["Delete (timeline focused)", "delete the selected key"],
   ["Ctrl+Z (⌘Z)", "undo your last change"],
   ["Ctrl+Shift+Z · Ctrl+Y", "redo it"],
   ["?", "this list"],

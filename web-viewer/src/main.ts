@@ -42,6 +42,9 @@ import { RegionMarkers } from "./viewport/region_markers";
 import { HandleGizmo } from "./viewport/handle_gizmo";
 import { MeshDisplay } from "./viewport/mesh_display";
 import { Viewport } from "./viewport/viewport";
+import { AnimationPlayer } from "./timeline/animation_player";
+import { Scrub } from "./timeline/scrub";
+import { setupTimelinePanel } from "./timeline/timeline_panel";
 
 const link = readPageLink();
 // Another link pasted over this one's fragment (same page, same query) must not leave the
@@ -72,8 +75,9 @@ const sync: Sync = new Sync({
   window: 2,
   pose: () => ({
     transforms: toProtoTransforms(state.handles, state.pivots),
-    // Several editors: only the handle this page moves, so the others' handles stay theirs.
-    handles: editors.multi ? [state.activeHandle - 1] : undefined,
+    // Several editors: only the handle this page moves, so the others' handles stay theirs
+    // (a timeline scrub moves them all: it holds them all).
+    handles: editors.multi && !scrub.allHandles ? [state.activeHandle - 1] : undefined,
     energies: state.energyMapping !== "off",
   }),
   participant: () => editors.identity.participant(),
@@ -128,7 +132,11 @@ setupPresencePanel(editors, sync);
 setupViewButtons(app, viewport);
 const weights = setupWeightsView(app);
 const outline = new HeldOutline(viewport, state);
-setupShortcuts(app, gizmo, viewport, () => weights.toggle());
+// The timeline strip: scrubbing poses the session (PoseAt → updates), Play shows the exported GLB.
+const scrub: Scrub = new Scrub(app, sync, editors, (m, e) => timeline.say(m, e));
+const player = new AnimationPlayer(viewport, display);
+const timeline = setupTimelinePanel(app, sync, editors, scrub, player);
+setupShortcuts(app, gizmo, viewport, () => weights.toggle(), () => timeline.setKey());
 setupOnboarding(app);
 setupBetaPanel(app);
 setupDisplayPanel(app, display);
@@ -147,6 +155,7 @@ setupLibraryPanel(app, loader, regions.applyConstraints);
 // One render per change; handle updates coalesced to the display frame rate.
 function frame(): void {
   sync.tick();
+  timeline.update();
   viewport.renderIfNeeded();
   requestAnimationFrame(frame);
 }
@@ -172,4 +181,7 @@ installTestHook(app, {
   snapshots,
   weights,
   outline,
+  timeline,
+  scrub,
+  player,
 });

@@ -24,6 +24,21 @@ import { StepKind } from "./gen/hdeform/v1/deform_pb";
 import type { WeightsView } from "./weights/weights_view";
 import { decodeWeights, weightRamp } from "./weights/weight_ramp";
 import type { HeldOutline } from "./viewport/held_outline";
+import type { TimelinePanel } from "./timeline/timeline_panel";
+import type { Scrub } from "./timeline/scrub";
+import type { AnimationPlayer } from "./timeline/animation_player";
+import { loadAnimation, morphedPositions } from "./timeline/animation_glb";
+import type { HandleTransform } from "./gen/hdeform/v1/deform_pb";
+
+/** A handle transform as plain numbers (the server answers every scale as a 3×3 stretch). */
+function plainTransform(t: HandleTransform) {
+  return {
+    pivot: t.pivot ? [t.pivot.x, t.pivot.y, t.pivot.z] : null,
+    translation: [t.translation?.x ?? 0, t.translation?.y ?? 0, t.translation?.z ?? 0],
+    rotation: t.rotation ? [t.rotation.w, t.rotation.x, t.rotation.y, t.rotation.z] : [1, 0, 0, 0],
+    stretch: t.scale.case === "stretch" ? [...t.scale.value.m] : t.scale.case === "axisScale" ? [t.scale.value.x, 0, 0, 0, t.scale.value.y, 0, 0, 0, t.scale.value.z] : [1, 0, 0, 0, 1, 0, 0, 0, 1],
+  };
+}
 
 declare global {
   interface Window {
@@ -48,6 +63,9 @@ export interface HookParts {
   snapshots: SnapshotsPanel;
   weights: WeightsView;
   outline: HeldOutline;
+  timeline: TimelinePanel;
+  scrub: Scrub;
+  player: AnimationPlayer;
 }
 
 export function installTestHook({ state, client, banner, status }: App, parts: HookParts): void {
@@ -220,6 +238,79 @@ export function installTestHook({ state, client, banner, status }: App, parts: H
     /** The session's handle transforms as the server has them (GetSession), translations only. */
     serverTranslations: async () => (await client.getSession({ name: state.sessionName })).transforms.map((t) => [t.translation?.x ?? 0, t.translation?.y ?? 0, t.translation?.z ?? 0]),
     serverBeta: async () => (await client.getSession({ name: state.sessionName })).beta?.value ?? 0,
+    /** The timeline strip: keys (times), selection, playhead, its note, Play. */
+    timeline: () => ({
+      keys: parts.timeline.keys.map((k) => k.timeS),
+      selected: parts.timeline.selected,
+      playhead: parts.timeline.playhead,
+      note: parts.timeline.note,
+      easing: parts.timeline.easing,
+      author: parts.timeline.author,
+      playing: parts.player.playing,
+      liveMeshShown: parts.display.object?.visible ?? false,
+      playTime: parts.player.playing ? parts.player.time : null,
+      scrubbing: parts.scrub.active,
+      posesApplied: parts.scrub.applied,
+      glbBytes: parts.timeline.lastGlbBytes,
+    }),
+    /** Client x of timeline time t on the ruler, and the ruler's vertical middle. */
+    rulerPoint: (t: number) => {
+      const r = parts.timeline.view.ruler.getBoundingClientRect();
+      return { x: parts.timeline.view.clientX(t), y: r.top + r.height / 2 };
+    },
+    /** GetTimeline: keys (time, transforms, β) and easing, as the server holds them. */
+    serverTimeline: async () => {
+      const t = await client.getTimeline({ name: state.sessionName });
+      return {
+        easing: t.easing,
+        author: t.author,
+        keys: t.keys.map((k) => ({ time: k.timeS, transforms: k.transforms.map(plainTransform), beta: k.beta ? k.beta.value : null })),
+      };
+    },
+    /** PoseAt(t): the interpolated transforms. */
+    poseAt: async (t: number) => (await client.poseAt({ name: state.sessionName, timeS: t })).transforms.map(plainTransform),
+    /** GetSession's transforms in the same form. */
+    sessionTransforms: async () => (await client.getSession({ name: state.sessionName })).transforms.map(plainTransform),
+    /**
+     * The server's exact frame of the pose at t: UpdateHandles with PoseAt(t)'s transforms (a
+     * real move of the session), positions as float32 in base-GLB order.
+     */
+    exactFrameAt: async (t: number) => {
+      const pose = await client.poseAt({ name: state.sessionName, timeS: t });
+      const f = await client.updateHandles({ name: state.sessionName, transforms: pose.transforms, clientId: parts.editors.identity.clientId });
+      const p = f.positions;
+      return Array.from(new Float32Array(p.buffer.slice(p.byteOffset, p.byteOffset + p.byteLength)));
+    },
+    /**
+     * The animation GLB (base64) played by three's AnimationMixer: at each clip time, the
+     * morph influences and the CPU positions base + Σ influence_i × target_i. Also the clip's
+     * sample times (its weights track's input).
+     */
+    sampleAnimation: async (base64: string, times: number[]) => {
+      const bytes = Uint8Array.from(atob(base64), (c) => c.charCodeAt(0));
+      const { scene, mesh, clip } = await loadAnimation(bytes);
+      const samples = times.map((t) => {
+        // A fresh mixer per time, played once and held at the end: with the default repeat,
+        // setTime(duration) would wrap to time 0, and a finished action would not move again.
+        const mixer = new THREE.AnimationMixer(scene);
+        const action = mixer.clipAction(clip).setLoop(THREE.LoopOnce, 1);
+        action.clampWhenFinished = true;
+        action.play();
+        mixer.setTime(t);
+        const sample = { t, influences: Array.from(mesh.morphTargetInfluences ?? []), positions: Array.from(morphedPositions(mesh)) };
+        mixer.stopAllAction();
+        mixer.uncacheRoot(scene);
+        return sample;
+      });
+      return {
+        duration: clip.duration,
+        clipTimes: Array.from(clip.tracks[0]?.times ?? []),
+        tracks: clip.tracks.map((k) => k.name),
+        targets: mesh.geometry.morphAttributes.position?.length ?? 0,
+        colours: !!mesh.geometry.getAttribute("color"),
+        samples,
+      };
+    },
     /** Vertex mode: the vertex under the cursor (-1: none). */
     get hoverVertex() {
       return parts.feedback.hoverVertex;

@@ -22,7 +22,7 @@ function setup(window = 1, format?: SyncOptions["format"]) {
     format,
     timing: FAST,
   });
-  const events: { [K in keyof SyncEvents]: SyncEvents[K][] } = { link: [], frame: [], state: [], error: [], clearError: [], revert: [], presence: [], step: [] };
+  const events: { [K in keyof SyncEvents]: SyncEvents[K][] } = { link: [], frame: [], state: [], error: [], clearError: [], revert: [], presence: [], step: [], timeline: [] };
   for (const k of Object.keys(events) as (keyof SyncEvents)[]) sync.on(k, (p) => (events[k] as unknown[]).push(p));
   sync.open("sessions/s");
   opened.push(sync);
@@ -431,6 +431,12 @@ describe("sync, the confirmed pose", () => {
     await until(() => steps.length > 0, "a step event");
     assert.equal(steps[0].id, 7n);
     assert.equal(steps[0].summary, "moved handle 1");
+    // Timeline events (set or cleared) come out as events too.
+    const timelines: SyncEvents["timeline"][] = [];
+    sync.on("timeline", (t) => timelines.push(t));
+    fake.streams[0].push(create(SessionEventSchema, { event: { case: "timeline", value: { keys: [{ timeS: 0 }, { timeS: 1.5 }], author: "Bob" } } }));
+    await until(() => timelines.length > 0, "a timeline event");
+    assert.deepEqual(timelines[0].keys.map((k) => k.timeS), [0, 1.5]);
   });
 
   it("whenSent: resolves once the last pose is sent and answered (a drag's release waits for it)", async () => {

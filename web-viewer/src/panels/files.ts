@@ -5,7 +5,8 @@ import type { App } from "../app";
 import { $ } from "../dom";
 import { MeshFormat, SnapshotSchema, type Session } from "../gen/hdeform/v1/deform_pb";
 
-function saveBytes(bytes: Uint8Array | string, filename: string, type: string): void {
+/** A normal browser download of `bytes` as `filename`. */
+export function saveBytes(bytes: Uint8Array | string, filename: string, type: string): void {
   const blob = new Blob([bytes as BlobPart], { type });
   const a = document.createElement("a");
   a.href = URL.createObjectURL(blob);

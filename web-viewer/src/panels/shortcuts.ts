@@ -26,7 +26,7 @@ export function frameSelection(app: App, viewport: Viewport): void {
   else viewport.frameAll();
 }
 
-export function setupShortcuts(app: App, gizmo: HandleGizmo, viewport: Viewport, toggleWeights: () => void): void {
+export function setupShortcuts(app: App, gizmo: HandleGizmo, viewport: Viewport, toggleWeights: () => void, setKey: () => void): void {
   const { state } = app;
   const overlay = $("shortcuts");
   $("shortcuts-list").innerHTML = SHORTCUTS.map(([k, what]) => `<tr><th><kbd>${k}</kbd></th><td>${what}</td></tr>`).join("");
@@ -74,6 +74,10 @@ export function setupShortcuts(app: App, gizmo: HandleGizmo, viewport: Viewport,
       }
       case "toggleWeights":
         toggleWeights();
+        break;
+      case "setKey":
+        if (!editor) return;
+        setKey();
         break;
       case "help":
         toggleHelp();

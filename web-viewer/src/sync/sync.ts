@@ -23,6 +23,7 @@ import type {
   HandleTransformSchema,
   HistoryStep,
   ParticipantSchema,
+  Timeline,
   Presence,
   Session,
   SessionEvent,
@@ -57,6 +58,8 @@ export interface SyncEvents {
   presence: Presence;
   /** A new step of the session's history (WatchSession step events). */
   step: HistoryStep;
+  /** The session's timeline was set or cleared (WatchSession timeline events; on join too). */
+  timeline: Timeline;
 }
 
 /** The pose an UpdateHandles sends, read when the request is built. */
@@ -363,6 +366,7 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
       this.emit("state", { session: ev.event.value, source: "watch", adoptTransforms: !this.busy });
     } else if (ev.event.case === "presence") this.emit("presence", ev.event.value);
     else if (ev.event.case === "step") this.emit("step", ev.event.value);
+    else if (ev.event.case === "timeline") this.emit("timeline", ev.event.value);
     this.watchEvents++;
   }
 

@@ -21,6 +21,8 @@ export class MeshDisplay {
   /** Three corners per triangle (energy map on) rather than indexed. */
   private split = false;
   private wireframe = false;
+  /** Play shows the animation in its place (timeline/animation_player.ts). */
+  private hidden = false;
   private readonly material = new THREE.MeshStandardMaterial({
     vertexColors: true,
     side: THREE.DoubleSide,
@@ -57,7 +59,14 @@ export class MeshDisplay {
 
   setWireframe(on: boolean): void {
     this.wireframe = on;
-    if (this.wire) this.wire.visible = on;
+    if (this.wire) this.wire.visible = on && !this.hidden;
+    this.viewport.requestRender();
+  }
+
+  setHidden(hidden: boolean): void {
+    this.hidden = hidden;
+    if (this.object) this.object.visible = !hidden;
+    if (this.wire) this.wire.visible = this.wireframe && !hidden;
     this.viewport.requestRender();
   }
 
@@ -77,7 +86,8 @@ export class MeshDisplay {
     this.geometry = geometry;
     this.object = new THREE.Mesh(geometry, this.material);
     this.wire = new THREE.Mesh(geometry, this.wireMaterial);
-    this.wire.visible = this.wireframe;
+    this.wire.visible = this.wireframe && !this.hidden;
+    this.object.visible = !this.hidden;
     root.add(this.object, this.wire);
     this.updatePositions();
     this.updateColours();

@@ -1,0 +1,339 @@
+// The timeline strip (issue 13, the viewer's part) in real pages with real mouse and keyboard
+// against the real server:
+//   keys — three keys set with K at three playhead times (ruler clicks), each with another pose
+//     (a gizmo drag, typed-in values): GetTimeline has them, times and transforms;
+//   scrub — dragging the playhead to a mid time makes the session's transforms PoseAt(t);
+//     a click a few px from a key snaps onto it;
+//   live — a second editor sees the keys on join and a new key live; Delete removes it for both;
+//   export — the downloaded SESSIONID-animation.glb passes the Khronos glTF validator (0 errors;
+//     warnings reported), energies off and on;
+//   mixer — three.js's AnimationMixer on that GLB: at sample times the morphed positions equal the
+//     server's exact frame of PoseAt(t_k) (UpdateHandles), in between the linear blend of the
+//     two neighbouring samples;
+//   play — Play shows the animation (two canvas shots differ), Stop returns to the live mesh;
+//   clear — new constraints empty the strip on both pages, with a note;
+//   bad input — fps 500 and 721 frames (> --max-animation-frames 600) show the server's message.
+// Screenshots `timeline-*.png`. Against a server without GetTimeline: SKIP, nothing checked.
+import { readFileSync } from "node:fs";
+
+export async function timelineChecks({ context, base, log, check, sleep, shot, watchPage, waitLoaded, waitIdle, positions, maxDiff, requireViewer }) {
+  const page = await context.newPage();
+  watchPage(page, "timeline");
+  await page.setViewportSize({ width: 1400, height: 860 });
+  await page.goto(base);
+  await page.fill("#display-name", "Tia");
+  await page.press("#display-name", "Tab");
+  await page.waitForSelector('#library option[value="cactus"]', { state: "attached", timeout: 30_000 });
+  await page.selectOption("#library", "cactus");
+  await page.click("#open-library");
+  await waitLoaded(page, "timeline");
+  const hook = (fn, arg) => page.evaluate(fn, arg);
+  const name = await hook(() => window.hdeform.sessionName);
+  const id = name.replace(/^sessions\//, "");
+  const probe = await hook((n) => window.hdeform.call("getTimeline", { name: n }), name);
+  if (/unimplemented/i.test(probe.code)) {
+    log(`SKIP timeline: this hdeform-server has no GetTimeline (${probe.code}: ${probe.message})`);
+    await page.close();
+    return false;
+  }
+  const tl = () => hook(() => window.hdeform.timeline());
+  const unfocus = () => page.click("#panel h3 >> nth=0");
+  const rulerClick = async (t, p = page, dx = 0) => {
+    const r = await p.evaluate((tt) => window.hdeform.rulerPoint(tt), t);
+    await p.mouse.click(r.x + dx, r.y + 6); // below the key markers: the ruler itself
+  };
+  const settle = async (p = page) => {
+    await p.waitForFunction(() => !window.hdeform.timeline().scrubbing, null, { timeout: 15_000 });
+    await waitIdle(p);
+  };
+  // Transforms compared as numbers; a quaternion and its negative are the same rotation.
+  const tfDiff = (a, b) => {
+    if (!a || !b || a.length !== b.length) return Infinity;
+    let d = 0;
+    a.forEach((x, h) => {
+      const y = b[h];
+      const qd = Math.min(maxDiff(x.rotation, y.rotation), maxDiff(x.rotation, y.rotation.map((v) => -v)));
+      d = Math.max(d, maxDiff(x.translation, y.translation), qd, maxDiff(x.stretch, y.stretch));
+    });
+    return d;
+  };
+
+  // Regions: fixed bottom, handle 1 the top, handle 2 a side slab.
+  const [bmin, bmax] = await hook(() => window.hdeform.bbox());
+  const diag = Math.hypot(...bmax.map((v, k) => v - bmin[k]));
+  const up = bmax[2] - bmin[2] >= bmax[1] - bmin[1] ? 2 : 1;
+  const h = bmax[up] - bmin[up];
+  const slab = (from, to, side) => {
+    const lo = bmin.map((v) => v - 1), hi = bmax.map((v) => v + 1);
+    lo[up] = bmin[up] + from * h;
+    hi[up] = bmin[up] + to * h;
+    if (side) lo[0] = bmax[0] - 0.25 * (bmax[0] - bmin[0]);
+    return [lo, hi];
+  };
+  await hook(([a, b]) => window.hdeform.selectBox(a, b, 0), slab(-0.01, 0.1));
+  await hook(([a, b]) => window.hdeform.selectBox(a, b, 1), slab(0.9, 1.01));
+  await hook(([a, b]) => window.hdeform.selectBox(a, b, 2), slab(0.45, 0.65, true));
+  await page.click("#apply");
+  await page.waitForFunction(() => window.hdeform.constraintsApplied && window.hdeform.framesApplied > 0, null, { timeout: 60_000 });
+  await waitIdle(page);
+  await page.click('button[data-mode="move"]');
+  await sleep(200);
+
+  const strip = await page.locator("#timeline").boundingBox();
+  const canvas = await page.locator("#viewport canvas").boundingBox();
+  check(
+    strip && canvas && Math.abs(strip.y + strip.height - (canvas.y + canvas.height)) < 1.5 && strip.height < 80 && (await page.isVisible("#tl-setkey")),
+    `the strip runs along the bottom of the canvas (${strip?.height.toFixed(0)} px high, canvas ${canvas?.width.toFixed(0)}×${canvas?.height.toFixed(0)})`,
+  );
+  const rows = await page.$$eval("#shortcuts-list tr", (trs) => trs.map((tr) => [tr.querySelector("kbd")?.textContent, tr.querySelector("td")?.textContent]));
+  check(rows.some(([k, what]) => k === "K" && /set a key/.test(what)), "the ? overlay lists K (set a key)");
+
+  // ---- three keys ------------------------------------------------------------------------------
+  const dragArrow = async (px, axis = "x") => {
+    const c = await hook(() => window.hdeform.gizmoScreenPoint());
+    const a = await hook((ax) => window.hdeform.gizmoScreenPoint(ax), axis);
+    const len = Math.hypot(a.x - c.x, a.y - c.y);
+    await page.mouse.move(a.x, a.y);
+    await sleep(50);
+    await page.mouse.down();
+    for (let i = 1; i <= 8; i++) {
+      await page.mouse.move(a.x + ((a.x - c.x) / len) * px * (i / 8), a.y + ((a.y - c.y) / len) * px * (i / 8));
+      await sleep(40);
+    }
+    await page.mouse.up();
+    await waitIdle(page);
+  };
+  const keyed = []; // { time, transforms } as the session had them when K was pressed
+  const setKeyWithK = async (what) => {
+    const before = (await tl()).keys.length;
+    const session = await hook(() => window.hdeform.sessionTransforms());
+    const t = (await tl()).playhead;
+    await page.keyboard.press("k");
+    await page.waitForFunction((n) => window.hdeform.timeline().keys.length > n, before, { timeout: 10_000 }).catch(() => {});
+    keyed.push({ time: t, transforms: session, what });
+  };
+  await rulerClick(0);
+  await settle();
+  await setKeyWithK("rest");
+  await rulerClick(1);
+  await settle();
+  await dragArrow(60); // (a click on the ruler now would pose the handles at key 1 again)
+  await setKeyWithK("handle 1 dragged along x");
+  await rulerClick(2);
+  await settle();
+  // Typed-in values: handle 1 up and turned, then handle 2 dragged.
+  await page.fill("#tf-tz", "0.25");
+  await page.keyboard.press("Enter");
+  await page.fill("#tf-rx", "30");
+  await page.keyboard.press("Enter");
+  await page.waitForFunction(async () => Math.abs((await window.hdeform.sessionTransforms())[0].rotation[1]) > 0.1, null, { timeout: 10_000, polling: 200 }).catch(() => {});
+  await waitIdle(page);
+  await page.selectOption("#active-handle", "2");
+  await sleep(200);
+  await dragArrow(-50, "y");
+  await page.selectOption("#active-handle", "1");
+  await unfocus();
+  await setKeyWithK("handle 1 typed (z 0.25, 30° about x), handle 2 dragged");
+  await shot(page, "timeline-01-three-keys");
+  const server = await hook(() => window.hdeform.serverTimeline());
+  const times = server.keys.map((k) => k.time);
+  const tDiffs = keyed.map((k, i) => Math.abs((times[i] ?? Infinity) - k.time));
+  const trDiffs = keyed.map((k, i) => tfDiff(server.keys[i]?.transforms, k.transforms));
+  const distinct = Math.min(tfDiff(keyed[0].transforms, keyed[1].transforms), tfDiff(keyed[1].transforms, keyed[2].transforms));
+  check(
+    server.keys.length === 3 && Math.max(...tDiffs) === 0 && Math.abs(times[1] - 1) < 0.02 && Math.abs(times[2] - 2) < 0.02 && times[0] === 0 && server.author === "Tia",
+    `K three times: GetTimeline has 3 keys at ${JSON.stringify(times)} s (the playhead's times), set by ${server.author}`,
+  );
+  check(Math.max(...trDiffs) < 1e-9 && distinct > 1e-3, `…each with the session's transforms when K was pressed (max |Δ| ${Math.max(...trDiffs).toExponential(1)}; poses differ by ≥ ${distinct.toFixed(3)})`);
+  check(
+    (await page.$$eval(".tl-key", (els) => els.length)) === 3 && JSON.stringify((await tl()).keys) === JSON.stringify(times),
+    "the strip shows the 3 keys as markers",
+  );
+
+  // ---- scrub --------------------------------------------------------------------------------------
+  const from = await hook(() => window.hdeform.rulerPoint(0.3));
+  const to = await hook(() => window.hdeform.rulerPoint(1.5));
+  const posesBefore = (await tl()).posesApplied;
+  const stepsBefore = (await hook(() => window.hdeform.history())).length;
+  await page.mouse.move(from.x, from.y + 6);
+  await page.mouse.down();
+  for (let i = 1; i <= 12; i++) {
+    await page.mouse.move(from.x + ((to.x - from.x) * i) / 12, from.y + 6);
+    await sleep(40);
+  }
+  await page.mouse.up();
+  await settle();
+  const mid = (await tl()).playhead;
+  const [atMid, sess, shown, solved] = [
+    await hook((t) => window.hdeform.poseAt(t), mid),
+    await hook(() => window.hdeform.sessionTransforms()),
+    await positions(page),
+    await hook(() => window.hdeform.serverPositions()),
+  ];
+  const applied = (await tl()).posesApplied - posesBefore;
+  await sleep(300); // the step event
+  const newSteps = (await hook(() => window.hdeform.history())).slice(0, (await hook(() => window.hdeform.history())).length - stepsBefore);
+  check(
+    Math.abs(mid - 1.5) < 0.02 && tfDiff(atMid, sess) < 1e-9 && tfDiff(atMid, keyed[1].transforms) > 1e-3 && tfDiff(atMid, keyed[2].transforms) > 1e-3,
+    `scrubbed to ${mid} s (${applied} poses applied on the way): the session's transforms are PoseAt(${mid}) (max |Δ| ${tfDiff(atMid, sess).toExponential(1)}), between keys 2 and 3`,
+  );
+  check(maxDiff(shown, solved) < 1e-6, `…and the page shows the server's shape of that pose (max |Δ| ${maxDiff(shown, solved).toExponential(1)})`);
+  check(newSteps.length === 1 && newSteps[0].kind === "MOVE" && newSteps[0].author === "Tia", `…as one history step (${newSteps.map((s) => `${s.kind} "${s.summary}"`).join(", ")})`);
+  await shot(page, "timeline-02-scrubbed");
+  await rulerClick(1, page, 3); // 3 px right of key 2: snaps onto it
+  await settle();
+  const snapped = await tl();
+  check(snapped.playhead === times[1] && snapped.selected === 1, `a click 3 px from key 2 snaps the playhead onto it (${snapped.playhead} s) and selects its marker`);
+
+  // ---- a second editor: keys on join, a new key live, Delete ------------------------------------------
+  const bob = await context.newPage();
+  watchPage(bob, "timeline-bob");
+  await bob.setViewportSize({ width: 1100, height: 760 });
+  await bob.goto(await hook(() => window.hdeform.shareLink(false)));
+  await waitLoaded(bob, "timeline-bob");
+  await bob.waitForFunction((n) => window.hdeform.timeline().keys.length === n, 3, { timeout: 10_000 }).catch(() => {});
+  check(JSON.stringify((await bob.evaluate(() => window.hdeform.timeline())).keys) === JSON.stringify(times), "a second editor's page shows the 3 keys on opening");
+  await rulerClick(3);
+  await settle();
+  await setKeyWithK("at 3 s");
+  const live = await bob.waitForFunction(() => window.hdeform.timeline().keys.length === 4, null, { timeout: 10_000 }).then(() => true, () => false);
+  check(live, `Tia's 4th key appears on Bob's strip live (${JSON.stringify((await bob.evaluate(() => window.hdeform.timeline())).keys)})`);
+  await shot(bob, "timeline-03-bob-sees-key");
+  // Select the marker with the mouse, Delete with the strip focused.
+  const marker = await page.locator('.tl-key[data-index="3"]').boundingBox();
+  await page.mouse.click(marker.x + marker.width / 2, marker.y + marker.height / 2);
+  await settle();
+  const sel = await tl();
+  await page.keyboard.press("Delete");
+  await page.waitForFunction(() => window.hdeform.timeline().keys.length === 3, null, { timeout: 10_000 }).catch(() => {});
+  const bobGone = await bob.waitForFunction(() => window.hdeform.timeline().keys.length === 3, null, { timeout: 10_000 }).then(() => true, () => false);
+  const afterDelete = await hook(() => window.hdeform.serverTimeline());
+  check(sel.selected === 3 && afterDelete.keys.length === 3 && bobGone && (await hook(() => window.hdeform.labels().length)) > 0, `a click on the 4th marker selects it; Delete removes it (server: ${afterDelete.keys.length} keys; Bob's strip too; the regions stay)`);
+
+  // ---- export: the Khronos glTF validator, energies off and on -----------------------------------------
+  const validator = requireViewer("gltf-validator");
+  const exportGlb = async (what) => {
+    const [download] = await Promise.all([page.waitForEvent("download", { timeout: 60_000 }), page.click("#tl-export")]);
+    const bytes = readFileSync(await download.path());
+    const report = await validator.validateBytes(new Uint8Array(bytes));
+    const { numErrors, numWarnings, numInfos } = report.issues;
+    const warnings = report.issues.messages.filter((m) => m.severity === 1).map((m) => `${m.code} ${m.pointer ?? ""}`);
+    check(
+      download.suggestedFilename() === `${id}-animation.glb` && numErrors === 0 && bytes.length > 1000,
+      `Export (${what}) downloads ${download.suggestedFilename()} (${(bytes.length / 1024).toFixed(0)} KiB): glTF validator ${numErrors} errors, ${numWarnings} warnings${warnings.length ? ` (${[...new Set(warnings)].slice(0, 4).join("; ")})` : ""}, ${numInfos} infos`,
+    );
+    if (numErrors > 0) log(JSON.stringify(report.issues.messages.filter((m) => m.severity === 0).slice(0, 5)));
+    return bytes;
+  };
+  const glb = await exportGlb("energies off");
+  await page.selectOption("#energy-map", "linear");
+  await waitIdle(page);
+  const glbE = await exportGlb("energies on");
+  const withColours = await hook(([b]) => window.hdeform.sampleAnimation(b, [0]), [glbE.toString("base64")]);
+  check(withColours.colours && !(await hook(([b]) => window.hdeform.sampleAnimation(b, [0]), [glb.toString("base64")])).colours, "…the energies export has COLOR_0, the other none");
+  await page.selectOption("#energy-map", "off");
+  await waitIdle(page);
+
+  // ---- three.js AnimationMixer vs the server's frames ---------------------------------------------------
+  const b64 = glb.toString("base64");
+  const info = await hook(([b]) => window.hdeform.sampleAnimation(b, []), [b64]);
+  const ct = info.clipTimes;
+  const offset = ct[0] === 0 ? times[0] : 0; // clip time 0 = the first key's time
+  const K = ct.length;
+  const picks = [0, 1, Math.floor(K / 3), Math.floor(K / 2), K - 2, K - 1];
+  const between = [[1, 0.5], [Math.floor(K / 2), 0.3], [K - 2, 0.75]];
+  const sampleTimes = [...picks.map((k) => ct[k]), ...between.map(([k, a]) => ct[k] + a * (ct[k + 1] - ct[k]))];
+  const mixed = await hook(([b, ts]) => window.hdeform.sampleAnimation(b, ts), [b64, sampleTimes]);
+  const frames = new Map();
+  const frameOf = async (k) => {
+    if (!frames.has(k)) frames.set(k, await hook((t) => window.hdeform.exactFrameAt(t), offset + ct[k]));
+    return frames.get(k);
+  };
+  let worstSample = 0, worstBetween = 0, oneHot = true;
+  const perSample = [];
+  for (let i = 0; i < picks.length; i++) {
+    const k = picks[i];
+    const d = maxDiff(mixed.samples[i].positions, await frameOf(k)) / diag;
+    perSample.push(d.toExponential(1));
+    worstSample = Math.max(worstSample, d);
+    const w = mixed.samples[i].influences;
+    const want = w.map((_, j) => (j === k - 1 ? 1 : 0)); // frame 0 is the base mesh: no target
+    if (maxDiff(w, want) > 1e-6) oneHot = false;
+  }
+  for (let i = 0; i < between.length; i++) {
+    const [k, a] = between[i];
+    const [p0, p1] = [await frameOf(k), await frameOf(k + 1)];
+    const blend = p0.map((v, j) => (1 - a) * v + a * p1[j]);
+    worstBetween = Math.max(worstBetween, maxDiff(mixed.samples[picks.length + i].positions, blend) / diag);
+  }
+  check(
+    K >= 2 && info.targets === K - 1 && Math.abs(info.duration - (times[2] - times[0])) < 1e-6 && oneHot,
+    `the GLB: ${K} samples (${info.targets} morph targets + the base mesh), ${info.duration.toFixed(3)} s, weights one-hot at the sample times`,
+  );
+  check(
+    worstSample < 1e-5,
+    `AnimationMixer.setTime at ${picks.length} sample times (${picks.map((k) => (offset + ct[k]).toFixed(3)).join(", ")} s): base + Σ influence × target = the server's exact frame of PoseAt(t) (max |Δ| ${worstSample.toExponential(2)} × bbox diagonal; each: ${perSample.join(", ")})`,
+  );
+  check(worstBetween < 1e-5, `…at ${between.length} in-between times: the linear blend of the two neighbouring samples (max |Δ| ${worstBetween.toExponential(2)} × bbox diagonal)`);
+  await waitIdle(page);
+
+  // ---- Play / Stop ----------------------------------------------------------------------------------------
+  await page.click("#tl-play");
+  await page.waitForFunction(() => window.hdeform.timeline().playing, null, { timeout: 60_000 }).catch(() => {});
+  const canvasShot = () => page.locator("#viewport canvas").screenshot();
+  await sleep(300);
+  const t1 = (await tl()).playTime;
+  const s1 = await canvasShot();
+  await sleep(700);
+  const t2 = (await tl()).playTime;
+  const s2 = await canvasShot();
+  await shot(page, "timeline-04-playing");
+  const playing = await tl();
+  check(playing.playing && !playing.liveMeshShown && t1 !== t2 && !s1.equals(s2) && (await page.textContent("#tl-play")) === "Stop", `Play: the animation plays in place of the live mesh (time ${t1?.toFixed(2)} → ${t2?.toFixed(2)} s, playhead ${playing.playhead.toFixed(2)}; two canvas shots differ)`);
+  await page.click("#tl-play");
+  await sleep(300);
+  const stopped = await tl();
+  const liveShape = await positions(page);
+  const serverShape = await hook(() => window.hdeform.serverPositions());
+  check(!stopped.playing && stopped.liveMeshShown && (await page.textContent("#tl-play")) === "Play" && maxDiff(liveShape, serverShape) < 1e-6, "Stop returns to the live mesh (shown again, the server's current shape)");
+  await shot(page, "timeline-05-stopped");
+
+  // ---- new constraints clear the strip (both pages) ------------------------------------------------------------
+  await hook(([a, b]) => window.hdeform.selectBox(a, b, 2), slab(0.35, 0.65, true));
+  await page.click("#apply");
+  await waitIdle(page);
+  const cleared = await page.waitForFunction(() => window.hdeform.timeline().keys.length === 0, null, { timeout: 10_000 }).then(() => true, () => false);
+  const bobCleared = await bob.waitForFunction(() => window.hdeform.timeline().keys.length === 0, null, { timeout: 10_000 }).then(() => true, () => false);
+  const notes = [(await tl()).note, await bob.evaluate(() => window.hdeform.timeline().note)];
+  check(cleared && bobCleared && notes.every((n) => /cleared/.test(n) && /constraints/.test(n)), `new constraints clear the strip on both pages, with a note ("${notes[1]}")`);
+  await shot(bob, "timeline-06-cleared");
+  await bob.close();
+
+  // ---- bad input: the server's message inline -------------------------------------------------------------------
+  await page.click('button[data-mode="move"]');
+  await rulerClick(0);
+  await settle();
+  await page.keyboard.press("k");
+  await rulerClick(4.9);
+  await settle();
+  await page.keyboard.press("k");
+  await page.waitForFunction(() => window.hdeform.timeline().keys.length === 2, null, { timeout: 10_000 }).catch(() => {});
+  await page.fill("#tl-fps", "500");
+  await page.click("#tl-export");
+  await page.waitForFunction(() => /failed/.test(window.hdeform.timeline().note), null, { timeout: 15_000 }).catch(() => {});
+  const fpsNote = (await tl()).note;
+  const fpsShown = await page.isVisible("#tl-note");
+  check(/fps/.test(fpsNote) && /InvalidArgument/.test(fpsNote) && fpsShown, `fps 500: the strip shows the server's message ("${fpsNote}")`);
+  await rulerClick(6.5);
+  await settle();
+  await page.keyboard.press("k");
+  await page.waitForFunction(() => window.hdeform.timeline().keys.length === 3, null, { timeout: 10_000 }).catch(() => {});
+  await page.fill("#tl-fps", "120");
+  await page.click("#tl-play");
+  await page.waitForFunction(() => /failed/.test(window.hdeform.timeline().note), null, { timeout: 15_000 }).catch(() => {});
+  const framesNote = (await tl()).note;
+  check(/ResourceExhausted/.test(framesNote) && /max-animation-frames/.test(framesNote) && !(await tl()).playing, `${(await tl()).keys.at(-1)} s at 120 fps (> 600 frames): Play shows the server's message ("${framesNote}")`);
+  await shot(page, "timeline-07-too-many-frames");
+  await page.close();
+  return true;
+}

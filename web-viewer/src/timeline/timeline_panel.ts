@@ -1,0 +1,329 @@
+// The timeline strip along the bottom of the viewport: the session's keys (GetTimeline, then
+// live from SessionEvent.timeline), the playhead and its time; for editors Set key (K), Delete
+// key, easing, scrubbing (scrub.ts), Play (the exported GLB in the viewport) and Export (the same
+// GLB as a download). Every change sends the whole edited key list (SetTimeline). Watch pages
+// see the keys and move their own playhead; they change nothing (the calls need the edit token).
+import { Code, ConnectError } from "@connectrpc/connect";
+import type { MessageInitShape } from "@bufbuild/protobuf";
+import { describeError } from "../api";
+import type { App } from "../app";
+import { $ } from "../dom";
+import { Easing, type KeyframeSchema, type Timeline } from "../gen/hdeform/v1/deform_pb";
+import type { Editors } from "../multi/editors";
+import { saveBytes } from "../panels/files";
+import type { Sync } from "../sync/sync";
+import { toProtoTransforms } from "../transforms";
+import { fetchAnimation } from "./animation_glb";
+import type { AnimationPlayer } from "./animation_player";
+import { deleteKey, keyAt, setKey } from "./key_list";
+import type { Scrub } from "./scrub";
+import { StripView } from "./strip_view";
+
+type Key = MessageInitShape<typeof KeyframeSchema> & { timeS: number };
+
+export interface TimelinePanel {
+  readonly keys: readonly Key[];
+  readonly easing: Easing;
+  readonly author: string;
+  readonly selected: number;
+  readonly playhead: number;
+  readonly note: string;
+  readonly view: StripView;
+  /** The last GLB Play or Export fetched (tests compare it with the download). */
+  readonly lastGlbBytes: number;
+  setKey(): void;
+  /** An inline message in the strip (error: in red). */
+  say(message: string, error?: boolean): void;
+  /** Once per animation frame: the playing animation and the playhead that follows it. */
+  update(): void;
+}
+
+function kib(n: number): string {
+  return n >= 1 << 20 ? `${(n / (1 << 20)).toFixed(1)} MiB` : `${(n / 1024).toFixed(0)} KiB`;
+}
+
+export function setupTimelinePanel(app: App, sync: Sync, editors: Editors, scrub: Scrub, player: AnimationPlayer): TimelinePanel {
+  const { state, client } = app;
+  const strip = $("timeline");
+  const viewportEl = $("viewport");
+  const play = $<HTMLButtonElement>("tl-play");
+  const setKeyButton = $<HTMLButtonElement>("tl-setkey");
+  const delKey = $<HTMLButtonElement>("tl-delkey");
+  const keyBeta = $<HTMLInputElement>("tl-keybeta");
+  const easingSelect = $<HTMLSelectElement>("tl-easing");
+  const fps = $<HTMLInputElement>("tl-fps");
+  const exportButton = $<HTMLButtonElement>("tl-export");
+  const noteEl = $("tl-note");
+  let keys: Key[] = [];
+  let easing = Easing.LINEAR;
+  let author = "";
+  let selected = -1;
+  let note = "";
+  let lastGlbBytes = 0;
+  let shownFor = "";
+  // The newest history step seen: a clear that new constraints caused comes right after their
+  // step, at its version (SetTimeline itself makes no step).
+  let lastStep: { version: bigint; author: string } | null = null;
+  let beforePlay = 0; // the playhead where Play started (Stop puts it back)
+  let busy = false; // an export or SetTimeline in flight
+
+  const say = (message: string, error = false) => {
+    note = message;
+    noteEl.textContent = message;
+    noteEl.title = message;
+    noteEl.classList.toggle("err", error);
+    noteEl.classList.toggle("hidden", !message);
+  };
+
+  const view = new StripView({
+    selectKey: (i) => {
+      if (player.playing) stopPlaying();
+      selected = i;
+      render();
+      const t = keys[i]?.timeS ?? 0;
+      view.setPlayhead(t);
+      if (canScrub()) {
+        scrub.start(t);
+        void scrub.end(t);
+      }
+    },
+    scrubStart: (t) => {
+      if (player.playing) stopPlaying();
+      selected = keyAt(keys, t);
+      render();
+      view.setPlayhead(t);
+      if (canScrub()) scrub.start(t);
+    },
+    scrub: (t) => {
+      view.setPlayhead(t);
+      scrub.move(t);
+    },
+    scrubEnd: (t) => {
+      view.setPlayhead(t);
+      selected = keyAt(keys, t);
+      render();
+      void scrub.end(t);
+    },
+  });
+
+  const editable = () => !state.watchOnly && !!state.sessionName && state.constraintsApplied && !state.labelsDirty;
+  const canScrub = () => editable() && keys.length > 0;
+
+  function render(): void {
+    view.setKeys(keys.map((k) => k.timeS), selected);
+    delKey.disabled = selected < 0 || !editable();
+    easingSelect.value = String(easing);
+    easingSelect.disabled = state.watchOnly;
+    const noKeys = keys.length === 0;
+    play.disabled = !player.playing && (noKeys || busy || state.watchOnly);
+    exportButton.disabled = noKeys || busy;
+    setKeyButton.disabled = !editable();
+  }
+
+  const adopt = (timeline: Timeline, from: "get" | "watch" | "set") => {
+    if (from === "watch" && timeline.keys.length === 0 && keys.length > 0) {
+      say(
+        lastStep && lastStep.version === timeline.version
+          ? `Timeline cleared: ${lastStep.author || "someone"} changed the constraints (keys hold one pose per handle).`
+          : `Timeline cleared by ${timeline.author || "another editor"}.`,
+      );
+    } else if (from === "watch" && timeline.keys.length > 0) say("");
+    const selectedTime = keys[selected]?.timeS;
+    keys = timeline.keys.map((k) => k as Key);
+    easing = timeline.easing;
+    author = timeline.author;
+    selected = selectedTime === undefined ? -1 : keyAt(keys, selectedTime);
+    render();
+  };
+
+  const load = async () => {
+    const name = state.sessionName;
+    if (!name) return;
+    try {
+      const t = await client.getTimeline({ name });
+      if (name === state.sessionName) adopt(t, "get");
+    } catch (err) {
+      // A server without timelines: the strip stays empty and says why.
+      if (name === state.sessionName) say(`Timeline: ${describeError(err)}`, true);
+    }
+  };
+
+  const save = async (next: Key[], nextEasing: Easing, what: string) => {
+    const name = state.sessionName;
+    busy = true;
+    render();
+    try {
+      const t = await client.setTimeline({
+        name,
+        timeline: { keys: next, easing: nextEasing },
+        clientId: editors.identity.clientId,
+        expectedConfigVersion: state.session?.configVersion ?? 0n,
+      });
+      if (name !== state.sessionName) return;
+      adopt(t, "set");
+      say(what);
+    } catch (err) {
+      if (err instanceof ConnectError && err.code === Code.Aborted) {
+        say(`Not saved: someone else changed the constraints or β first (${describeError(err)}).`, true);
+        await load();
+      } else say(`Timeline not saved: ${describeError(err)}`, true);
+    } finally {
+      busy = false;
+      render();
+    }
+  };
+
+  const doSetKey = () => {
+    if (!editable()) {
+      if (!state.watchOnly && state.sessionName) say("Apply constraints first: a key holds every handle's pose.", true);
+      return;
+    }
+    const t = view.playhead;
+    const key: Key = { timeS: t, transforms: toProtoTransforms(state.handles, state.pivots) };
+    if (keyBeta.checked) key.beta = { value: state.beta.value, units: state.beta.units };
+    const next = setKey(keys, key);
+    selected = keyAt(next, t);
+    void save(next, easing, `Key at ${t.toFixed(3)} s set.`);
+  };
+
+  const doDeleteKey = () => {
+    if (selected < 0 || !editable()) return;
+    const t = keys[selected].timeS;
+    const next = deleteKey(keys, selected);
+    selected = -1;
+    void save(next, easing, `Key at ${t.toFixed(3)} s deleted.`);
+  };
+
+  const exportGlb = async (label: string): Promise<Uint8Array | null> => {
+    const name = state.sessionName;
+    busy = true;
+    render();
+    say(`${label}: exporting…`);
+    try {
+      const bytes = await fetchAnimation(client, name, { fps: Number(fps.value), energies: state.energyMapping !== "off" }, (n) =>
+        say(`${label}: exporting… ${kib(n)}`),
+      );
+      lastGlbBytes = bytes.byteLength;
+      return name === state.sessionName ? bytes : null;
+    } catch (err) {
+      // RESOURCE_EXHAUSTED (too many frames or bytes), a bad fps, no timeline: the server says which.
+      say(`${label} failed: ${describeError(err)}`, true);
+      return null;
+    } finally {
+      busy = false;
+      render();
+    }
+  };
+
+  function stopPlaying(): void {
+    player.stop();
+    play.textContent = "Play";
+    view.setPlayhead(beforePlay);
+    render();
+  }
+
+  play.addEventListener("click", async () => {
+    if (player.playing) return stopPlaying();
+    scrub.cancel();
+    beforePlay = view.playhead;
+    const bytes = await exportGlb("Play");
+    if (!bytes || keys.length === 0) return;
+    try {
+      await player.play(bytes, keys[0].timeS);
+      play.textContent = "Stop";
+      say(`Playing ${kib(bytes.byteLength)} (${fps.value} fps); Stop returns to the live mesh.`);
+      render();
+    } catch (err) {
+      say(`Play failed: ${describeError(err)}`, true);
+    }
+  });
+  exportButton.addEventListener("click", async () => {
+    const bytes = await exportGlb("Export");
+    if (!bytes) return;
+    const id = state.sessionName.replace(/^sessions\//, "");
+    saveBytes(bytes, `${id}-animation.glb`, "model/gltf-binary");
+    say(`Exported ${id}-animation.glb (${kib(bytes.byteLength)}).`);
+  });
+  setKeyButton.addEventListener("click", doSetKey);
+  delKey.addEventListener("click", doDeleteKey);
+  easingSelect.addEventListener("change", () => {
+    const next = Number(easingSelect.value) as Easing;
+    if (keys.length === 0) {
+      easing = next;
+      return;
+    }
+    void save(keys, next, `Easing: ${Easing[next].toLowerCase()}.`);
+  });
+  // Delete / Backspace while the strip has the focus: the selected key (not the region, which
+  // the same keys clear elsewhere: panels/shortcuts.ts never sees them).
+  strip.addEventListener("keydown", (ev) => {
+    if ((ev.key === "Delete" || ev.key === "Backspace") && (ev.target === strip || !/INPUT|SELECT/.test((ev.target as HTMLElement).tagName))) {
+      if (selected >= 0) {
+        ev.preventDefault();
+        ev.stopPropagation();
+        doDeleteKey();
+      }
+    }
+  });
+  // A press on the ruler gives the strip the focus (so Delete means the key).
+  view.ruler.addEventListener("pointerdown", () => strip.focus({ preventScroll: true }));
+
+  state.on("mesh", () => {
+    strip.classList.remove("hidden");
+    viewportEl.classList.add("with-timeline");
+    view.render();
+  });
+  state.on("session", () => {
+    render();
+    if (state.sessionName === shownFor) return;
+    shownFor = state.sessionName;
+    scrub.cancel();
+    if (player.playing) stopPlaying();
+    keys = [];
+    selected = -1;
+    say("");
+    view.setPlayhead(0);
+    render();
+    void load();
+  });
+  state.on("labels", render);
+  sync.on("timeline", (t) => adopt(t, "watch"));
+  sync.on("step", (step) => (lastStep = { version: step.version, author: step.author }));
+  // Timeline events may have been missed while away.
+  sync.on("state", ({ source }) => {
+    if (source === "resync") void load();
+  });
+  render();
+
+  return {
+    get keys() {
+      return keys;
+    },
+    get easing() {
+      return easing;
+    },
+    get author() {
+      return author;
+    },
+    get selected() {
+      return selected;
+    },
+    get playhead() {
+      return view.playhead;
+    },
+    get note() {
+      return note;
+    },
+    get lastGlbBytes() {
+      return lastGlbBytes;
+    },
+    view,
+    setKey: doSetKey,
+    say,
+    update: () => {
+      if (!player.playing) return;
+      player.update();
+      view.setPlayhead(player.time);
+    },
+  };
+}
