@@ -1,21 +1,13 @@
 #include "keyframes.h"
 
+#include "format_number.h"
 #include "mesh.h"
 
 #include <algorithm>
-#include <charconv>
 #include <cmath>
 #include <string>
 
 namespace hdeform {
-
-namespace {
-std::string seconds(double t) {  // shortest round-trip form: "0.25", not "0.250000"
-  char buf[32];
-  const auto r = std::to_chars(buf, buf + sizeof buf, t);
-  return std::string(buf, r.ptr);
-}
-}  // namespace
 
 void check_keyframes(std::span<const Keyframe> keys, int handles) {
   if (keys.size() > kMaxKeyframes)
@@ -25,10 +17,10 @@ void check_keyframes(std::span<const Keyframe> keys, int handles) {
     const std::string where = "keys[" + std::to_string(i) + "]";
     const Keyframe& k = keys[i];
     if (!std::isfinite(k.time) || k.time < 0)
-      throw InvalidInput(where + ": time " + seconds(k.time) + " s must be finite and ≥ 0");
+      throw InvalidInput(where + ": time " + shortest(k.time) + " s must be finite and ≥ 0");
     if (i > 0 && !(k.time > keys[i - 1].time))
-      throw InvalidInput(where + ": time " + seconds(k.time) +
-                         " s must be after the previous key's " + seconds(keys[i - 1].time) +
+      throw InvalidInput(where + ": time " + shortest(k.time) +
+                         " s must be after the previous key's " + shortest(keys[i - 1].time) +
                          " s");
     if (static_cast<int>(k.transforms.size()) != handles)
       throw InvalidInput(where + ": " + std::to_string(k.transforms.size()) +

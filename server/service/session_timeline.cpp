@@ -3,6 +3,7 @@
 
 #include "convert.h"
 #include "errors.h"
+#include "format_number.h"
 
 #include <algorithm>
 #include <cmath>
@@ -85,7 +86,7 @@ Session::AnimationPlan Session::animation_plan(const pb::ExportAnimationRequest&
   if (closed_) fail(grpc::StatusCode::NOT_FOUND, name_ + " was deleted");
   const double fps = request.fps() == 0 ? kDefaultFps : request.fps();
   if (!std::isfinite(fps) || fps <= 0 || fps > kMaxFps)
-    throw InvalidInput(std::string(op) + " fps: " + std::to_string(request.fps()) +
+    throw InvalidInput(std::string(op) + " fps: " + shortest(request.fps()) +
                        " is not in (0, 120]");
   if (request.up() != pb::UP_AXIS_Y && request.up() != pb::UP_AXIS_Z)
     throw InvalidInput(std::string(op) + " up: unknown up axis " + std::to_string(request.up()));
@@ -104,11 +105,11 @@ Session::AnimationPlan Session::animation_plan(const pb::ExportAnimationRequest&
     start = request.start_s();
     end = request.end_s();
     if (!std::isfinite(start) || !std::isfinite(end) || start < 0 || end < start)
-      throw InvalidInput(std::string(op) + ": start_s " + std::to_string(start) + " and end_s " +
-                         std::to_string(end) + " must be finite with 0 ≤ start_s ≤ end_s");
+      throw InvalidInput(std::string(op) + ": start_s " + shortest(start) + " and end_s " +
+                         shortest(end) + " must be finite with 0 ≤ start_s ≤ end_s");
   }
-  const std::string frames_what = std::string(op) + " frames (" + std::to_string(fps) +
-                                  " fps over " + std::to_string(end - start) + " s)";
+  const std::string frames_what = std::string(op) + " frames (" + shortest(fps) +
+                                  " fps over " + shortest(end - start) + " s)";
   if ((end - start) * fps > kMaxSampleSpan)
     check_limit(static_cast<std::size_t>(kMaxSampleSpan), limits_.max_animation_frames,
                 frames_what, "--max-animation-frames");
