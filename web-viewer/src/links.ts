@@ -43,10 +43,23 @@ export function shareLink(sessionName: string, watch: boolean): string {
   const { edit, view } = tokens();
   if (!sessionName || (watch ? !view : !edit)) return "";
   const url = new URL(window.location.pathname, window.location.origin);
-  url.searchParams.set("session", sessionName);
-  if (watch) url.searchParams.set("watch", "1");
+  url.search = linkQuery(sessionName, watch, window.location.search).toString();
   url.hash = watch ? tokenFragment("", view) : tokenFragment(edit, view);
   return url.toString();
+}
+
+/**
+ * A share link's query: the session, `watch=1` for a watch link, and this page's frame
+ * encoding (`?encoding=`) when it chose one, so whoever opens the link gets the same frames
+ * (e.g. float32 on a fast LAN). Nothing else of this page's query goes along.
+ */
+export function linkQuery(sessionName: string, watch: boolean, currentSearch: string): URLSearchParams {
+  const q = new URLSearchParams();
+  q.set("session", sessionName);
+  if (watch) q.set("watch", "1");
+  const encoding = new URLSearchParams(currentSearch).get("encoding");
+  if (encoding) q.set("encoding", encoding);
+  return q;
 }
 
 /** The address bar becomes this session's editor link, so a reload opens it again. */
