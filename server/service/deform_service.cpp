@@ -656,11 +656,11 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
 
 DeformService::DeformService(const ServerOptions& options)
     : options_(options),
+      uploads_(options.max_upload_inflight_bytes, options.upload_stall_timeout),
       pool_(std::make_unique<WorkerPool>(options.workers)),
       cache_(options.cache_bytes),
       library_(options.mesh_dir.empty() ? default_mesh_dir() : options.mesh_dir),
-      store_(limits_from(options), *pool_, cache_),
-      uploads_(options.max_upload_inflight_bytes, options.upload_stall_timeout) {
+      store_(limits_from(options), *pool_, cache_) {
   if (!options.admin_token.empty()) admin_hash_ = hash_token(options.admin_token);
   open_state();
   store_.start_sweeper();

@@ -158,13 +158,15 @@ class DeformService final : public v1::Deformation::CallbackService {
                                                   const std::string& mesh_key);
 
   ServerOptions options_;
+  // Everything the workers read is built before pool_ starts them (declaration order is
+  // construction order): a worker thread must never see a member before its initialization.
+  std::atomic<std::size_t> running_sweeps_{0};
+  std::atomic<bool> stopping_{false};
+  UploadBudget uploads_;
   std::unique_ptr<WorkerPool> pool_;
   Cache cache_;
   MeshLibrary library_;
   SessionStore store_;
-  UploadBudget uploads_;
-  std::atomic<std::size_t> running_sweeps_{0};
-  std::atomic<bool> stopping_{false};
   std::optional<TokenHash> admin_hash_;
   std::shared_ptr<StateBackend> state_;
 };
