@@ -662,7 +662,9 @@ DeformService::DeformService(const ServerOptions& options)
       library_(options.mesh_dir.empty() ? default_mesh_dir() : options.mesh_dir),
       store_(limits_from(options), *pool_, cache_) {
   if (!options.admin_token.empty()) admin_hash_ = hash_token(options.admin_token);
+  pool_->publish();  // the workers started before the members after pool_ were built
   open_state();
+  pool_->publish();
   store_.start_sweeper();
   spdlog::info("mesh library: {} ({} meshes)", library_.dir().empty() ? "(none)" : library_.dir(),
                library_.list().size());

@@ -52,6 +52,8 @@ WorkerPool::WorkerPool(int threads) {
 
 WorkerPool::~WorkerPool() { stop(); }
 
+void WorkerPool::publish() { std::lock_guard lock(mutex_); }
+
 void WorkerPool::submit(Task task) {
   {
     // Work submitted during shutdown still runs (reactors wait for their completions):

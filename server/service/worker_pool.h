@@ -25,6 +25,11 @@ class WorkerPool {
 
   // Queues a task. Exceptions escaping a task are logged and swallowed.
   void submit(Task task);
+  // Everything the caller wrote before this call is visible to every task that starts
+  // after it: a release on the queue's mutex, which a worker takes before each task. The
+  // owner calls it once it is fully built, so no worker can see a member before its
+  // initialization even when the task came in through a library TSan cannot see into.
+  void publish();
   // Stops accepting work, drains the queue and joins the threads.
   void stop();
   int size() const { return static_cast<int>(threads_.size()); }
