@@ -1,5 +1,7 @@
 #include "animation_glb.h"
 
+#include "mesh_writers.h"
+
 #include <tiny_gltf.h>
 
 #include <algorithm>
@@ -157,19 +159,7 @@ std::string AnimationGlb::finish() {
   node.name = "deformed";
   node.mesh = 0;
   model.nodes.push_back(node);
-  tinygltf::Scene scene;
-  if (up_z_) {
-    tinygltf::Node up;  // −90° about x, as write_glb: the buffers keep model coordinates
-    up.name = "z-up to y-up";
-    up.rotation = {-std::sqrt(0.5), 0.0, 0.0, std::sqrt(0.5)};
-    up.children.push_back(0);
-    model.nodes.push_back(up);
-    scene.nodes.push_back(1);
-  } else {
-    scene.nodes.push_back(0);
-  }
-  model.scenes.push_back(scene);
-  model.defaultScene = 0;
+  detail::add_scene(model, up_z_);
 
   if (K > 1) {
     const int input = accessor(view(times_offset, K * 4, 0), K, TINYGLTF_TYPE_SCALAR,
@@ -198,11 +188,7 @@ std::string AnimationGlb::finish() {
   tinygltf::Buffer buffer;
   buffer.data = std::move(data_);
   model.buffers.push_back(std::move(buffer));
-  tinygltf::TinyGLTF writer;
-  std::ostringstream os;
-  if (!writer.WriteGltfSceneToStream(&model, os, false, true))
-    throw std::runtime_error("AnimationGlb: tinygltf failed to serialise the GLB");
-  return os.str();
+  return detail::serialise_glb(model, "AnimationGlb");
 }
 
 Eigen::Vector3f energy_color(double e, double scale) {

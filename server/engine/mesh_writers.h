@@ -6,6 +6,10 @@
 
 #include <string>
 
+namespace tinygltf {
+class Model;
+}
+
 namespace hdeform::detail {
 
 std::string write_obj(const Vertices& V, const Triangles& F, const Vertices* N);
@@ -14,5 +18,10 @@ std::string write_ply(const Vertices& V, const Triangles& F, const Vertices* N);
 std::string write_ply_binary(const Vertices& V, const Triangles& F, const Vertices* N);
 // N null: vertex_normals(V, F). up_z: a root node rotates the z-up model to glTF's y-up.
 std::string write_glb(const Vertices& V, const Triangles& F, const Vertices* N, bool up_z);
+// The GLB writers' shared end: the scene of node 0 (under a −90° x rotation when up_z; the
+// buffers keep model coordinates), then the model serialised (throws std::runtime_error
+// naming `who`).
+void add_scene(tinygltf::Model& model, bool up_z);
+std::string serialise_glb(tinygltf::Model& model, const char* who);
 
 }  // namespace hdeform::detail

@@ -232,6 +232,11 @@ std::string write_glb(const Vertices& V, const Triangles& F, const Vertices* N, 
   tinygltf::Node node;
   node.mesh = 0;
   model.nodes.push_back(node);
+  add_scene(model, up_z);
+  return serialise_glb(model, "write_mesh");
+}
+
+void add_scene(tinygltf::Model& model, bool up_z) {
   tinygltf::Scene scene;
   if (up_z) {
     // −90° about x: (x, y, z) → (x, z, −y). On a parent, so the mesh node stays plain.
@@ -240,17 +245,19 @@ std::string write_glb(const Vertices& V, const Triangles& F, const Vertices* N, 
     up.rotation = {-std::sqrt(0.5), 0.0, 0.0, std::sqrt(0.5)};
     up.children.push_back(0);
     model.nodes.push_back(up);
-    scene.nodes.push_back(1);
+    scene.nodes.push_back(static_cast<int>(model.nodes.size() - 1));
   } else {
     scene.nodes.push_back(0);
   }
   model.scenes.push_back(scene);
   model.defaultScene = 0;
+}
 
+std::string serialise_glb(tinygltf::Model& model, const char* who) {
   tinygltf::TinyGLTF writer;
   std::ostringstream os;
   if (!writer.WriteGltfSceneToStream(&model, os, false, true))
-    throw std::runtime_error("write_mesh: tinygltf failed to serialise the GLB");
+    throw std::runtime_error(std::string(who) + ": tinygltf failed to serialise the GLB");
   return os.str();
 }
 
