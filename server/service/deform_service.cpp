@@ -800,26 +800,27 @@ grpc::ServerUnaryReactor* DeformService::finish_on_session(grpc::CallbackServerC
                                                            std::function<void(Session&)> fn,
                                                            std::function<void(Session&)> admit) {
   auto* reactor = ctx->DefaultReactor();
-  std::shared_ptr<Session> session;
   const auto status = guarded(
       [&] {
-        session = session_for(*ctx, name, needed, op);
-        if (admit) admit(*session);
+        auto session = session_for(*ctx, name, needed, op);
+        auto task = [reactor, op, session, fn = std::move(fn)] {
+          reactor->Finish(guarded(
+              [&] {
+                // Deleted while this call waited on the strand: it must not act on a ghost.
+                if (session->closed())
+                  fail(grpc::StatusCode::NOT_FOUND, session->name() + " was deleted");
+                fn(*session);
+              },
+              op));
+        };
+        session->admit_and_post(
+            [&] {
+              if (admit) admit(*session);
+            },
+            std::move(task));
       },
       op);
-  if (!status.ok()) {
-    reactor->Finish(status);
-    return reactor;
-  }
-  session->post([reactor, op, session, fn = std::move(fn)] {
-    reactor->Finish(guarded(
-        [&] {
-          // Deleted while this call waited on the strand: it must not act on a ghost.
-          if (session->closed()) fail(grpc::StatusCode::NOT_FOUND, session->name() + " was deleted");
-          fn(*session);
-        },
-        op));
-  });
+  if (!status.ok()) reactor->Finish(status);
   return reactor;
 }
 

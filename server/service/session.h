@@ -54,6 +54,15 @@ class Session : public std::enable_shared_from_this<Session> {
   std::shared_ptr<const MeshRef> mesh_ref() const { return mesh_; }
   // Runs `task` on this session's strand (serialized, on the worker pool).
   void post(WorkerPool::Task task) { strand_->post(std::move(task)); }
+  // Runs `admit` (which may throw; then nothing is posted) and posts `task`, as one step
+  // against every other admit_and_post on this session: the strand runs the tasks in the
+  // order their admits ran, which coalescing tickets rely on (the newest ticket runs last).
+  template <class Admit>
+  void admit_and_post(Admit&& admit, WorkerPool::Task task) {
+    std::lock_guard lock(arrival_mutex_);
+    admit();
+    strand_->post(std::move(task));
+  }
 
   // ---- blocking: call on the strand. Throw ServiceError / InvalidInput. ----
   // expected_config_version (0: any): ABORTED unless no constraint or β change came since.
@@ -268,6 +277,7 @@ class Session : public std::enable_shared_from_this<Session> {
   const RequestLimits limits_;
   Cache& cache_;
   std::shared_ptr<Strand> strand_;
+  std::mutex arrival_mutex_;  // admit_and_post: ticket order == strand order
 
   mutable std::mutex mutex_;  // guards everything below
   std::shared_ptr<const ConstraintSet> cs_;

@@ -526,10 +526,19 @@ TEST(FrameEncodingService, CoalescingUpdatesLetTheNewestWinWithinTheLimit) {
   int newest = -1;
   for (int i = 0; i < kUpdates; ++i)
     if (statuses[i].ok() && !frames[i].superseded()) newest = i;
+  // Concurrent calls may reach the server in any order, so "newest" is arrival order: the
+  // solved one ran last on the strand, after every superseded one committed its move.
+  ASSERT_GE(newest, 0);
   for (int i = 0; i < kUpdates; ++i)
     if (statuses[i].ok() && frames[i].superseded()) {
-      EXPECT_LT(i, newest) << "an older update won";
+      EXPECT_LT(frames[i].version(), frames[newest].version()) << "an older update won";
     }
+  pb::GetSessionRequest get;
+  get.set_name(plane.name());
+  pb::Session after;
+  grpc::ClientContext get_ctx;
+  ASSERT_TRUE(t.stub->GetSession(&get_ctx, get, &after).ok());
+  EXPECT_EQ(after.version(), frames[newest].version());
   // The slots are free again: a next coalescing update is solved.
   pb::UpdateHandlesRequest req;
   req.set_name(plane.name());
