@@ -16,6 +16,7 @@
 #include "selection.h"
 #include "solver.h"
 #include "supernodal_solve.h"
+#include "vertex_ordering.h"
 
 #include <benchmark/benchmark.h>
 
@@ -294,6 +295,8 @@ struct PhaseMedians {
   void add(const ConstraintSet::OpenTimings& t) {
     add("checks", t.checks_ms);
     add("split", t.system.blocks_ms);
+    add("ordering", t.system.ordering_ms);
+    add("restrict", t.system.restrict_ms);
     add("analysis", t.system.analysis_ms);
     add("factor", t.system.factor_ms);
     add("schedule", t.system.schedule_ms);
@@ -355,10 +358,12 @@ void BM_SessionOpen(benchmark::State& state, std::string key) {
 
 // Medians of a β build's phases (ConstraintSet::last_build_timings) as counters.
 struct BuildPhases {
-  std::vector<double> blocks, K_FF, analysis, factor, schedule, rest;
+  std::vector<double> blocks, K_FF, ordering, restrict, analysis, factor, schedule, rest;
   void add(const ConstraintSet::BuildTimings& t) {
     blocks.push_back(t.blocks_ms);
     K_FF.push_back(t.K_FF_ms);
+    ordering.push_back(t.ordering_ms);
+    restrict.push_back(t.restrict_ms);
     analysis.push_back(t.analysis_ms);
     factor.push_back(t.factor_ms);
     schedule.push_back(t.schedule_ms);
@@ -372,6 +377,8 @@ struct BuildPhases {
     };
     state.counters["blocks_ms"] = median(blocks);
     state.counters["K_FF_ms"] = median(K_FF);
+    state.counters["ordering_ms"] = median(ordering);
+    state.counters["restrict_ms"] = median(restrict);
     state.counters["analysis_ms"] = median(analysis);
     state.counters["factor_ms"] = median(factor);
     state.counters["schedule_ms"] = median(schedule);
@@ -625,6 +632,27 @@ void BM_Cholmod(benchmark::State& state, std::string key, double beta, Op op) {
     }
   }
   solver_counters(state, c, s, analysed.memory_bytes());
+  state.counters["nnz_L"] = static_cast<double>(analysed.factor()->xsize);
+}
+
+// The same K_FF ordered as a ConstraintSet orders it: the mesh's nested dissection (computed
+// untimed, once per mesh) restricted to F, instead of METIS on K_FF. analyze_factor and
+// solve3 only (factor alone is the same numeric work as BM_Cholmod's).
+void BM_MeshOrder(benchmark::State& state, std::string key, double beta, Op op) {
+  Case& c = get(key);
+  System& s = system(c, beta);
+  const Eigen::MatrixXd B = random_rhs(s.K_FF.rows());
+  const auto perm =
+      restrict_order(s.raw_beta == 0 ? c.pm->order() : c.pm->wide_order(), c.free_);
+  const Factorization ordered(s.K_FF, false, &perm);
+  for (auto _ : state) {
+    if (op == Op::solve3)
+      solve_once(ordered, B);
+    else
+      free_untimed(state, std::make_unique<Factorization>(s.K_FF, false, &perm));
+  }
+  solver_counters(state, c, s, ordered.memory_bytes());
+  state.counters["nnz_L"] = static_cast<double>(ordered.factor()->xsize);
 }
 
 void BM_Simplicial(benchmark::State& state, std::string key, double beta, Op op) {
@@ -754,6 +782,10 @@ void register_size(int n) {
         Op::analyze_factor);
     reg("Solver" + N + "/cholmod/" + B + "/factor", slow, BM_Cholmod, key, beta, Op::factor);
     reg("Solver" + N + "/cholmod/" + B + "/solve3", fast, BM_Cholmod, key, beta, Op::solve3);
+    reg("Solver" + N + "/mesh_order/" + B + "/analyze+factor", slow, BM_MeshOrder, key, beta,
+        Op::analyze_factor);
+    reg("Solver" + N + "/mesh_order/" + B + "/solve3", fast, BM_MeshOrder, key, beta,
+        Op::solve3);
     // SimplicialLLT (AMD) at β > 0: 5 s per factorization at 100K, minutes at 1M (skipped).
     if (big && beta > 0) continue;
     const Cost sslow = beta > 0 && !small ? Cost::huge : slow;

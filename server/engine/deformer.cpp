@@ -7,6 +7,7 @@
 #include "solver.h"
 #include "system_blocks.h"
 #include "validate.h"
+#include "vertex_ordering.h"
 #include "vertex_normals.h"
 
 #include <algorithm>
@@ -133,6 +134,34 @@ const SparseMatrix& PreparedMesh::Reg() const {
   return Reg_;
 }
 
+namespace {
+double ms_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+}  // namespace
+
+const std::vector<int>& PreparedMesh::order(double* ms) const {
+  if (ms) *ms = 0;
+  std::call_once(order_once_, [&] {
+    const auto t0 = std::chrono::steady_clock::now();
+    order_ = nested_dissection(L_);
+    order_ready_.store(true, std::memory_order_release);
+    if (ms) *ms = ms_since(t0);
+  });
+  return order_;
+}
+
+const std::vector<int>& PreparedMesh::wide_order(double* ms) const {
+  if (ms) *ms = 0;
+  std::call_once(wide_order_once_, [&] {
+    const auto t0 = std::chrono::steady_clock::now();
+    wide_order_ = nested_dissection(L_, Reg());
+    wide_order_ready_.store(true, std::memory_order_release);
+    if (ms) *ms = ms_since(t0);
+  });
+  return wide_order_;
+}
+
 PreparedMesh::BuildTimings PreparedMesh::build_timings() const {
   BuildTimings t = timings_;
   if (reg_ready_.load(std::memory_order_acquire)) t.regularizer_ms = reg_ms_;
@@ -163,7 +192,10 @@ std::size_t PreparedMesh::memory_bytes() const {
          static_cast<std::size_t>(grads_.size()) * sizeof(double) +
          static_cast<std::size_t>(areas_.size() + normals_.size()) * sizeof(double) +
          edges_.size() * sizeof(InteriorEdge) + component_.size() * sizeof(int) +
-         vertex_triangles_.memory_bytes();
+         vertex_triangles_.memory_bytes() +
+         (order_ready_.load(std::memory_order_acquire) ? order_.size() * sizeof(int) : 0) +
+         (wide_order_ready_.load(std::memory_order_acquire) ? wide_order_.size() * sizeof(int)
+                                                             : 0);
 }
 
 // ---------------------------------------------------------------------------------------
@@ -298,7 +330,13 @@ std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_
                             mesh_->vertex_triangles(), free_);
     timings.blocks_ms = ms(t0);
     // Its symbolic analysis is never reused (β > 0 has its own, wider pattern): not kept.
-    sys->factor = std::make_shared<Factorization>(b.FF, /*keep_analysis=*/false);
+    t0 = Clock::now();
+    double order_ms = 0;
+    const auto perm = restrict_order(mesh_->order(&order_ms), free_);
+    const double perm_ms = ms(t0);
+    sys->factor = std::make_shared<Factorization>(b.FF, /*keep_analysis=*/false, &perm);
+    timings.ordering_ms = order_ms;
+    timings.restrict_ms = perm_ms - order_ms;
     sys->K_FF = std::move(b.FF);
     sys->K_FC = std::move(b.FC);
     sys->GtW_F = std::move(b.GtW_F);
@@ -316,7 +354,7 @@ std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_
     t0 = Clock::now();
     sys->K_FF = combine(1.0 - raw_beta, wide_->area.FF, raw_beta, wide_->reg.FF);
     timings.K_FF_ms = ms(t0);
-    sys->factor = factor_wide(sys->K_FF);
+    sys->factor = factor_wide(sys->K_FF, timings);
     t0 = Clock::now();
     sys->K_FC = combine(1.0 - raw_beta, wide_->area.FC, raw_beta, wide_->reg.FC);
     // (GᵀW_β)_F straight from the gradients for this β: its two parts are not kept (they
@@ -340,9 +378,15 @@ ConstraintSet::BuildTimings ConstraintSet::last_build_timings() const {
   return last_build_;
 }
 
-std::shared_ptr<const Factorization> ConstraintSet::factor_wide(const SparseMatrix& K_FF) const {
+std::shared_ptr<const Factorization> ConstraintSet::factor_wide(const SparseMatrix& K_FF,
+                                                               BuildTimings& timings) const {
   if (!wide_symbolic_) {
-    auto first = std::make_shared<const Factorization>(K_FF);
+    const auto t0 = std::chrono::steady_clock::now();
+    double order_ms = 0;
+    const auto perm = restrict_order(mesh_->wide_order(&order_ms), free_);
+    timings.ordering_ms = order_ms;
+    timings.restrict_ms = ms_since(t0) - order_ms;
+    auto first = std::make_shared<const Factorization>(K_FF, /*keep_analysis=*/true, &perm);
     std::lock_guard lock(mutex_);
     wide_symbolic_ = first;
     return first;
@@ -403,7 +447,8 @@ std::shared_ptr<const BetaSystem> ConstraintSet::local_system(const LocalBeta& f
   const auto nC = static_cast<Eigen::Index>(constrained_.size());
   Blocks b = split(K, &GtW, BlockLayout{region_of_, block_index_, nF, nC});
   auto sys = std::make_shared<BetaSystem>();
-  sys->factor = factor_wide(b.FF);
+  BuildTimings timings;  // a field's build is not reported (last_build_timings is per β)
+  sys->factor = factor_wide(b.FF, timings);
   sys->K_FF = std::move(b.FF);
   sys->K_FC = std::move(b.FC);
   sys->GtW_F = std::move(b.GtW_F);

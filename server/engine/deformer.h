@@ -52,6 +52,12 @@ class PreparedMesh {
   // Gᵀ D₃ᵀ B₃ D₃ G: only β > 0 needs it, so it is built on the first call (thread-safe; a
   // call that builds it costs O(m) on all OpenMP threads) and kept.
   const SparseMatrix& Reg() const;
+  // Nested dissection of L's pattern (β = 0) and of L ∪ Reg's (β > 0), each computed on
+  // its first call (thread-safe; METIS, serial) and kept: every constraint set on this mesh
+  // orders its K_FF by it (vertex_ordering.h). ms: the time the call spent computing it (0
+  // when it was already there).
+  const std::vector<int>& order(double* ms = nullptr) const;
+  const std::vector<int>& wide_order(double* ms = nullptr) const;
   SparseMatrix GtA() const;                                      // Gᵀ A (n × 3m)
   SparseMatrix GtDBD() const;                                    // Gᵀ D₃ᵀ B₃ D₃ (n × 3m)
   double total_area() const { return total_area_; }
@@ -84,6 +90,9 @@ class PreparedMesh {
   mutable SparseMatrix Reg_;
   mutable double reg_ms_ = 0;
   mutable std::atomic<bool> reg_ready_{false};
+  mutable std::once_flag order_once_, wide_order_once_;
+  mutable std::vector<int> order_, wide_order_;  // written once, under their once_flag
+  mutable std::atomic<bool> order_ready_{false}, wide_order_ready_{false};
   TriangleGradients grads_;
   Eigen::VectorXd areas_;
   Vertices normals_;
@@ -222,11 +231,12 @@ class ConstraintSet {
   // for benchmarks and tests: a shared set's other users would have to rebuild it.
   void drop_factorization(Beta beta);
   // Where the last system build went (ms, wall; docs/benchmarks.md "β change"): the β > 0
-  // blocks (first β > 0 only), K_FF's values for β, the factorization (analysis, numeric,
-  // schedule), K_FC and (Gᵀ W_β)_F.
+  // blocks (first β > 0 only), K_FF's values for β, the mesh's nested dissection (0 unless
+  // this build computed it: once per mesh and pattern) and its restriction to F, the
+  // factorization (symbolic analysis, numeric, schedule), K_FC and (Gᵀ W_β)_F.
   struct BuildTimings {
-    double blocks_ms = 0, K_FF_ms = 0, analysis_ms = 0, factor_ms = 0, schedule_ms = 0,
-           rest_ms = 0;
+    double blocks_ms = 0, K_FF_ms = 0, ordering_ms = 0, restrict_ms = 0, analysis_ms = 0,
+           factor_ms = 0, schedule_ms = 0, rest_ms = 0;
   };
   BuildTimings last_build_timings() const;
   // Where the constructor spent its time (ms, wall): the constraint checks and block
@@ -245,7 +255,9 @@ class ConstraintSet {
   std::shared_ptr<const BetaSystem> build_system_locked(double raw_beta) const;
   std::shared_ptr<const BetaSystem> local_system(const LocalBeta& beta) const;
   // Numeric factorization of a K_FF on the β > 0 pattern, sharing its symbolic analysis.
-  std::shared_ptr<const Factorization> factor_wide(const SparseMatrix& K_FF) const;
+  // (The first one orders K_FF by the mesh's wide_order and records that in timings.)
+  std::shared_ptr<const Factorization> factor_wide(const SparseMatrix& K_FF,
+                                                   BuildTimings& timings) const;
   void check(std::span<const HandleTransform> transforms) const;  // count, validity
   // Throws InvalidInput naming a handle when X is non-finite or beyond kMaxCoordinate.
   void check_result(const Vertices& X, std::span<const HandleTransform> transforms) const;

@@ -28,6 +28,20 @@ void CholmodLLT::adopt_analysis(const CholmodLLT& other) {
   this->m_factorizationIsOk = false;
 }
 
+void CholmodLLT::analyze_given(const SparseMatrix& A, const std::vector<int>& perm) {
+  if (perm.size() != static_cast<std::size_t>(A.rows()))
+    throw std::logic_error("CholmodLLT: the permutation does not match the matrix");
+  if (m_cholmodFactor) cholmod_free_factor(&m_cholmodFactor, &m_cholmod);
+  cholmod_sparse a = Eigen::viewAsCholmod(A.selfadjointView<Eigen::Lower>());
+  m_cholmod.method[0].ordering = CHOLMOD_GIVEN;
+  m_cholmodFactor = cholmod_analyze_p(&a, const_cast<int*>(perm.data()), nullptr, 0, &m_cholmod);
+  m_cholmod.method[0].ordering = CHOLMOD_METIS;
+  this->m_isInitialized = true;
+  this->m_info = m_cholmodFactor ? Eigen::Success : Eigen::NumericalIssue;
+  this->m_analysisIsOk = m_cholmodFactor != nullptr;
+  this->m_factorizationIsOk = false;
+}
+
 Eigen::MatrixXd CholmodLLT::solve_concurrently(const Eigen::MatrixXd& B) const {
   if (!m_cholmodFactor) throw std::logic_error("CholmodLLT: solve before factorization");
   cholmod_common common;
@@ -68,11 +82,15 @@ double ms_since(std::chrono::steady_clock::time_point t0) {
 }
 }  // namespace
 
-Factorization::Factorization(const SparseMatrix& K_FF, bool keep_analysis)
+Factorization::Factorization(const SparseMatrix& K_FF, bool keep_analysis,
+                             const std::vector<int>* order)
     : size_(static_cast<int>(K_FF.rows())) {
   if (size_ == 0) return;
   const auto t0 = std::chrono::steady_clock::now();
-  llt_.analyzePattern(K_FF);
+  if (order)
+    llt_.analyze_given(K_FF, *order);
+  else
+    llt_.analyzePattern(K_FF);
   check("analysis");
   // Before the numeric factorization fills in values.
   if (keep_analysis) analysis_.adopt_analysis(llt_);

@@ -25,6 +25,9 @@ class CholmodLLT : public Eigen::CholmodBase<SparseMatrix, Eigen::Lower, Cholmod
   // Adopts a copy of `other`'s factor, which must be a symbolic analysis of the same
   // pattern (no numeric values: copying those would cost as much as reading the factor).
   void adopt_analysis(const CholmodLLT& other);
+  // Symbolic analysis with a given fill-reducing permutation (perm[k] = the row eliminated
+  // k-th; CHOLMOD still postorders it) instead of a METIS call: vertex_ordering.h.
+  void analyze_given(const SparseMatrix& A, const std::vector<int>& perm);
   // Nonzeros stored in the factor L.
   std::size_t factor_nnz() const;
   // X = A⁻¹ B with a CHOLMOD workspace of the caller's own: the factor is only read, so
@@ -45,12 +48,15 @@ enum class SolvePrecision { float64, float32 };
 // One factorization of K_FF, symmetric positive definite. solve() is thread-safe.
 class Factorization {
  public:
-  // Analyse (METIS) and factorize. Throws InvalidInput if K_FF is not positive definite
+  // Analyse and factorize. Throws InvalidInput if K_FF is not positive definite
   // (the constraint set leaves a part of the mesh unconstrained). A 0×0 K_FF (no free
   // vertex) is valid: nothing is factored and solve() returns an empty matrix.
   // keep_analysis: keep a copy of the symbolic analysis (the factor's integer structure) so
   // later β can start from it; a factorization no other one will seed passes false.
-  explicit Factorization(const SparseMatrix& K_FF, bool keep_analysis = true);
+  // order: a fill-reducing permutation of K_FF's rows (restrict_order of the mesh's
+  // nested dissection); null runs METIS on K_FF itself.
+  explicit Factorization(const SparseMatrix& K_FF, bool keep_analysis = true,
+                         const std::vector<int>* order = nullptr);
   // Numeric factorization of K_FF reusing `analysis`'s symbolic factor (same pattern);
   // `analysis` must have been built with keep_analysis.
   Factorization(const Factorization& analysis, const SparseMatrix& K_FF);
@@ -73,8 +79,8 @@ class Factorization {
   int size() const { return size_; }
   const SupernodalSchedule& schedule() const { return schedule_; }
   std::size_t memory_bytes() const;
-  // Where the construction's time went (ms, wall): METIS + symbolic analysis (0 when an
-  // analysis was reused), CHOLMOD's numeric factorization, the solve schedule.
+  // Where the construction's time went (ms, wall): ordering (METIS unless given) + symbolic
+  // analysis (the copy's time when an analysis was reused), CHOLMOD's numeric factorization, the solve schedule.
   struct Timings {
     double analysis_ms = 0, factor_ms = 0, schedule_ms = 0;
   };

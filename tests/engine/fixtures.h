@@ -6,6 +6,7 @@
 #include "selection.h"
 
 #include <fstream>
+#include <vector>
 #include <sstream>
 #include <string>
 
@@ -36,6 +37,36 @@ inline Benchmark load_benchmark(const std::string& name) {
   b.constraints.handles = {select_label(labels, 2)};
   b.T = parse_def(slurp(base + ".def"), name + ".def");
   return b;
+}
+
+// The free vertices (neither fixed nor in a handle), ascending: K_FF's row i is free[i].
+inline std::vector<int> free_vertices(const PreparedMesh& pm, const Constraints& c) {
+  std::vector<char> fixed(static_cast<std::size_t>(pm.n()), 0);
+  for (int v : c.fixed) fixed[v] = 1;
+  for (const auto& h : c.handles)
+    for (int v : h) fixed[v] = 1;
+  std::vector<int> free;
+  for (std::size_t v = 0; v < fixed.size(); ++v)
+    if (!fixed[v]) free.push_back(static_cast<int>(v));
+  return free;
+}
+
+// K = (1 − β) L + β Reg (β raw; β = 0: the Laplacian alone, its narrow pattern), with the
+// constrained rows and columns removed: K_FF as the engine builds it.
+inline SparseMatrix k_ff(const PreparedMesh& pm, const Constraints& c, double beta) {
+  std::vector<int> index(static_cast<std::size_t>(pm.n()), -1);
+  int nF = 0;
+  for (int v : free_vertices(pm, c)) index[v] = nF++;
+  const SparseMatrix K =
+      beta == 0 ? SparseMatrix(pm.L()) : SparseMatrix((1 - beta) * pm.L() + beta * pm.Reg());
+  std::vector<Eigen::Triplet<double>> t;
+  for (Eigen::Index col = 0; col < K.outerSize(); ++col)
+    for (SparseMatrix::InnerIterator it(K, col); it; ++it)
+      if (index[it.row()] >= 0 && index[col] >= 0)
+        t.emplace_back(index[it.row()], index[col], it.value());
+  SparseMatrix K_FF(nF, nF);
+  K_FF.setFromTriplets(t.begin(), t.end());
+  return K_FF;
 }
 
 }  // namespace hdeform::test

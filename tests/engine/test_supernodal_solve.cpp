@@ -36,27 +36,7 @@ std::atomic<long> g_news{0};
 namespace hdeform {
 namespace {
 
-// K = (1 − β) L + β Reg (β raw; β = 0: the Laplacian alone, its narrow pattern), with the
-// constrained rows and columns removed: K_FF as the engine builds it.
-SparseMatrix k_ff(const PreparedMesh& pm, const Constraints& c, double beta) {
-  std::vector<char> fixed(static_cast<std::size_t>(pm.n()), 0);
-  for (int v : c.fixed) fixed[v] = 1;
-  for (const auto& h : c.handles)
-    for (int v : h) fixed[v] = 1;
-  std::vector<int> index(fixed.size(), -1);
-  int nF = 0;
-  for (std::size_t v = 0; v < fixed.size(); ++v)
-    if (!fixed[v]) index[v] = nF++;
-  const SparseMatrix K = beta == 0 ? SparseMatrix(pm.L()) : SparseMatrix((1 - beta) * pm.L() + beta * pm.Reg());
-  std::vector<Eigen::Triplet<double>> t;
-  for (Eigen::Index col = 0; col < K.outerSize(); ++col)
-    for (SparseMatrix::InnerIterator it(K, col); it; ++it)
-      if (index[it.row()] >= 0 && index[col] >= 0)
-        t.emplace_back(index[it.row()], index[col], it.value());
-  SparseMatrix K_FF(nF, nF);
-  K_FF.setFromTriplets(t.begin(), t.end());
-  return K_FF;
-}
+using test::k_ff;
 
 double rel_max_diff(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
   return (a - b).cwiseAbs().maxCoeff() / b.cwiseAbs().maxCoeff();

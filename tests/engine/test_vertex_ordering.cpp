@@ -1,0 +1,100 @@
+// The per-mesh nested dissection (vertex_ordering.h) restricted to a constraint set's free
+// vertices, against METIS run on K_FF itself: the same solutions, a comparable fill, and
+// the constraint set's factorizations built from it.
+#include "fixtures.h"
+#include "procedural.h"
+#include "solver.h"
+#include "vertex_ordering.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <numeric>
+#include <stdexcept>
+
+namespace hdeform {
+namespace {
+
+using test::free_vertices;
+using test::k_ff;
+
+bool is_permutation_of_iota(std::vector<int> p) {
+  std::sort(p.begin(), p.end());
+  for (std::size_t i = 0; i < p.size(); ++i)
+    if (p[i] != static_cast<int>(i)) return false;
+  return true;
+}
+
+TEST(VertexOrdering, RestrictKeepsTheRelativeOrderOfTheFreeVertices) {
+  // Vertices 0..5 eliminated in the order 4 0 5 2 1 3; free vertices 1, 2, 4 are rows 0, 1, 2.
+  const std::vector<int> order{4, 0, 5, 2, 1, 3};
+  EXPECT_EQ(restrict_order(order, {1, 2, 4}), (std::vector<int>{2, 1, 0}));
+  EXPECT_EQ(restrict_order(order, {}), std::vector<int>{});
+  EXPECT_THROW(restrict_order({0, 1, 1}, {1, 2}), std::logic_error);  // not a permutation
+  EXPECT_THROW(restrict_order(order, {7}), std::out_of_range);
+}
+
+// Solutions through the restricted order equal METIS-on-K_FF's; the fill stays close.
+void check_model(const char* name, const PreparedMesh& pm, const Constraints& c) {
+  SCOPED_TRACE(name);
+  const std::vector<int> free = free_vertices(pm, c);
+  const std::vector<int>& order = pm.order();
+  ASSERT_EQ(order.size(), static_cast<std::size_t>(pm.n()));
+  EXPECT_TRUE(is_permutation_of_iota(order));
+  EXPECT_EQ(nested_dissection(pm.L()), order) << "METIS is deterministic";
+  for (double beta : {0.0, 0.4}) {
+    const SparseMatrix K = k_ff(pm, c, beta);
+    const auto perm = restrict_order(beta == 0 ? pm.order() : pm.wide_order(), free);
+    ASSERT_TRUE(is_permutation_of_iota(perm));
+    const Factorization metis(K, false);
+    const Factorization given(K, false, &perm);
+    const Eigen::MatrixXd B = Eigen::MatrixXd::Random(K.rows(), 3);
+    const Eigen::MatrixXd X = given.solve_cholmod(B), Xm = metis.solve_cholmod(B);
+    EXPECT_LT((X - Xm).cwiseAbs().maxCoeff(), 1e-10 * Xm.cwiseAbs().maxCoeff()) << beta;
+    EXPECT_LT((K * X - B).cwiseAbs().maxCoeff(), 1e-9 * B.cwiseAbs().maxCoeff()) << beta;
+    // The kernel over the given-order factor too (its schedule is built from that factor).
+    EXPECT_LT((given.solve(B) - X).cwiseAbs().maxCoeff(), 1e-12 * X.cwiseAbs().maxCoeff());
+    const double ratio = static_cast<double>(given.factor()->xsize) /
+                         static_cast<double>(metis.factor()->xsize);
+    std::printf("[ measured ] %s beta %.1f: factor nnz %zu (mesh order) vs %zu (METIS on K_FF), "
+                "ratio %.3f\n",
+                name, beta, static_cast<std::size_t>(given.factor()->xsize),
+                static_cast<std::size_t>(metis.factor()->xsize), ratio);
+    EXPECT_LT(ratio, 1.3) << "the restricted order lost METIS's fill";
+  }
+}
+
+TEST(VertexOrdering, RestrictedMeshOrderSolvesLikeMetisOnKFF) {
+  std::srand(5);
+  for (const char* name : {"cactus", "bar"}) {
+    const test::Benchmark b = test::load_benchmark(name);
+    check_model(name, *b.mesh, b.constraints);
+  }
+  procedural::CapsuleCase cc = procedural::capsule_case(8000);
+  const auto pm = PreparedMesh::create(std::move(cc.mesh));
+  Constraints c;
+  c.fixed = cc.base;
+  c.handles = {cc.cap};
+  check_model("capsule 8K", *pm, c);
+}
+
+// Two constraint sets on one mesh: the first computes the mesh's orderings (β = 0 at open,
+// the wide one at its first β > 0), the second none. Their deformations are the engine's
+// usual ones (test_thesis_table.cpp checks the benchmark's through this same path).
+TEST(VertexOrdering, ConstraintSetsShareTheMeshOrder) {
+  const test::Benchmark b = test::load_benchmark("cactus");
+  ConstraintSet first(b.mesh, b.constraints);
+  EXPECT_GT(first.open_timings().system.ordering_ms, 0.0);
+  first.prepare(Beta{0.3});
+  EXPECT_GT(first.last_build_timings().ordering_ms, 0.0);
+  Constraints other = b.constraints;
+  other.handles[0].resize(other.handles[0].size() / 2);
+  ConstraintSet second(b.mesh, other);
+  EXPECT_EQ(second.open_timings().system.ordering_ms, 0.0);
+  second.prepare(Beta{0.3});
+  EXPECT_EQ(second.last_build_timings().ordering_ms, 0.0);
+}
+
+}  // namespace
+}  // namespace hdeform
