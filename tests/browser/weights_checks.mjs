@@ -162,11 +162,19 @@ export async function weightsChecks({ context, base, log, check, sleep, shot, wa
   // A slow weights answer holds up neither a drag nor a switch of handle, and is dropped when
   // it comes late: the request for handle 1 is held back 8 s (a drag here takes a few seconds:
   // swiftshader draws slowly).
+  // Settled answers in order: finished, or (seen in about half the runs, cause not found)
+  // aborted by Chromium as the held answer is fulfilled; either way it must not be shown.
   const finished = [];
-  page.on("requestfinished", (r) => {
+  const aborted = [];
+  const settled = (r, list) => {
     // Which handle: proto3 leaves handle 0 out; handle 1 ends the body with field 2 = 1 (10 01).
-    if (/GetHandleWeights/.test(r.url())) finished.push((r.postDataBuffer()?.toString("hex") ?? "").endsWith("1001") ? 1 : 0);
-  });
+    if (!/GetHandleWeights/.test(r.url())) return;
+    const h = (r.postDataBuffer()?.toString("hex") ?? "").endsWith("1001") ? 1 : 0;
+    finished.push(h);
+    list?.push(h);
+  };
+  page.on("requestfinished", (r) => settled(r));
+  page.on("requestfailed", (r) => settled(r, aborted));
   let held = 0;
   await page.route("**/hdeform.v1.Deformation/GetHandleWeights", async (route) => {
     // The server answers at once; the answer is handed to the page 8 s later.
@@ -194,8 +202,8 @@ export async function weightsChecks({ context, base, log, check, sleep, shot, wa
     `a drag while a weights request is pending is not held up (handle 1 moved on the server ${((dragDoneAt - askedAt) / 1000).toFixed(1)} s after the request, before its answer)`,
   );
   check(
-    finished.join() === "1,0" && last?.handle === 1 && maxDiff(last.values, rpc2.values) === 0,
-    `the late answer for handle 1 (answers came for handles ${finished.map((x) => x + 1).join(", ")}) is dropped: the page shows handle 2's field`,
+    finished.slice(0, 2).join() === "1,0" && last?.handle === 1 && maxDiff(last.values, rpc2.values) === 0,
+    `the late answer for handle 1 (answers came for handles ${finished.map((x) => x + 1).join(", ")}${aborted.length ? `; aborted by the browser: ${aborted.map((x) => x + 1).join(", ")}` : ""}) is dropped: the page shows handle 2's field`,
   );
   await page.unroute("**/hdeform.v1.Deformation/GetHandleWeights");
 
