@@ -140,26 +140,29 @@ double ms_since(std::chrono::steady_clock::time_point t0) {
 }
 }  // namespace
 
-const std::vector<int>& PreparedMesh::order(double* ms) const {
+// Computes `order` once under `once` (the first caller pays and gets the time in *ms).
+template <class Compute>
+const std::vector<int>& PreparedMesh::lazy_order(std::once_flag& once, std::vector<int>& order,
+                                                 std::atomic<bool>& ready, Compute compute,
+                                                 double* ms) const {
   if (ms) *ms = 0;
-  std::call_once(order_once_, [&] {
+  std::call_once(once, [&] {
     const auto t0 = std::chrono::steady_clock::now();
-    order_ = nested_dissection(L_);
-    order_ready_.store(true, std::memory_order_release);
+    order = compute();
+    ready.store(true, std::memory_order_release);
     if (ms) *ms = ms_since(t0);
   });
-  return order_;
+  return order;
+}
+
+const std::vector<int>& PreparedMesh::order(double* ms) const {
+  return lazy_order(order_once_, order_, order_ready_, [this] { return nested_dissection(L_); },
+                    ms);
 }
 
 const std::vector<int>& PreparedMesh::wide_order(double* ms) const {
-  if (ms) *ms = 0;
-  std::call_once(wide_order_once_, [&] {
-    const auto t0 = std::chrono::steady_clock::now();
-    wide_order_ = nested_dissection(L_, Reg());
-    wide_order_ready_.store(true, std::memory_order_release);
-    if (ms) *ms = ms_since(t0);
-  });
-  return wide_order_;
+  return lazy_order(wide_order_once_, wide_order_, wide_order_ready_,
+                    [this] { return nested_dissection(L_, Reg()); }, ms);
 }
 
 PreparedMesh::BuildTimings PreparedMesh::build_timings() const {
@@ -330,13 +333,8 @@ std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_
                             mesh_->vertex_triangles(), free_);
     timings.blocks_ms = ms(t0);
     // Its symbolic analysis is never reused (β > 0 has its own, wider pattern): not kept.
-    t0 = Clock::now();
-    double order_ms = 0;
-    const auto perm = restrict_order(mesh_->order(&order_ms), free_);
-    const double perm_ms = ms(t0);
+    const auto perm = free_order(/*wide=*/false, timings);
     sys->factor = std::make_shared<Factorization>(b.FF, /*keep_analysis=*/false, &perm);
-    timings.ordering_ms = order_ms;
-    timings.restrict_ms = perm_ms - order_ms;
     sys->K_FF = std::move(b.FF);
     sys->K_FC = std::move(b.FC);
     sys->GtW_F = std::move(b.GtW_F);
@@ -378,14 +376,20 @@ ConstraintSet::BuildTimings ConstraintSet::last_build_timings() const {
   return last_build_;
 }
 
+std::vector<int> ConstraintSet::free_order(bool wide, BuildTimings& timings) const {
+  const auto t0 = std::chrono::steady_clock::now();
+  double order_ms = 0;
+  const auto& order = wide ? mesh_->wide_order(&order_ms) : mesh_->order(&order_ms);
+  auto perm = restrict_order(order, free_);
+  timings.ordering_ms = order_ms;
+  timings.restrict_ms = ms_since(t0) - order_ms;
+  return perm;
+}
+
 std::shared_ptr<const Factorization> ConstraintSet::factor_wide(const SparseMatrix& K_FF,
                                                                BuildTimings& timings) const {
   if (!wide_symbolic_) {
-    const auto t0 = std::chrono::steady_clock::now();
-    double order_ms = 0;
-    const auto perm = restrict_order(mesh_->wide_order(&order_ms), free_);
-    timings.ordering_ms = order_ms;
-    timings.restrict_ms = ms_since(t0) - order_ms;
+    const auto perm = free_order(/*wide=*/true, timings);
     auto first = std::make_shared<const Factorization>(K_FF, /*keep_analysis=*/true, &perm);
     std::lock_guard lock(mutex_);
     wide_symbolic_ = first;

@@ -93,6 +93,10 @@ class PreparedMesh {
   mutable std::once_flag order_once_, wide_order_once_;
   mutable std::vector<int> order_, wide_order_;  // written once, under their once_flag
   mutable std::atomic<bool> order_ready_{false}, wide_order_ready_{false};
+  template <class Compute>
+  const std::vector<int>& lazy_order(std::once_flag& once, std::vector<int>& order,
+                                     std::atomic<bool>& ready, Compute compute,
+                                     double* ms) const;
   TriangleGradients grads_;
   Eigen::VectorXd areas_;
   Vertices normals_;
@@ -254,6 +258,8 @@ class ConstraintSet {
   // wide_symbolic_, which this may create).
   std::shared_ptr<const BetaSystem> build_system_locked(double raw_beta) const;
   std::shared_ptr<const BetaSystem> local_system(const LocalBeta& beta) const;
+  // The mesh's order (wide: β > 0's) restricted to F; its two times go into timings.
+  std::vector<int> free_order(bool wide, BuildTimings& timings) const;
   // Numeric factorization of a K_FF on the β > 0 pattern, sharing its symbolic analysis.
   // (The first one orders K_FF by the mesh's wide_order and records that in timings.)
   std::shared_ptr<const Factorization> factor_wide(const SparseMatrix& K_FF,
