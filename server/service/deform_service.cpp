@@ -919,6 +919,8 @@ grpc::ServerUnaryReactor* DeformService::UpdateHandles(grpc::CallbackServerConte
         u.expected_version = request->expected_version();
         u.handles = &request->handles();
         u.client_id = request->client_id();
+        u.sequenced = true;
+        u.coalesce = request->coalesce();
         if (*ticket && (*ticket)->superseded()) {
           *response = s.supersede(u);
           store_.moved(s);
@@ -926,6 +928,7 @@ grpc::ServerUnaryReactor* DeformService::UpdateHandles(grpc::CallbackServerConte
         }
         auto frame = s.update(u);
         store_.moved(s);  // a drag: saved coalesced (SQLite) or at once (Redis)
+        if (frame->superseded()) return response->Swap(frame.get());  // stale: nothing solved
         if (!encode_frame_to(*frame, request->format(), request->omit_buffers(), response))
           response->Swap(frame.get());
       },

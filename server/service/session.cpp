@@ -400,8 +400,12 @@ Session::Move Session::begin_move(const Update& u) {
     m.beta = beta_;
     m.key = cs_key_;
     m.transforms = transforms_;  // updates run on the strand: nothing moves them meanwhile
+    if (u.sequenced && u.coalesce && u.sequence > 0) {
+      const auto last = sequences_.last(u.client_id);
+      if (last && u.sequence <= last->sequence) m.newer = last;
+    }
   }
-  if (keep) return m;
+  if (keep || m.newer) return m;
   static const google::protobuf::RepeatedPtrField<pb::HandleTransform> kNone;
   static const google::protobuf::RepeatedField<std::int32_t> kAll;
   m.moved = apply_handle_update(u.handles ? *u.handles : kAll,
@@ -414,12 +418,17 @@ pb::Frame Session::supersede(const Update& u) {
   touch();
   Move m = begin_move(u);
   std::lock_guard lock(mutex_);
-  if (cs_ == m.cs) {
+  if (cs_ == m.cs && !m.newer) {
     history_.drag_moved(u.client_id, m.moved, transforms_);  // the newer update ends the step
     transforms_ = std::move(m.transforms);
     ++version_;  // the newer update's frame follows at once
     last_frame_.reset();
+    if (u.sequenced && u.sequence > 0) sequences_.applied(u.client_id, {u.sequence, u.dragging});
   }
+  return superseded_locked(u);
+}
+
+pb::Frame Session::superseded_locked(const Update& u) const {
   pb::Frame out;
   out.set_session(name_);
   out.set_sequence(u.sequence);
@@ -429,10 +438,19 @@ pb::Frame Session::supersede(const Update& u) {
   return out;
 }
 
-std::shared_ptr<pb::Frame> Session::update(const Update& u) {
+std::shared_ptr<pb::Frame> Session::update(const Update& given) {
   touch();
   const auto t0 = std::chrono::steady_clock::now();
-  Move m = begin_move(u);
+  Move m = begin_move(given);
+  Update u = given;
+  if (m.newer) {
+    // Stale: the client's newer update was applied. If it was solved, nothing is left to do;
+    // if it was superseded by this one (it arrived first), solve its pose as it asked.
+    std::lock_guard lock(mutex_);
+    if (last_frame_ && last_frame_version_ == version_)
+      return std::make_shared<pb::Frame>(superseded_locked(u));
+    u.dragging = m.newer->dragging;
+  }
   const auto& cs = m.cs;
   const auto& key = m.key;
   SessionBeta& beta = m.beta;
@@ -494,6 +512,8 @@ std::shared_ptr<pb::Frame> Session::update(const Update& u) {
     }
     transforms_ = std::move(transforms);
     beta_ = beta;
+    if (u.sequenced && u.sequence > 0 && !m.newer)
+      sequences_.applied(u.client_id, {u.sequence, u.dragging});
     if (beta_changed) ++config_version_;
     ++version_;
     {

@@ -6,6 +6,7 @@
 
 #include "access.h"
 #include "cache.h"
+#include "client_sequences.h"
 #include "animation_glb.h"
 #include "deformer.h"
 #include "encoded_frames.h"
@@ -25,6 +26,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -123,9 +125,16 @@ class Session : public std::enable_shared_from_this<Session> {
     // Which handles `transforms` are for (empty: all); the others keep their transforms.
     const google::protobuf::RepeatedField<std::int32_t>* handles = nullptr;
     std::string client_id;  // the sender (may move the handles it holds); empty: anonymous
+    // UpdateHandles: a positive `sequence` orders client_id's updates. Each one applied is
+    // recorded; a coalescing one (`coalesce`) no newer than the client's last applied update
+    // is stale: it commits no move (see Move::newer).
+    bool sequenced = false;
+    bool coalesce = false;
   };
   // Solves, commits the transforms (bumping the version) and sends the frame to every
-  // observer. Returns the frame.
+  // observer. Returns the frame. A stale update (Update::coalesce) moves nothing: it is
+  // answered superseded when the session's last frame is current, else it solves the frame
+  // of the client's newer update that was committed unsolved (so a drag's last frame comes).
   std::shared_ptr<pb::Frame> update(const Update& update);
   // A coalesced update whose turn came after a newer one: its moves are committed (so a
   // partial update from another editor is never lost) without a solve; answers superseded.
@@ -227,8 +236,11 @@ class Session : public std::enable_shared_from_this<Session> {
     std::string key;
     std::vector<HandleTransform> transforms;
     std::vector<int> moved;  // the handles the update changes
+    // Set when the update is stale: the client's newer update, already applied.
+    std::optional<ClientSequences::Applied> newer;
   };
   Move begin_move(const Update& u);
+  pb::Frame superseded_locked(const Update& u) const;  // the answer of an unsolved update
   std::vector<int> handle_indices(const google::protobuf::RepeatedField<std::int32_t>& handles,
                                   const char* op) const;
   void broadcast_presence();
@@ -313,6 +325,7 @@ class Session : public std::enable_shared_from_this<Session> {
   SessionTokens tokens_;
   Persisted persisted_;
   Roster roster_;
+  ClientSequences sequences_;  // guarded by mutex_
   EncodedFrameCache encoded_frames_;
 
   std::atomic<int> streams_{0};

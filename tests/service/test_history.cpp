@@ -164,9 +164,12 @@ TEST(History, WatchersSeeStepsAndTheUndoneFrame) {
   ctx.AddMetadata("authorization", "Bearer " + e.s.view_token());
   pb::WatchSessionRequest wr;
   wr.set_name(e.s.name());
+  ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(30));
   auto reader = e.t.bare_stub->WatchSession(&ctx, wr);
-  ASSERT_TRUE(alice.undo().ok());
   pb::SessionEvent ev;
+  // The state event says the watcher is registered: an undo before it would not reach it.
+  ASSERT_TRUE(reader->Read(&ev) && ev.has_state());
+  ASSERT_TRUE(alice.undo().ok());
   bool step = false, frame = false;
   while ((!step || !frame) && reader->Read(&ev)) {
     if (ev.has_step() && ev.step().kind() == pb::STEP_KIND_UNDO) step = true;

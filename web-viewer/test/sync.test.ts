@@ -307,6 +307,25 @@ describe("sync, pipelined (window > 1)", () => {
     assert.equal(sentX(2), 3);
   });
 
+  it("counts its updates up and lets an overtaken answer confirm nothing", async () => {
+    const { fake, pose, sync } = setup(2);
+    sync.setDragging(true);
+    for (let x = 1; x <= 2; x++) {
+      pose.x = x;
+      sync.request();
+      sync.tick();
+    }
+    assert.deepEqual(fake.updates.map((u) => u.request.sequence), [1n, 2n]);
+    assert.ok(fake.updates.every((u) => u.request.clientId !== undefined));
+    // Update 2 is answered first, then the older update 1 (its answer overtaken on the way).
+    fake.updates[1].resolve(frame({ version: 2, sequence: 2, superseded: true }));
+    await settle();
+    assert.equal(sync.confirmedTransforms?.[0].translation?.x, 2);
+    fake.updates[0].resolve(frame({ version: 2, sequence: 1, superseded: true }));
+    await settle();
+    assert.equal(sync.confirmedTransforms?.[0].translation?.x, 2, "the older answer did not win");
+  });
+
   it("applies frames in version order, buffers from the stream, and stays busy until they come", async () => {
     const { fake, sync, events } = setup(4);
     await goLive(fake, sync);

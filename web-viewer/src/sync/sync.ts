@@ -117,6 +117,8 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
   private inFlight = 0;
   private held = false;
   private sequence = 0;
+  /** The newest of this page's updates answered so far: an older answer confirms nothing. */
+  private answeredSeq = 0;
   private lastSentDragging = false;
   /** Pipelined: version of an answered update whose buffers are still to come (0 = none). */
   private awaitingBuffers = 0n;
@@ -261,7 +263,7 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
       .then((frame) => {
         if (name !== this.name) return; // another session was opened meanwhile
         if (seq === this.sequence) this.emit("clearError", "rejected");
-        this.confirmAnswer(sent, frame);
+        this.confirmAnswer(seq, sent, frame);
         if (frame.superseded) return; // acknowledged, not solved: a newer update was waiting
         // omit_buffers: the shape comes on the stream (unless it came first).
         if (omitBuffers && !carriesShape(frame) && frame.version > this.order.newest) {
@@ -286,7 +288,11 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
   }
 
   /** The server solved `sent` (its frame may name every handle's transform). */
-  private confirmAnswer(sent: Pose | null, frame: Frame): void {
+  private confirmAnswer(seq: number, sent: Pose | null, frame: Frame): void {
+    // Pipelined answers may come back in any order; the server already refused to let an
+    // overtaken update move anything (UpdateHandlesRequest.sequence), so neither does the page.
+    if (seq < this.answeredSeq) return;
+    this.answeredSeq = seq;
     if (frame.transforms.length > 0) this.confirm(frame.transforms);
     else if (sent && !sent.handles) this.confirm(sent.transforms);
     else if (sent?.handles && this.confirmed) {
