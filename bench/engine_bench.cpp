@@ -12,6 +12,7 @@
 #include "deformer.h"
 #include "measures.h"
 #include "mesh_io.h"
+#include "openmp_wait.h"
 #include "procedural.h"
 #include "selection.h"
 #include "solver.h"
@@ -820,6 +821,7 @@ void register_botsch_sorkine(const std::string& model) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  hdeform::ensure_openmp_waits_passively(argv);  // before any OpenMP loop
   if (!bench::initialize(argc, argv, g_smoke)) return 1;
 
   bench::register_solve_benchmarks(g_smoke);  // Bandwidth/read, Solve/N/… (solve_bench.cpp)

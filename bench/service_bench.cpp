@@ -34,6 +34,7 @@
 #include "bench_common.h"
 #include "frame_decode.h"
 #include "frame_encoding.h"
+#include "openmp_wait.h"
 #include "hdeform/v1/deform.grpc.pb.h"
 #include "procedural.h"
 #include "server.h"
@@ -561,6 +562,7 @@ std::string loadavg() {
 }  // namespace
 
 int main(int argc, char** argv) {
+  hdeform::ensure_openmp_waits_passively(argv);  // as hdeform-server does
   if (!bench::initialize(argc, argv, g_smoke)) return 1;
   spdlog::set_level(spdlog::level::warn);
   register_all();

@@ -3,9 +3,11 @@
 #include <spdlog/spdlog.h>
 
 #include <dlfcn.h>
+#include <strings.h>
 #include <omp.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <exception>
 #include <mutex>
 
@@ -24,10 +26,18 @@ void run_guarded(const WorkerPool::Task& task) {
 }
 }  // namespace
 
-// The engine's OpenMP loops run inside each worker: together they get the machine's cores,
-// not cores × workers (oversubscribed threads only fight each other). OpenBLAS (CHOLMOD's
-// BLAS) gets one thread: its pthread pool spins beside OpenMP's and costs more than it
-// gives on the small supernodes of these systems (issue 10's profile).
+// The engine's OpenMP loops run inside each worker. When OpenMP waits passively (the
+// server sets that up: openmp_wait.h), every worker's team gets all the cores: a lone move
+// then uses both (100K drag frame 13.6 vs 17.7 ms with one thread per worker, docs/benchmarks.md
+// "Threads"), and two concurrent moves share them with sleeping, not spinning, threads.
+// With spinning waits, oversubscribed teams only fight each other: then the workers split
+// the cores. OpenBLAS (CHOLMOD's BLAS) gets one thread: its pthread pool spins beside
+// OpenMP's and costs more than it gives on the small supernodes of these systems.
+static bool openmp_waits_passively() {
+  const char* policy = std::getenv("OMP_WAIT_POLICY");
+  return policy != nullptr && ::strcasecmp(policy, "passive") == 0;
+}
+
 static int limit_library_threads(int workers) {
   static std::once_flag once;
   std::call_once(once, [] {
@@ -36,7 +46,8 @@ static int limit_library_threads(int workers) {
       f(1);
   });
   const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  return std::max(1, cores / std::max(1, workers));
+  const int plan = openmp_waits_passively() ? cores : std::max(1, cores / std::max(1, workers));
+  return std::min(plan, omp_get_max_threads());  // never above a user's OMP_NUM_THREADS
 }
 
 WorkerPool::WorkerPool(int threads) {
