@@ -501,6 +501,7 @@ std::size_t SessionClient::download(const std::string& path, pb::MeshFormat form
   req.set_format(format);
   req.set_up(options.up);
   req.set_ply_encoding(options.ply);
+  req.set_glb_compression(options.glb_compression);
   std::string bytes;
   // A download cut by UNAVAILABLE starts again from its first chunk.
   call("GetMesh", [&](grpc::ClientContext& ctx) {

@@ -37,6 +37,7 @@ const char* status_code_name(grpc::StatusCode code);
 struct MeshOutputOptions {
   pb::UpAxis up = pb::UP_AXIS_Y;
   pb::PlyEncoding ply = pb::PLY_ENCODING_AS_INPUT;
+  pb::GlbCompression glb_compression = pb::GLB_COMPRESSION_NONE;
 };
 
 struct GlobalOptions {

@@ -247,6 +247,17 @@ void add_mesh_output_options(CLI::App& cmd, MeshOutputOptions& o) {
                                                  {"binary", pb::PLY_ENCODING_BINARY}},
           CLI::ignore_case))
       ->default_str("auto");
+  cmd.add_option("--glb-compression", o.glb_compression,
+                 "GLB output geometry: none (float32), quantized (KHR_mesh_quantization: 16-bit "
+                 "positions, error <= box side / 131070) or meshopt (the same through "
+                 "EXT_meshopt_compression); see docs/api.md 'Compressed GLB'")
+      ->transform(CLI::CheckedTransformer(
+          std::map<std::string, pb::GlbCompression>{
+              {"none", pb::GLB_COMPRESSION_NONE},
+              {"quantized", pb::GLB_COMPRESSION_QUANTIZED},
+              {"meshopt", pb::GLB_COMPRESSION_MESHOPT}},
+          CLI::ignore_case))
+      ->default_str("none");
 }
 
 }  // namespace hdeform::cli

@@ -87,8 +87,9 @@ std::size_t check_glb(std::string_view b) {
       for (const auto& prim : mesh.at("primitives")) {
         if (!prim.contains("attributes") || !prim.at("attributes").contains("POSITION")) continue;
         const auto& acc = doc.at("accessors").at(prim.at("attributes").at("POSITION").get<std::size_t>());
-        if (acc.at("componentType").get<int>() != 5126 || acc.at("type").get<std::string>() != "VEC3")
-          throw bad("POSITION is not float32 VEC3");
+        // Integer positions (KHR_mesh_quantization) are finite by construction.
+        if (acc.at("componentType").get<int>() != 5126) continue;
+        if (acc.at("type").get<std::string>() != "VEC3") throw bad("POSITION is not VEC3");
         const std::size_t n = acc.at("count").get<std::size_t>();
         if (n == 0) continue;
         const auto& view = doc.at("bufferViews").at(acc.at("bufferView").get<std::size_t>());

@@ -125,7 +125,11 @@ std::string write_mesh_bytes(MeshFileFormat format, const Vertices& V, const Tri
                              const Vertices* N, const WriteOptions& options) {
   check_write_input(V, F, N);
   switch (format) {
-    case MeshFileFormat::glb: return detail::write_glb(V, F, N, options.up_z);
+    case MeshFileFormat::glb:
+      if (options.glb_compression == GlbCompression::none)
+        return detail::write_glb(V, F, N, options.up_z);
+      return detail::write_glb_compressed(V, F, N, options.up_z,
+                                          options.glb_compression == GlbCompression::meshopt);
     case MeshFileFormat::obj: return detail::write_obj(V, F, N);
     case MeshFileFormat::off: return detail::write_off(V, F, N);
     case MeshFileFormat::ply:

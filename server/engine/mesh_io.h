@@ -77,6 +77,24 @@ MeshFileFormat format_from_path(const std::string& path);  // throws InvalidInpu
 // indices in one buffer laid out [POSITION n×12 B | NORMAL n×12 B | indices m×12 B] (the
 // base layout that service frames refer to). format_from_path throws InvalidInput; a file
 // that cannot be written throws std::runtime_error.
+// GLB compression (WriteOptions::glb_compression); the file stays one TRIANGLES primitive with
+// POSITION, NORMAL and indices, in the same vertex and triangle order as the plain GLB.
+//   quantized: KHR_mesh_quantization (required). POSITION as uint16 VEC3 on one uniform grid
+//     over the bounding box; the mesh node's translation (the box's min) and uniform scale
+//     (extent / 65535, extent = the box's largest side) give model coordinates back, so the
+//     error is ≤ extent / 131070 per axis (+ float32 rounding). A uniform scale keeps normals
+//     right under the node transform. NORMAL as normalized int8 VEC3: ≤ 0.5 / 127 per
+//     component. Indices uint16 when the vertices fit, else uint32. 4-byte strides (8 B a
+//     position, 4 B a normal) so both streams can go through meshopt's codec.
+//   meshopt: the same streams through meshoptimizer's codecs as EXT_meshopt_compression
+//     (required; vertex codec "ATTRIBUTES", index codec "TRIANGLES"; no fallback data). The
+//     decoded vertex streams are exactly the quantized file's; the index codec keeps the
+//     triangle order and winding but may start a triangle at another corner. three.js reads it with
+//     GLTFLoader.setMeshoptDecoder.
+// hdeform's own reader reads neither back (it wants float32 POSITION and ignores node
+// transforms); these are for shipping a result, the plain GLB for round trips.
+enum class GlbCompression { none, quantized, meshopt };
+
 // How a file is written beyond its format.
 struct WriteOptions {
   // GLB: the model's up axis is +z (the cactus; CAD and scan data). glTF is y-up, so the GLB
@@ -86,6 +104,8 @@ struct WriteOptions {
   bool up_z = false;
   // PLY: binary little-endian (doubles, int indices) instead of ASCII; reads back identical.
   bool binary_ply = false;
+  // GLB only (see GlbCompression). Non-finite positions throw InvalidInput: a grid holds none.
+  GlbCompression glb_compression = GlbCompression::none;
 };
 std::string write_mesh_bytes(MeshFileFormat format, const Vertices& V, const Triangles& F,
                              const Vertices* N = nullptr, const WriteOptions& options = {});

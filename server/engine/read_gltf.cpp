@@ -133,6 +133,15 @@ LoadedMesh read_gltf(std::string_view bytes, ReadContext& ctx, bool binary,
                                           static_cast<unsigned int>(bytes.size()),
                                           base_dir ? *base_dir : std::string());
   if (!ok) fail(name + ": invalid " + (binary ? "GLB" : "glTF") + ": " + trim(err.empty() ? warn : err));
+  // Required extensions that change how geometry is stored (hdeform's own --glb-compression
+  // output among them): refused by name rather than misread. Others (materials, textures)
+  // leave the geometry alone and are kept by a rewrite.
+  for (const std::string& e : model.extensionsRequired)
+    if (e == "KHR_mesh_quantization" || e == "EXT_meshopt_compression" ||
+        e == "KHR_draco_mesh_compression")
+      fail(name + ": requires the glTF extension " + e +
+           ", which hdeform does not read: upload a GLB with float32 positions (e.g. GetMesh "
+           "without glb_compression)");
 
   // Work bound: accessors may share bufferViews, and primitives may share accessors, so the
   // data read could be many times the file. Every accessor use is charged; more than twice

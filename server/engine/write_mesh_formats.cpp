@@ -17,6 +17,7 @@
 #include <cmath>
 #include <cstring>
 #include <cstdint>
+#include <iterator>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
@@ -242,7 +243,7 @@ void add_scene(tinygltf::Model& model, bool up_z) {
     // −90° about x: (x, y, z) → (x, z, −y). On a parent, so the mesh node stays plain.
     tinygltf::Node up;
     up.name = "z-up to y-up";
-    up.rotation = {-std::sqrt(0.5), 0.0, 0.0, std::sqrt(0.5)};
+    up.rotation.assign(std::begin(kZUpToYUp), std::end(kZUpToYUp));
     up.children.push_back(0);
     model.nodes.push_back(up);
     scene.nodes.push_back(static_cast<int>(model.nodes.size() - 1));

@@ -261,14 +261,9 @@ class MeshWriter final : public ChunkWriter {
  public:
   MeshWriter(std::shared_ptr<Session> session, const v1::GetMeshRequest& request)
       : session_(std::move(session)) {
-    const bool rest = request.rest();
-    const auto format = request.format();
-    const auto up = request.up();
-    const auto ply = request.ply_encoding();
-    session_->post([this, rest, format, up, ply] {
+    session_->post([this, request] {
       std::string data;
-      const auto status =
-          guarded([&] { data = session_->mesh_file(rest, format, up, ply); }, "GetMesh");
+      const auto status = guarded([&] { data = session_->mesh_file(request); }, "GetMesh");
       produced(status, std::move(data));
     });
   }

@@ -621,22 +621,37 @@ Vertices Session::deformed_positions() {
   return frame->positions;
 }
 
-std::string Session::mesh_file(bool rest, pb::MeshFormat format, pb::UpAxis up,
-                               pb::PlyEncoding ply) {
+std::string Session::mesh_file(const pb::GetMeshRequest& request) {
   touch();
-  const MeshFileFormat f = file_format(format);
+  const bool rest = request.rest();
+  const MeshFileFormat f = file_format(request.format());
+  const pb::UpAxis up = request.up();
+  const pb::PlyEncoding ply = request.ply_encoding();
   if (up != pb::UP_AXIS_Y && up != pb::UP_AXIS_Z)
     throw InvalidInput("GetMesh: unknown up axis " + std::to_string(up));
   if (ply < pb::PLY_ENCODING_AS_INPUT || ply > pb::PLY_ENCODING_BINARY)
     throw InvalidInput("GetMesh: unknown PLY encoding " + std::to_string(ply));
   WriteOptions options;
+  switch (request.glb_compression()) {
+    case pb::GLB_COMPRESSION_NONE: break;
+    case pb::GLB_COMPRESSION_QUANTIZED: options.glb_compression = GlbCompression::quantized; break;
+    case pb::GLB_COMPRESSION_MESHOPT: options.glb_compression = GlbCompression::meshopt; break;
+    default:
+      throw InvalidInput("GetMesh: unknown glb_compression " +
+                         std::to_string(request.glb_compression()));
+  }
+  const bool compressed = options.glb_compression != GlbCompression::none;
+  if (compressed && f != MeshFileFormat::glb)
+    throw InvalidInput("GetMesh: glb_compression applies to GLB only, not to " +
+                       pb::MeshFormat_Name(request.format()));
   options.up_z = up == pb::UP_AXIS_Z;
   // A binary PLY upload comes back binary: its header says so in the first line after "ply".
   const bool input_binary_ply =
       mesh_->file_bytes && mesh_->file_bytes->compare(0, 24, "ply\nformat binary_little") == 0;
   options.binary_ply = ply == pb::PLY_ENCODING_BINARY ||
                        (ply == pb::PLY_ENCODING_AS_INPUT && input_binary_ply);
-  if (rest && f == MeshFileFormat::glb && !options.up_z) return mesh_->layout->base_glb();
+  if (rest && f == MeshFileFormat::glb && !options.up_z && !compressed)
+    return mesh_->layout->base_glb();
   const Vertices V = rest ? mesh_->prepared->mesh().V : deformed_positions();
   // A glTF upload's deformed GLB is its own file with new positions and normals: UVs,
   // materials, textures, nodes and other primitives stay (glTF is y-up already).
@@ -644,8 +659,13 @@ std::string Session::mesh_file(bool rest, pb::MeshFormat format, pb::UpAxis up,
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   const bool gltf_upload =
       mesh_->file_bytes && mesh_->library_name.empty() && (ext == ".glb" || ext == ".gltf");
-  if (!rest && f == MeshFileFormat::glb && gltf_upload)
+  if (!rest && f == MeshFileFormat::glb && gltf_upload) {
+    if (compressed)
+      throw InvalidInput("GetMesh: glb_compression: this session's deformed GLB is its glTF "
+                         "upload rewritten (materials and UVs kept), which is not compressed; "
+                         "ask GLB_COMPRESSION_NONE, or rest = true for the compressed base mesh");
     return mesh_->layout->input_gltf(*mesh_->file_bytes, mesh_->filename, V);
+  }
   return mesh_->layout->mesh_file(f, V, options);
 }
 

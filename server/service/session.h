@@ -150,8 +150,9 @@ class Session : public std::enable_shared_from_this<Session> {
   };
   SweepPlan sweep_plan(const pb::SweepRequest& request) const;
   void sweep_row(const SweepPlan& plan, const Beta& beta, pb::SweepRow* row) const;
-  std::string mesh_file(bool rest, pb::MeshFormat format, pb::UpAxis up = pb::UP_AXIS_Y,
-                        pb::PlyEncoding ply = pb::PLY_ENCODING_AS_INPUT);
+  // GetMesh's file (its `name` is not read). Throws InvalidInput for an unknown enum value and
+  // for a compression the format or the session's upload cannot take.
+  std::string mesh_file(const pb::GetMeshRequest& request);
   // `version` (optional): the session version the snapshot shows (read under the same lock).
   pb::Snapshot export_snapshot(bool include_mesh, std::int64_t* version = nullptr) const;
   // Re-applies a snapshot's constraints, β and transforms (a fresh session only).

@@ -131,3 +131,69 @@ TEST(ServiceOutputs, BinaryPlyStaysBinaryAndUpZRotatesTheGlb) {
   st = get(pb::MESH_FORMAT_PLY, pb::UP_AXIS_Y, static_cast<pb::PlyEncoding>(9), &bytes);
   EXPECT_NE(st.error_message().find("unknown PLY encoding 9"), std::string::npos);
 }
+
+// GetMesh's glb_compression: quantized and meshopt GLBs come over loopback; a compression for a
+// text format, an unknown value, or a glTF upload's rewritten GLB is refused by name, and the
+// session keeps serving.
+TEST(ServiceOutputs, CompressedGlbAndItsBadRequests) {
+  TestServer t;
+  const std::string off = grid_off(6);
+  const hdeform::LoadedMesh mesh = hdeform::read_mesh_bytes(off, "g.off");
+  pb::Session s;
+  ASSERT_TRUE(t.upload(off, "g.off", &s).ok());
+  auto get = [&](const std::string& name, pb::MeshFormat f, int compression, bool rest,
+                 std::string* out) {
+    grpc::ClientContext ctx;
+    pb::GetMeshRequest r;
+    r.set_name(name);
+    r.set_format(f);
+    r.set_rest(rest);
+    r.set_glb_compression(static_cast<pb::GlbCompression>(compression));
+    auto reader = t.stub->GetMesh(&ctx, r);
+    pb::MeshChunk c;
+    out->clear();
+    while (reader->Read(&c)) *out += c.data();
+    return reader->Finish();
+  };
+  std::string plain, quantized, meshopt;
+  ASSERT_TRUE(get(s.name(), pb::MESH_FORMAT_GLB, pb::GLB_COMPRESSION_NONE, false, &plain).ok());
+  ASSERT_TRUE(get(s.name(), pb::MESH_FORMAT_GLB, pb::GLB_COMPRESSION_QUANTIZED, false, &quantized).ok());
+  ASSERT_TRUE(get(s.name(), pb::MESH_FORMAT_GLB, pb::GLB_COMPRESSION_MESHOPT, true, &meshopt).ok());
+  // The engine's writer itself (tests/engine/test_glb_compressed.cpp checks its contents).
+  hdeform::WriteOptions q, m;
+  q.glb_compression = hdeform::GlbCompression::quantized;
+  m.glb_compression = hdeform::GlbCompression::meshopt;
+  EXPECT_EQ(quantized, hdeform::write_mesh_bytes(hdeform::MeshFileFormat::glb, mesh.mesh.V,
+                                                 mesh.mesh.F, nullptr, q));
+  EXPECT_EQ(meshopt, hdeform::write_mesh_bytes(hdeform::MeshFileFormat::glb, mesh.mesh.V,
+                                               mesh.mesh.F, nullptr, m));
+  EXPECT_LT(quantized.size(), plain.size());
+
+  std::string bytes;
+  auto st = get(s.name(), pb::MESH_FORMAT_OBJ, pb::GLB_COMPRESSION_QUANTIZED, false, &bytes);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("glb_compression applies to GLB only, not to MESH_FORMAT_OBJ"),
+            std::string::npos) << st.error_message();
+  st = get(s.name(), pb::MESH_FORMAT_GLB, 5, false, &bytes);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("unknown glb_compression 5"), std::string::npos)
+      << st.error_message();
+
+  // A glTF upload: its deformed GLB is the upload rewritten, never compressed; its rest mesh is.
+  pb::Session g;
+  ASSERT_TRUE(t.upload(plain, "g.glb", &g).ok());
+  st = get(g.name(), pb::MESH_FORMAT_GLB, pb::GLB_COMPRESSION_MESHOPT, false, &bytes);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("glTF upload rewritten"), std::string::npos)
+      << st.error_message();
+  EXPECT_TRUE(get(g.name(), pb::MESH_FORMAT_GLB, pb::GLB_COMPRESSION_MESHOPT, true, &bytes).ok());
+  // And a compressed GLB uploaded back is refused by name.
+  pb::Session back;
+  st = t.upload(quantized, "q.glb", &back);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("requires the glTF extension KHR_mesh_quantization"),
+            std::string::npos) << st.error_message();
+  // Nothing was lost: the first session still serves.
+  EXPECT_TRUE(get(s.name(), pb::MESH_FORMAT_GLB, pb::GLB_COMPRESSION_NONE, false, &bytes).ok());
+  EXPECT_EQ(bytes, plain);
+}
