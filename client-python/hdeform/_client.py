@@ -21,6 +21,9 @@ CHUNK = 1 << 20  # upload chunks (gRPC's default limit is 4 MiB per message)
 _UNITS = {"area": pb.BETA_UNITS_AREA, "raw": pb.BETA_UNITS_RAW}
 _FORMATS = {"glb": pb.MESH_FORMAT_GLB, "obj": pb.MESH_FORMAT_OBJ, "off": pb.MESH_FORMAT_OFF,
             "ply": pb.MESH_FORMAT_PLY}
+_GLB_COMPRESSION = {None: pb.GLB_COMPRESSION_NONE, "none": pb.GLB_COMPRESSION_NONE,
+                    "quantized": pb.GLB_COMPRESSION_QUANTIZED,
+                    "meshopt": pb.GLB_COMPRESSION_MESHOPT}
 
 
 def _rpc(fn, *args, **kwargs):
@@ -271,11 +274,16 @@ class Session:
         return np.array([[a.x, a.y, a.z], [b.x, b.y, b.z]])
 
     # --- meshes ---------------------------------------------------------------------------
-    def mesh_bytes(self, format="glb", rest=False):  # noqa: A002 - the proto's name
-        """The rest or current mesh as a file (glb, obj, off, ply)."""
+    def mesh_bytes(self, format="glb", rest=False, compression=None):  # noqa: A002 - the proto's name
+        """The rest or current mesh as a file (glb, obj, off, ply). compression (GLB only):
+        "quantized" (KHR_mesh_quantization) or "meshopt" (EXT_meshopt_compression), see
+        docs/api.md "Compressed GLB"; hdeform does not read those back."""
         if format not in _FORMATS:
             raise ValueError(f"format: one of {sorted(_FORMATS)}, got {format!r}")
-        req = pb.GetMeshRequest(name=self.name, rest=rest, format=_FORMATS[format])
+        if compression not in _GLB_COMPRESSION:
+            raise ValueError(f"compression: None, 'quantized' or 'meshopt', got {compression!r}")
+        req = pb.GetMeshRequest(name=self.name, rest=rest, format=_FORMATS[format],
+                                glb_compression=_GLB_COMPRESSION[compression])
         try:
             return b"".join(c.data for c in self.client.stub.GetMesh(
                 req, metadata=_metadata(self.token)))
@@ -291,10 +299,11 @@ class Session:
         """mesh(rest=True)."""
         return self.mesh(rest=True)
 
-    def save(self, path, rest=False):
-        """Write the current (or rest) mesh; the extension picks the format."""
+    def save(self, path, rest=False, compression=None):
+        """Write the current (or rest) mesh; the extension picks the format. compression: as
+        mesh_bytes (a .glb only)."""
         ext = os.path.splitext(os.fspath(path))[1].lower().lstrip(".")
-        data = self.mesh_bytes(ext, rest=rest)
+        data = self.mesh_bytes(ext, rest=rest, compression=compression)
         with open(os.fspath(path), "wb") as f:
             f.write(data)
 

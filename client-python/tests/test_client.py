@@ -255,3 +255,20 @@ def test_timeline_pose_and_animated_glb(cactus, tmp_path):
     with pytest.raises(hdeform.Error) as e:
         cactus.pose_at(1)
     assert "no timeline" in str(e.value)
+
+
+def test_compressed_glb(cactus, tmp_path):
+    cactus.update(translate=[0.05, 0, 0.1])
+    plain = cactus.mesh_bytes("glb")
+    q = cactus.mesh_bytes("glb", compression="quantized")
+    m = tmp_path / "c.glb"
+    cactus.save(m, compression="meshopt")
+    packed = m.read_bytes()
+    assert q[:4] == packed[:4] == b"glTF"
+    assert b"KHR_mesh_quantization" in q and b"EXT_meshopt_compression" not in q
+    assert b"EXT_meshopt_compression" in packed
+    assert len(packed) < len(q) < 0.6 * len(plain)
+    with pytest.raises(ValueError, match="compression"):
+        cactus.mesh_bytes("glb", compression="draco")
+    with pytest.raises(hdeform.InvalidArgument, match="GLB only"):
+        cactus.mesh_bytes("obj", compression="quantized")
