@@ -5,6 +5,7 @@
 #include "mesh_io.h"
 #include "operator_assembly.h"
 #include "solver.h"
+#include "sparse_times3.h"
 #include "system_blocks.h"
 #include "validate.h"
 #include "vertex_ordering.h"
@@ -567,9 +568,8 @@ void ConstraintSet::solve(const std::shared_ptr<const BetaSystem>& system,
   out.positions.resize(X.rows(), 3);
   out.solves = 0;
   if (nF > 0) {
-    ws.rhs.resize(nF, 3);
-    ws.rhs.noalias() = sys.GtW_F * ws.g;
-    ws.rhs.noalias() -= sys.K_FC * ws.x_C;
+    sparse_times3(sys.GtW_F, ws.g, ws.rhs);  // one pass, both cores (sparse_times3.h)
+    ws.rhs.noalias() -= sys.K_FC * ws.x_C;    // K_FC: the few rows beside the regions
     if (options.precision == FramePrecision::exact) {
       solve3(*sys.factor, ws.rhs, ws.x_F, SolvePrecision::float64);
       out.solves = 1;
@@ -628,10 +628,8 @@ void ConstraintSet::drag_solve(const std::shared_ptr<const BetaSystem>& system,
     previous = ws.x_F.cwiseAbs().maxCoeff();
     out.solves = 1;
   }
-  ws.residual.resize(ws.rhs.rows(), 3);
   for (int k = 0; k < kMaxSteps; ++k) {
-    ws.residual.noalias() = ws.rhs;
-    ws.residual.noalias() -= sys.K_FF.transpose() * ws.x_F;  // K_FF symmetric: row-wise
+    symmetric_residual3(sys.K_FF, ws.x_F, ws.rhs, ws.residual);
     solve3(*sys.factor, ws.residual, ws.correction, SolvePrecision::float32);
     ws.x_F += ws.correction;
     ++out.solves;
