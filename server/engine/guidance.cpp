@@ -64,8 +64,13 @@ void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::Ma
     const Eigen::Matrix3d M = stretched || k != 1 ? Eigen::Matrix3d(R.toRotationMatrix() * S)
                                                   : R.toRotationMatrix();
     const Eigen::Vector3d n = normals.row(l).transpose();
-    // g_l = Y_l Mᵀ with Y_l = I − n nᵀ (the rest gradient block, SPEC's check).
-    g.middleRows<3>(3 * l) = M.transpose() - n * (M * n).transpose();
+    const Eigen::Vector3d Mn = M * n;
+    // g_l = Y_l Mᵀ with Y_l = I − n nᵀ (the rest gradient block, SPEC's check), written out
+    // into g's row-major storage: Phase/100000/guidance 2.58 -> 2.42 ms against Eigen's
+    // `g.middleRows<3>(3l) = Mᵀ − n (M n)ᵀ` (same run, interleaved).
+    double* gl = g.data() + 9 * l;  // g is row-major: block l is 9 contiguous doubles
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) gl[3 * r + c] = M(c, r) - n[r] * Mn[c];
   }
 }
 
