@@ -1,0 +1,141 @@
+// The viewer in real headless Chromium (Debian's, software GL: SwiftShader) dragging a large
+// mesh, one run per frame encoding: how many frames per second the page applies while the
+// mouse drags the gizmo at ≈ 60 Hz for a while (issue 11: "84K mesh in headless Chromium").
+// Not a CI test: it reports. Results and method: docs/benchmarks.md "WAN bench (issue 11)".
+//
+//   node bench/wan/chromium_drag.mjs --server build/server/hdeform-server [--viewer web-viewer]
+//        [--chromium /usr/bin/chromium] [--rings 300 --around 280] [--seconds 10]
+//        [--encodings float32,quantized,meshopt]
+//
+// The mesh is an open tube of rings × around vertices (default 84,000), written as OFF and
+// uploaded through the page; the bottom tenth is fixed, the top tenth is the handle.
+import { spawn } from "node:child_process";
+import { mkdtempSync, rmSync, writeFileSync } from "node:fs";
+import { createRequire } from "node:module";
+import { tmpdir } from "node:os";
+import { join, resolve } from "node:path";
+
+const args = Object.fromEntries(
+  process.argv.slice(2).reduce((a, v, i, all) => (v.startsWith("--") ? [...a, [v.slice(2), all[i + 1]]] : a), []),
+);
+const serverBin = args.server;
+if (!serverBin) throw new Error("--server PATH/hdeform-server is required");
+const viewerDir = resolve(args.viewer ?? "web-viewer");
+const chromiumPath = args.chromium ?? "/usr/bin/chromium";
+const rings = Number(args.rings ?? 300), around = Number(args.around ?? 280);
+const seconds = Number(args.seconds ?? 10);
+const encodings = (args.encodings ?? "float32,quantized,meshopt").split(",");
+const require = createRequire(join(viewerDir, "package.json"));
+const { chromium } = require("playwright-core");
+const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+const log = (...a) => console.log(`[chromium-drag ${new Date().toISOString().slice(11, 19)}]`, ...a);
+
+// ---- the tube -------------------------------------------------------------------------------
+const work = mkdtempSync(join(tmpdir(), "hdeform-chromium-drag-"));
+const height = 3, radius = 0.5;
+const lines = [`OFF`, `${rings * around} ${2 * around * (rings - 1)} 0`];
+for (let r = 0; r < rings; r++)
+  for (let a = 0; a < around; a++) {
+    const t = (2 * Math.PI * a) / around;
+    lines.push(`${(radius * Math.cos(t)).toFixed(6)} ${(radius * Math.sin(t)).toFixed(6)} ${((height * r) / (rings - 1)).toFixed(6)}`);
+  }
+for (let r = 0; r + 1 < rings; r++)
+  for (let a = 0; a < around; a++) {
+    const v = (rr, aa) => rr * around + (aa % around);
+    lines.push(`3 ${v(r, a)} ${v(r, a + 1)} ${v(r + 1, a + 1)}`, `3 ${v(r, a)} ${v(r + 1, a + 1)} ${v(r + 1, a)}`);
+  }
+const meshPath = join(work, `tube-${rings * around}.off`);
+writeFileSync(meshPath, lines.join("\n") + "\n");
+
+// ---- server and browser ---------------------------------------------------------------------
+const server = spawn(serverBin, ["--port", "0", "--http-port", "0", "--no-state", "--web-root", join(viewerDir, "dist")], {
+  stdio: ["ignore", "pipe", "pipe"],
+});
+const httpPort = await new Promise((ok, fail) => {
+  let out = "";
+  const timer = setTimeout(() => fail(new Error(`no HTTP port within 60 s:\n${out}`)), 60_000);
+  const on = (b) => {
+    out += b.toString();
+    const m = /hdeform-server http on \S+:(\d+)/.exec(out);
+    if (m) clearTimeout(timer), ok(Number(m[1]));
+  };
+  server.stdout.on("data", on);
+  server.stderr.on("data", on);
+});
+const context = await chromium.launchPersistentContext(join(work, "profile"), {
+  executablePath: chromiumPath,
+  headless: true,
+  viewport: { width: 1280, height: 800 },
+  args: ["--no-sandbox", "--disable-gpu", "--no-first-run", "--disable-background-networking",
+    "--disable-component-update", "--disable-sync", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"],
+});
+
+const rows = [];
+try {
+  for (const encoding of encodings) {
+    const page = await context.newPage();
+    page.on("pageerror", (e) => log(`pageerror: ${e.message}`));
+    await page.goto(`http://127.0.0.1:${httpPort}/?encoding=${encoding}`);
+    await page.waitForSelector("#upload-input", { state: "attached", timeout: 30_000 });
+    const t0 = Date.now();
+    await page.setInputFiles("#upload-input", meshPath);
+    await page.waitForFunction(() => window.hdeform && window.hdeform.loaded && window.hdeform.sessionName !== "", null, { timeout: 180_000 });
+    const openMs = Date.now() - t0;
+    const nFixed = await page.evaluate(([h]) => window.hdeform.selectBox([-1, -1, -0.01], [1, 1, 0.1 * h], 0), [height]);
+    const nHandle = await page.evaluate(([h]) => window.hdeform.selectBox([-1, -1, 0.9 * h], [1, 1, 1.01 * h], 1), [height]);
+    await page.evaluate(() => window.hdeform.applyConstraints());
+    await page.waitForFunction(() => window.hdeform.constraintsApplied || window.hdeform.lastError !== "", null, { timeout: 180_000 });
+    await page.waitForFunction(() => !window.hdeform.busy, null, { timeout: 60_000 });
+    await page.click('button[data-mode="move"]');
+    await sleep(300);
+    const vertices = await page.evaluate(() => window.hdeform.labels().length);
+    const displayed = await page.evaluate(() => window.hdeform.displayVertices);
+    // Drag the gizmo's x arrow back and forth at ≈ 60 mouse moves a second.
+    const p = await page.evaluate(() => window.hdeform.gizmoScreenPoint("x"));
+    if (!p) throw new Error("the gizmo is not attached");
+    await page.mouse.move(p.x, p.y);
+    await page.mouse.down();
+    // Animation frames the page gets while dragging: with software GL each one renders the mesh.
+    await page.evaluate(() => {
+      window.__rafCount = 0;
+      const tick = () => { window.__rafCount++; requestAnimationFrame(tick); };
+      requestAnimationFrame(tick);
+    });
+    const r0 = await page.evaluate(() => window.__rafCount);
+    const f0 = await page.evaluate(() => window.hdeform.framesApplied);
+    const start = Date.now();
+    let moves = 0;
+    while (Date.now() - start < seconds * 1000) {
+      const s = (Date.now() - start) / 1000;
+      await page.mouse.move(p.x + 80 * Math.sin(2 * Math.PI * s / 3), p.y);
+      moves++;
+      const next = start + (moves * 1000) / 60;
+      if (next > Date.now()) await sleep(next - Date.now());
+    }
+    const f1 = await page.evaluate(() => window.hdeform.framesApplied);
+    const r1 = await page.evaluate(() => window.__rafCount);
+    const elapsed = (Date.now() - start) / 1000;
+    await page.mouse.up();
+    await page.waitForFunction(() => !window.hdeform.busy, null, { timeout: 60_000 }).catch(() => {});
+    const status = await page.evaluate(() => window.hdeform.status);
+    const error = await page.evaluate(() => window.hdeform.lastError);
+    const row = {
+      encoding, vertices, displayed, fixed: nFixed, handle: nHandle, open_ms: openMs,
+      mouse_moves_per_s: +(moves / elapsed).toFixed(1),
+      frames_per_s: +((f1 - f0) / elapsed).toFixed(1),
+      animation_frames_per_s: +((r1 - r0) / elapsed).toFixed(1),
+      status, error,
+    };
+    rows.push(row);
+    log(JSON.stringify(row));
+    await page.close();
+  }
+} finally {
+  await context.close().catch(() => {});
+  server.kill();
+  rmSync(work, { recursive: true, force: true });
+}
+console.log("| encoding | vertices (displayed) | mouse moves/s | animation frames/s | frames applied/s | status after the drag |");
+console.log("|---|---|---|---|---|---|");
+for (const r of rows)
+  console.log(`| ${r.encoding} | ${r.vertices} (${r.displayed}) | ${r.mouse_moves_per_s} | ${r.animation_frames_per_s} | ${r.frames_per_s} | ${r.status}${r.error ? ` — error: ${r.error}` : ""} |`);
