@@ -104,24 +104,15 @@ Stream index_stream(const Triangles& F, Eigen::Index vertices) {
   return s;
 }
 
-// meshopt's codecs: vertex streams as "ATTRIBUTES", the index stream as "TRIANGLES".
-std::string meshopt_compress(const Stream& s, std::size_t vertices) {
+// meshopt's codecs: vertex streams as "ATTRIBUTES", the index stream as "TRIANGLES" (read
+// straight from F: the triangles' ids are non-negative ints, which the codec takes as unsigned).
+std::string meshopt_compress(const Stream& s, const Triangles& F, std::size_t vertices) {
   std::string out;
   std::size_t size = 0;
   if (s.indices) {
-    std::vector<unsigned int> idx(s.count);
-    for (std::size_t i = 0; i < s.count; ++i) {
-      if (s.stride == 2) {
-        std::uint16_t v;
-        std::memcpy(&v, s.bytes.data() + 2 * i, 2);
-        idx[i] = v;
-      } else {
-        std::memcpy(&idx[i], s.bytes.data() + 4 * i, 4);
-      }
-    }
     out.resize(meshopt_encodeIndexBufferBound(s.count, vertices));
     size = meshopt_encodeIndexBuffer(reinterpret_cast<unsigned char*>(out.data()), out.size(),
-                                     idx.data(), s.count);
+                                     reinterpret_cast<const unsigned int*>(F.data()), s.count);
   } else {
     out.resize(meshopt_encodeVertexBufferBound(s.count, static_cast<std::size_t>(s.stride)));
     size = meshopt_encodeVertexBuffer(reinterpret_cast<unsigned char*>(out.data()), out.size(),
@@ -186,7 +177,7 @@ std::string write_glb_compressed(const Vertices& V, const Triangles& F, const Ve
     // A stream the codec would not shrink (an index buffer without triangle locality, e.g. the
     // cactus: 65,680 bytes for 63,108) stays raw in buffer 0: views may mix, the file stays
     // the same to a reader.
-    const std::string packed = meshopt ? meshopt_compress(s, static_cast<std::size_t>(V.rows()))
+    const std::string packed = meshopt ? meshopt_compress(s, F, static_cast<std::size_t>(V.rows()))
                                        : std::string();
     const bool compress = meshopt && packed.size() < s.bytes.size();
     json view = {{"buffer", compress ? 1 : 0},

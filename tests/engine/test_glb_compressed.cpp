@@ -129,6 +129,17 @@ Decoded decode(const std::string& bytes) {
 
 std::vector<std::string> strings(const json& a) { return a.get<std::vector<std::string>>(); }
 
+// `run` throws InvalidInput whose message contains `needle`.
+template <class Run>
+void expect_refused(Run run, const std::string& needle, const char* what) {
+  try {
+    run();
+    ADD_FAILURE() << what;
+  } catch (const InvalidInput& e) {
+    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+  }
+}
+
 // Each triangle rotated to start at its smallest id: meshopt's index codec may start a
 // triangle at another corner (same winding, same triangle order), which glTF allows.
 Triangles canonical(Triangles F) {
@@ -239,20 +250,9 @@ TEST(GlbCompressed, NonFinitePositionsAreRefusedByName) {
   F << 0, 1, 2;
   WriteOptions o;
   o.glb_compression = GlbCompression::quantized;
-  try {
-    write_mesh_bytes(MeshFileFormat::glb, V, F, nullptr, o);
-    FAIL() << "a NaN position was quantized";
-  } catch (const InvalidInput& e) {
-    EXPECT_NE(std::string(e.what()).find("vertex 2 has a non-finite coordinate"), std::string::npos)
-        << e.what();
-  }
+  expect_refused([&] { write_mesh_bytes(MeshFileFormat::glb, V, F, nullptr, o); },
+                 "vertex 2 has a non-finite coordinate", "a NaN position was quantized");
 }
-
-}  // namespace
-}  // namespace hdeform
-
-namespace hdeform {
-namespace {
 
 // hdeform reads float32 GLBs only: a compressed one is refused with a message that says why.
 TEST(GlbCompressed, ReadingOneBackIsRefusedByName) {
@@ -261,13 +261,8 @@ TEST(GlbCompressed, ReadingOneBackIsRefusedByName) {
     WriteOptions o;
     o.glb_compression = c;
     const std::string bytes = write_mesh_bytes(MeshFileFormat::glb, r.mesh.V, r.mesh.F, nullptr, o);
-    try {
-      read_mesh_bytes(bytes, "c.glb");
-      FAIL() << "a compressed GLB was read";
-    } catch (const InvalidInput& e) {
-      EXPECT_NE(std::string(e.what()).find("c.glb: requires the glTF extension "), std::string::npos)
-          << e.what();
-    }
+    expect_refused([&] { read_mesh_bytes(bytes, "c.glb"); }, "c.glb: requires the glTF extension ",
+                   "a compressed GLB was read");
   }
 }
 
