@@ -33,6 +33,7 @@ std::string frame_encoding_name(pb::FrameEncoding e) {
     case pb::FRAME_ENCODING_FLOAT32: return "float32";
     case pb::FRAME_ENCODING_QUANTIZED: return "quantized";
     case pb::FRAME_ENCODING_MESHOPT: return "meshopt";
+    case pb::FRAME_ENCODING_MESHOPT_DELTA: return "meshopt-delta";
     default: return std::to_string(static_cast<int>(e));
   }
 }
@@ -47,6 +48,7 @@ std::string frame_line(const pb::Frame& f) {
   }
   s << " solve_ms=" << g6(f.solve_ms()) << " exact=" << (f.exact() ? 1 : 0)
     << " encoding=" << frame_encoding_name(f.encoding()) << " bytes=" << frame_buffer_bytes(f);
+  if (f.encoding() == pb::FRAME_ENCODING_MESHOPT_DELTA) s << " delta=" << (f.delta() ? 1 : 0);
   return s.str();
 }
 
@@ -71,12 +73,14 @@ Command add_watch_command(CLI::App& app, const GlobalOptions& global) {
   cmd->add_option("--for", opts->duration, "stop after S seconds");
   cmd->add_option("--encoding", opts->encoding,
                   "frame buffers: float32 (exact), quantized (16-bit positions, 8-bit "
-                  "octahedral normals) or meshopt (quantized, compressed); every frame is "
+                  "octahedral normals), meshopt (quantized, compressed) or meshopt-delta "
+                  "(meshopt of the differences to the previous frame); every frame is "
                   "decoded and checked")
       ->transform(CLI::CheckedTransformer(
           std::map<std::string, pb::FrameEncoding>{{"float32", pb::FRAME_ENCODING_FLOAT32},
                                                    {"quantized", pb::FRAME_ENCODING_QUANTIZED},
-                                                   {"meshopt", pb::FRAME_ENCODING_MESHOPT}},
+                                                   {"meshopt", pb::FRAME_ENCODING_MESHOPT},
+                                                   {"meshopt-delta", pb::FRAME_ENCODING_MESHOPT_DELTA}},
           CLI::ignore_case));
   cmd->add_flag("--exact-float32", opts->exact_float32,
                 "exact frames (the one ending a drag) as float32 whatever --encoding says");
@@ -133,13 +137,14 @@ Command add_watch_command(CLI::App& app, const GlobalOptions& global) {
         if (timed_out) ctx.TryCancel();
       }
       auto reader = conn.stub().WatchSession(&ctx, req);
+      FrameStreamDecoder decoder;  // per stream: MESHOPT_DELTA's state starts at its key frame
       const long before = events;
       pb::SessionEvent ev;
       while (reader->Read(&ev)) {
         switch (ev.event_case()) {
           case pb::SessionEvent::kFrame:
             try {
-              decode_frame(ev.frame(), vertices, triangles);
+              decoder.decode(ev.frame(), vertices, triangles);
             } catch (const FrameDecodeError& e) {
               bad_frame = e.what();
             }

@@ -51,7 +51,74 @@ void dequantize(const unsigned char* vertices, std::size_t n, const v1::Box& box
   }
 }
 
+std::vector<unsigned char> unpack_meshopt(const std::string& bytes, std::size_t n) {
+  std::vector<unsigned char> vertices(kQuantizedVertexBytes * n);
+  if (meshopt_decodeVertexBuffer(vertices.data(), n, kQuantizedVertexBytes,
+                                 reinterpret_cast<const unsigned char*>(bytes.data()),
+                                 bytes.size()) != 0)
+    throw FrameDecodeError("frame vertices: not a meshopt vertex buffer of " + std::to_string(n) +
+                           " vertices of 8 bytes");
+  return vertices;
+}
+
+void decode_energies(const v1::Frame& frame, std::size_t t, DecodedFrame& out) {
+  if (frame.energies().empty()) return;
+  expect_size(frame.energies(), 2 * t, "energies");
+  if (!std::isfinite(frame.energies_max()) || frame.energies_max() < 0)
+    throw FrameDecodeError("frame energies_max must be finite and not negative");
+  out.energies.resize(t);
+  for (std::size_t l = 0; l < t; ++l) {
+    std::uint16_t q;
+    std::memcpy(&q, frame.energies().data() + 2 * l, sizeof q);
+    out.energies[l] = static_cast<float>(q * (double(frame.energies_max()) / 65535.0));
+  }
+}
+
+std::uint16_t unzigzag16(std::uint16_t z) {
+  return static_cast<std::uint16_t>((z >> 1) ^ static_cast<std::uint16_t>(-(z & 1)));
+}
+std::uint8_t unzigzag8(std::uint8_t z) {
+  return static_cast<std::uint8_t>((z >> 1) ^ static_cast<std::uint8_t>(-(z & 1)));
+}
+
 }  // namespace
+
+DecodedFrame FrameStreamDecoder::decode(const v1::Frame& frame, std::size_t n, std::size_t t) {
+  if (frame.encoding() != v1::FRAME_ENCODING_MESHOPT_DELTA) {
+    state_.clear();  // the server sends a key frame next
+    return decode_frame(frame, n, t);
+  }
+  DecodedFrame out;
+  if (frame.superseded() || frame.vertices().empty()) {
+    decode_energies(frame, t, out);
+    return out;
+  }
+  // Taken, not kept: after a frame that fails, every delta fails until the next key frame.
+  const std::vector<unsigned char> before = std::move(state_);
+  state_.clear();
+  std::vector<unsigned char> vertices = unpack_meshopt(frame.vertices(), n);
+  if (frame.delta()) {
+    if (before.size() != vertices.size())
+      throw FrameDecodeError(before.empty()
+                                 ? "frame is a MESHOPT_DELTA delta but no key frame came before it"
+                                 : "frame is a MESHOPT_DELTA delta for another vertex count");
+    for (std::size_t o = 0; o < vertices.size(); o += kQuantizedVertexBytes) {
+      for (std::size_t k = 0; k < 6; k += 2) {
+        std::uint16_t z, was;
+        std::memcpy(&z, &vertices[o + k], 2);
+        std::memcpy(&was, &before[o + k], 2);
+        const auto now = static_cast<std::uint16_t>(was + unzigzag16(z));
+        std::memcpy(&vertices[o + k], &now, 2);
+      }
+      for (std::size_t k = 6; k < 8; ++k)
+        vertices[o + k] = static_cast<unsigned char>(before[o + k] + unzigzag8(vertices[o + k]));
+    }
+  }
+  dequantize(vertices.data(), n, frame.position_box(), out);
+  decode_energies(frame, t, out);
+  state_ = std::move(vertices);
+  return out;
+}
 
 void octahedral_decode(std::int8_t qu, std::int8_t qv, float out[3]) {
   float u = std::max(qu / 127.0f, -1.0f), v = std::max(qv / 127.0f, -1.0f);
@@ -96,27 +163,16 @@ DecodedFrame decode_frame(const v1::Frame& frame, std::size_t n, std::size_t t) 
       if (frame.encoding() == v1::FRAME_ENCODING_QUANTIZED) {
         expect_size(bytes, kQuantizedVertexBytes * n, "vertices");
       } else {
-        vertices.resize(kQuantizedVertexBytes * n);
-        if (meshopt_decodeVertexBuffer(vertices.data(), n, kQuantizedVertexBytes, raw,
-                                       bytes.size()) != 0)
-          throw FrameDecodeError("frame vertices: not a meshopt vertex buffer of " +
-                                 std::to_string(n) + " vertices of 8 bytes");
+        vertices = unpack_meshopt(bytes, n);
         raw = vertices.data();
       }
       dequantize(raw, n, frame.position_box(), out);
-      if (!frame.energies().empty()) {
-        expect_size(frame.energies(), 2 * t, "energies");
-        if (!std::isfinite(frame.energies_max()) || frame.energies_max() < 0)
-          throw FrameDecodeError("frame energies_max must be finite and not negative");
-        out.energies.resize(t);
-        for (std::size_t l = 0; l < t; ++l) {
-          std::uint16_t q;
-          std::memcpy(&q, frame.energies().data() + 2 * l, sizeof q);
-          out.energies[l] = static_cast<float>(q * (double(frame.energies_max()) / 65535.0));
-        }
-      }
+      decode_energies(frame, t, out);
       return out;
     }
+    case v1::FRAME_ENCODING_MESHOPT_DELTA:
+      throw FrameDecodeError(
+          "frame encoding MESHOPT_DELTA needs the stream's previous frames (FrameStreamDecoder)");
     default:
       throw FrameDecodeError("frame encoding " + std::to_string(frame.encoding()) +
                              " is unknown to this client");

@@ -24,9 +24,21 @@ struct DecodedFrame {
 };
 
 // `vertex_count` / `triangle_count`: the session's (Session.vertex_count, .triangle_count).
-// Throws FrameDecodeError naming the buffer and the size it expected.
+// Throws FrameDecodeError naming the buffer and the size it expected. MESHOPT_DELTA frames
+// need the stream's previous frames: FrameStreamDecoder.
 DecodedFrame decode_frame(const v1::Frame& frame, std::size_t vertex_count,
                           std::size_t triangle_count);
+
+// The frames of one stream, in order, in any encoding: keeps the quantized vertices of the
+// last MESHOPT_DELTA frame for the deltas that follow. After a frame that fails to decode,
+// every delta fails until the next key frame (watch anew).
+class FrameStreamDecoder {
+ public:
+  DecodedFrame decode(const v1::Frame& frame, std::size_t vertex_count, std::size_t triangle_count);
+
+ private:
+  std::vector<unsigned char> state_;  // 8 bytes per vertex: the last frame, quantized
+};
 
 // One int8 octahedral pair back to a unit vector (deform.proto's formula).
 void octahedral_decode(std::int8_t qu, std::int8_t qv, float out[3]);

@@ -2,6 +2,7 @@
 
 #include "convert.h"
 #include "errors.h"
+#include "frame_delta.h"
 #include "frame_encoding.h"
 #include "handle_update.h"
 
@@ -424,10 +425,24 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
     pending_.pop_front();
     // Encoded here, not at broadcast: only frames that are written cost an encoding, and
     // the session's watchers share one encode per encoding. A FLOAT32 watcher writes the
-    // shared event as it is.
-    current_ = session_->encoded_frames().get(std::move(current_), format_);
+    // shared event as it is. MESHOPT_DELTA is this stream's own: a delta to what it wrote.
+    if (format_.encoding() == v1::FRAME_ENCODING_MESHOPT_DELTA && current_->has_frame())
+      current_ = delta_encoded(std::move(current_));
+    else
+      current_ = session_->encoded_frames().get(std::move(current_), format_);
     writing_ = true;
     StartWrite(current_.get());
+  }
+
+  std::shared_ptr<const v1::SessionEvent> delta_encoded(
+      std::shared_ptr<const v1::SessionEvent> event) {
+    if (encoding_for(event->frame(), format_) == v1::FRAME_ENCODING_FLOAT32) {
+      delta_.reset();  // an exact frame as FLOAT32: the client's state is no longer ours
+      return event;
+    }
+    auto out = std::make_shared<v1::SessionEvent>();
+    delta_.encode(event->frame(), out->mutable_frame());
+    return out;
   }
 
   void finish_locked(const grpc::Status& status) {
@@ -439,6 +454,7 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
 
   std::shared_ptr<Session> session_;
   const v1::FrameFormat format_;
+  FrameDeltaEncoder delta_;
   const std::string client_id_;
   std::shared_ptr<Sink> sink_;
   std::mutex mutex_;
@@ -1024,7 +1040,7 @@ grpc::ServerWriteReactor<v1::SessionEvent>* DeformService::WatchSession(
   const auto status = guarded(
       [&] {
         session = session_for(*ctx, request->name(), Access::kView, "WatchSession");
-        check_frame_format(request->format(), "WatchSession");
+        check_frame_format(request->format(), "WatchSession", /*in_order_stream=*/true);
         if (request->has_client()) Roster::check_participant(request->client(), "WatchSession");
       },
       "WatchSession");

@@ -17,8 +17,6 @@ static_assert(std::endian::native == std::endian::little,
 
 namespace {
 
-constexpr std::size_t kQuantizedVertexBytes = 8;
-
 std::span<const float> floats(const std::string& bytes) {
   return {reinterpret_cast<const float*>(bytes.data()), bytes.size() / sizeof(float)};
 }
@@ -29,11 +27,16 @@ std::uint16_t to_u16(float t) {  // t in [0, 1] (clamped): nearest of 65536 leve
 
 }  // namespace
 
-void check_frame_format(const v1::FrameFormat& format, const char* where) {
+void check_frame_format(const v1::FrameFormat& format, const char* where, bool in_order_stream) {
   if (!v1::FrameEncoding_IsValid(format.encoding()))
     fail(grpc::StatusCode::INVALID_ARGUMENT,
          std::string(where) + ": unknown frame encoding " + std::to_string(format.encoding()) +
-             " (this server knows FLOAT32 = 0, QUANTIZED = 1, MESHOPT = 2)");
+             " (this server knows FLOAT32 = 0, QUANTIZED = 1, MESHOPT = 2, MESHOPT_DELTA = 3)");
+  if (format.encoding() == v1::FRAME_ENCODING_MESHOPT_DELTA && !in_order_stream)
+    fail(grpc::StatusCode::INVALID_ARGUMENT,
+         std::string(where) +
+             ": frame encoding MESHOPT_DELTA needs a stream that carries every frame it encodes "
+             "(WatchSession); use MESHOPT here");
 }
 
 v1::FrameEncoding encoding_for(const v1::Frame& frame, const v1::FrameFormat& format) {
@@ -70,8 +73,7 @@ void octahedral_encode(const float n[3], std::int8_t out[2]) {
   out[1] = static_cast<std::int8_t>(std::lrintf(std::clamp(v, -1.0f, 1.0f) * 127.0f));
 }
 
-std::string quantize_vertices(std::span<const float> p, std::span<const float> nrm,
-                              v1::Box* box) {
+v1::Box bounding_box(std::span<const float> p) {
   const std::size_t n = p.size() / 3;
   float lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
   if (n > 0) {
@@ -82,28 +84,52 @@ std::string quantize_vertices(std::span<const float> p, std::span<const float> n
         hi[k] = std::max(hi[k], p[3 * i + k]);
       }
   }
-  box->mutable_min()->set_x(lo[0]);
-  box->mutable_min()->set_y(lo[1]);
-  box->mutable_min()->set_z(lo[2]);
-  box->mutable_max()->set_x(hi[0]);
-  box->mutable_max()->set_y(hi[1]);
-  box->mutable_max()->set_z(hi[2]);
+  v1::Box box;
+  box.mutable_min()->set_x(lo[0]);
+  box.mutable_min()->set_y(lo[1]);
+  box.mutable_min()->set_z(lo[2]);
+  box.mutable_max()->set_x(hi[0]);
+  box.mutable_max()->set_y(hi[1]);
+  box.mutable_max()->set_z(hi[2]);
+  return box;
+}
+
+bool quantize_onto(std::span<const float> p, std::span<const float> nrm, const v1::Box& box,
+                   unsigned char* out) {
+  const double lo[3] = {box.min().x(), box.min().y(), box.min().z()};
+  const double hi[3] = {box.max().x(), box.max().y(), box.max().z()};
   double scale[3];  // q = (x − lo) · 65535 / extent, in double: float would lose the last bits
   for (int k = 0; k < 3; ++k) {
-    const double extent = double(hi[k]) - double(lo[k]);
+    const double extent = hi[k] - lo[k];
     scale[k] = extent > 0 ? 65535.0 / extent : 0.0;  // a flat axis: every q is 0, decoded as min
   }
-  std::string out(kQuantizedVertexBytes * n, '\0');
-  auto* bytes = reinterpret_cast<unsigned char*>(out.data());
+  const std::size_t n = p.size() / 3;
   const bool has_normals = nrm.size() == p.size();
+  bool inside = true;
   for (std::size_t i = 0; i < n; ++i) {
     std::uint16_t q[3];
-    for (int k = 0; k < 3; ++k)  // in [0, 65535] by construction of lo / hi
-      q[k] = static_cast<std::uint16_t>(std::lrint((double(p[3 * i + k]) - lo[k]) * scale[k]));
-    unsigned char* v = bytes + kQuantizedVertexBytes * i;
+    for (int k = 0; k < 3; ++k) {
+      const double x = p[3 * i + k];
+      const double t = (x - lo[k]) * scale[k];
+      // Outside: rounds below 0 or above 65535, or off a flat axis. NaN fails both tests.
+      if (!(t >= -0.5 && t < 65535.5) || (scale[k] == 0 && x != lo[k])) inside = false;
+      q[k] = static_cast<std::uint16_t>(std::clamp(std::lrint(t), 0L, 65535L));
+    }
+    unsigned char* v = out + kQuantizedVertexBytes * i;
     std::memcpy(v, q, sizeof q);
-    if (has_normals) octahedral_encode(&nrm[3 * i], reinterpret_cast<std::int8_t*>(v + 6));
+    if (has_normals)
+      octahedral_encode(&nrm[3 * i], reinterpret_cast<std::int8_t*>(v + 6));
+    else
+      v[6] = v[7] = 0;
   }
+  return inside;
+}
+
+std::string quantize_vertices(std::span<const float> p, std::span<const float> nrm,
+                              v1::Box* box) {
+  *box = bounding_box(p);
+  std::string out(kQuantizedVertexBytes * (p.size() / 3), '\0');
+  quantize_onto(p, nrm, *box, reinterpret_cast<unsigned char*>(out.data()));  // inside by construction
   return out;
 }
 
@@ -120,7 +146,14 @@ std::string quantize_energies(std::span<const float> e, float* energies_max) {
   return out;
 }
 
-std::string meshopt_encode(const std::string& vertices, std::size_t vertex_size) {
+void set_quantized_energies(const v1::Frame& frame, v1::Frame* out) {
+  if (frame.energies().empty()) return;
+  float top = 0;
+  out->set_energies(quantize_energies(floats(frame.energies()), &top));
+  out->set_energies_max(top);
+}
+
+std::string meshopt_encode(std::string_view vertices, std::size_t vertex_size) {
   const std::size_t count = vertices.size() / vertex_size;
   std::string out(meshopt_encodeVertexBufferBound(count, vertex_size), '\0');
   const std::size_t size =
@@ -140,14 +173,10 @@ bool encode_frame_to(const v1::Frame& frame, const v1::FrameFormat& format, bool
   out->set_encoding(encoding);
   std::string vertices = quantize_vertices(floats(frame.positions()), floats(frame.normals()),
                                            out->mutable_position_box());
-  if (encoding == v1::FRAME_ENCODING_MESHOPT)
+  if (encoding == v1::FRAME_ENCODING_MESHOPT || encoding == v1::FRAME_ENCODING_MESHOPT_DELTA)
     vertices = meshopt_encode(vertices, kQuantizedVertexBytes);
   out->set_vertices(std::move(vertices));
-  if (!frame.energies().empty()) {
-    float top = 0;
-    out->set_energies(quantize_energies(floats(frame.energies()), &top));
-    out->set_energies_max(top);
-  }
+  set_quantized_energies(frame, out);
   return true;
 }
 

@@ -1,8 +1,9 @@
 // Frame buffer encodings (proto FrameEncoding): FLOAT32 as Session::update makes frames,
 // QUANTIZED (8 bytes per vertex: 3 × uint16 position in the frame's box, 2 × int8
 // octahedral normal; uint16 energies) and MESHOPT (the quantized vertices through
-// meshoptimizer's vertex codec). The formats are specified in deform.proto; clients decode
-// them with client-cli/frame_decode.h (C++) or the viewer's decoders.
+// meshoptimizer's vertex codec); MESHOPT_DELTA's per-stream state is frame_delta.h. The
+// formats are specified in deform.proto; clients decode them with client-cli/frame_decode.h
+// (C++) or the viewer's decoders.
 #pragma once
 
 #include "hdeform/v1/deform.pb.h"
@@ -12,12 +13,17 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <string_view>
 
 namespace hdeform::service {
 
+inline constexpr std::size_t kQuantizedVertexBytes = 8;
+
 // Fails with INVALID_ARGUMENT naming `where` when `format` asks for an encoding this server does not
-// know (a newer client's enum value).
-void check_frame_format(const v1::FrameFormat& format, const char* where);
+// know (a newer client's enum value), or for MESHOPT_DELTA where frames may be dropped or
+// reordered (`in_order_stream` false: Deform coalesces its frames, UpdateHandles has no stream).
+void check_frame_format(const v1::FrameFormat& format, const char* where,
+                        bool in_order_stream = false);
 
 // The encoding `frame` (a FLOAT32 frame) goes out in for a client that asked for `format`.
 v1::FrameEncoding encoding_for(const v1::Frame& frame, const v1::FrameFormat& format);
@@ -34,7 +40,7 @@ bool encode_frame_to(const v1::Frame& frame, const v1::FrameFormat& format, bool
                      v1::Frame* out);
 
 // Every field of `in` but its buffers (positions, normals, energies, vertices,
-// position_box, energies_max), and encoding FLOAT32.
+// position_box, energies_max, delta), and encoding FLOAT32.
 void copy_frame_header(const v1::Frame& in, v1::Frame* out);
 
 // The QUANTIZED vertex buffer (8 bytes per vertex) of float32 xyz positions and normals
@@ -43,6 +49,15 @@ void copy_frame_header(const v1::Frame& in, v1::Frame* out);
 std::string quantize_vertices(std::span<const float> positions, std::span<const float> normals,
                               v1::Box* box);
 
+// The bounding box of xyz positions (3 floats per vertex); all zero when there are none.
+v1::Box bounding_box(std::span<const float> positions);
+
+// The QUANTIZED vertex bytes of `positions` and `normals` (empty: normal bytes 0) on the grid
+// `box` into `out` (8 bytes per vertex, every vertex written). False when a position lies
+// outside the box (it is then clamped to it) or is NaN.
+bool quantize_onto(std::span<const float> positions, std::span<const float> normals,
+                   const v1::Box& box, unsigned char* out);
+
 // The two int8 octahedral components of a unit vector (any non-zero vector: it is
 // normalized by the L1 norm first).
 void octahedral_encode(const float n[3], std::int8_t out[2]);
@@ -50,7 +65,10 @@ void octahedral_encode(const float n[3], std::int8_t out[2]);
 // QUANTIZED energies: uint16 per triangle (rounded to nearest) and the scale energies_max.
 std::string quantize_energies(std::span<const float> energies, float* energies_max);
 
+// `frame`'s FLOAT32 energies, if any, as QUANTIZED energies and energies_max of `out`.
+void set_quantized_energies(const v1::Frame& frame, v1::Frame* out);
+
 // meshoptimizer's vertex codec over `vertices` (vertex_size bytes each, a multiple of 4).
-std::string meshopt_encode(const std::string& vertices, std::size_t vertex_size);
+std::string meshopt_encode(std::string_view vertices, std::size_t vertex_size);
 
 }  // namespace hdeform::service

@@ -1,0 +1,273 @@
+// MESHOPT_DELTA (deform.proto FrameEncoding): the per-stream encoder (service/frame_delta.h)
+// against the client's stream decoder (client-cli/frame_decode.h): every frame decodes to
+// exactly its quantization on the key frame's grid, within QUANTIZED's stated bounds; key
+// frames come when the proto says; then over loopback: a WatchSession drag in MESHOPT_DELTA,
+// and the calls that cannot carry it refuse it by name.
+#include "frame_decode.h"
+#include "frame_test_util.h"
+#include "service/frame_delta.h"
+#include "service/frame_encoding.h"
+#include "service_fixture.h"
+
+#include <cstring>
+#include <map>
+
+namespace hdeform::testing {
+namespace {
+
+namespace svc = ::hdeform::service;
+
+std::vector<float> floats_of(const std::string& bytes) {
+  std::vector<float> v(bytes.size() / sizeof(float));
+  std::memcpy(v.data(), bytes.data(), v.size() * sizeof(float));
+  return v;
+}
+
+// `f` with every position moved by `shift` · (a smooth field of the position): a drag step.
+pb::Frame moved(const pb::Frame& f, float shift) {
+  auto p = floats_of(f.positions());
+  for (std::size_t i = 0; i < p.size(); i += 3) {
+    p[i] += shift * std::sin(0.01f * p[i + 2]);
+    p[i + 1] += 0.5f * shift;
+  }
+  pb::Frame out = f;
+  out.set_positions(float_bytes(p));
+  return out;
+}
+
+// What a QUANTIZED frame on `grid` decodes to: the exact target of a MESHOPT_DELTA frame.
+cli::DecodedFrame quantized_on(const pb::Frame& f32, const pb::Box& grid, std::size_t n) {
+  std::string bytes(svc::kQuantizedVertexBytes * n, '\0');
+  const auto p = floats_of(f32.positions()), nr = floats_of(f32.normals());
+  svc::quantize_onto(p, nr, grid, reinterpret_cast<unsigned char*>(bytes.data()));
+  pb::Frame q;
+  q.set_encoding(pb::FRAME_ENCODING_QUANTIZED);
+  q.set_vertices(bytes);
+  *q.mutable_position_box() = grid;
+  return decode_frame(q, n, 0);
+}
+
+TEST(FrameDelta, EveryFrameDecodesToItsQuantizationOnTheKeyGrid) {
+  const std::size_t n = 20000, t = 100;
+  pb::Frame f = random_frame(n, t, 11);
+  svc::FrameDeltaEncoder enc;
+  cli::FrameStreamDecoder dec;
+  std::size_t key_bytes = 0, delta_bytes = 0;
+  for (int k = 0; k < 8; ++k) {
+    if (k > 0) f = moved(f, 0.05f);
+    pb::Frame out;
+    enc.encode(f, &out);
+    EXPECT_EQ(out.encoding(), pb::FRAME_ENCODING_MESHOPT_DELTA);
+    EXPECT_EQ(out.delta(), k > 0) << "frame " << k;
+    EXPECT_TRUE(out.positions().empty() && out.normals().empty());
+    (k == 0 ? key_bytes : delta_bytes) = out.vertices().size();
+    const auto d = dec.decode(out, n, t);
+    const auto want = quantized_on(f, out.position_box(), n);
+    ASSERT_EQ(d.positions, want.positions) << "frame " << k << ": deltas must not drift";
+    ASSERT_EQ(d.normals, want.normals) << "frame " << k;
+    expect_within_stated_bounds(f, d, out.position_box(), out.energies_max());
+  }
+  EXPECT_EQ(enc.key_frames(), 1u);
+  EXPECT_EQ(enc.delta_frames(), 7u);
+  // The same grid, small smooth moves: the deltas pack far tighter than the key frame.
+  EXPECT_LT(delta_bytes * 2, key_bytes) << "key " << key_bytes << " B, delta " << delta_bytes << " B";
+  std::printf("[ measured ] %zu vertices: key frame %zu B, delta frame %zu B\n", n, key_bytes,
+              delta_bytes);
+}
+
+TEST(FrameDelta, KeyFramesComeWhenTheGridOrTheStreamChanges) {
+  const std::size_t n = 500;
+  pb::Frame f = random_frame(n, 0, 5);
+  svc::FrameDeltaEncoder enc;
+  cli::FrameStreamDecoder dec;
+  auto send = [&](const pb::Frame& frame, std::size_t count) {
+    pb::Frame out;
+    enc.encode(frame, &out);
+    const auto d = dec.decode(out, count, 0);
+    if (!out.vertices().empty()) {
+      const auto want = quantized_on(frame, out.position_box(), count);
+      EXPECT_EQ(d.positions, want.positions);
+    }
+    return out;
+  };
+  EXPECT_FALSE(send(f, n).delta());
+  EXPECT_TRUE(send(moved(f, 0.01f), n).delta());
+  // Far outside the grid (the margin is 1/8 of the largest side): a new key frame.
+  const auto far = moved(f, 5e4f);
+  EXPECT_FALSE(send(far, n).delta());
+  EXPECT_TRUE(send(moved(far, 0.01f), n).delta());
+  // Normals gone: a key frame (normal bytes 0), and again when they return.
+  pb::Frame bare = far;
+  bare.clear_normals();
+  EXPECT_FALSE(send(bare, n).delta());
+  EXPECT_FALSE(send(far, n).delta());
+  // Another vertex count: a key frame.
+  const pb::Frame small = random_frame(n / 2, 0, 6);
+  EXPECT_FALSE(send(small, n / 2).delta());
+  // A superseded frame (no buffers) changes nothing: the next frame is still a delta.
+  pb::Frame superseded;
+  superseded.set_superseded(true);
+  EXPECT_TRUE(send(superseded, n / 2).vertices().empty());
+  EXPECT_TRUE(send(moved(small, 0.01f), n / 2).delta());
+  // reset(): the stream sent another encoding in between.
+  enc.reset();
+  EXPECT_FALSE(send(moved(small, 0.02f), n / 2).delta());
+  // A NaN position leaves every grid: a key frame, not a silent clamp.
+  auto p = floats_of(small.positions());
+  p[4] = std::nanf("");
+  pb::Frame nan_frame = small;
+  nan_frame.set_positions(float_bytes(p));
+  pb::Frame out;
+  enc.encode(nan_frame, &out);
+  EXPECT_FALSE(out.delta());
+}
+
+TEST(FrameDelta, TheStreamDecoderRefusesDeltasItCannotPlace) {
+  const std::size_t n = 300;
+  const pb::Frame f = random_frame(n, 0, 9);
+  svc::FrameDeltaEncoder enc;
+  pb::Frame key, delta, delta2;
+  enc.encode(f, &key);
+  enc.encode(moved(f, 0.01f), &delta);
+  enc.encode(moved(f, 0.02f), &delta2);
+  auto message = [](auto&& call) {
+    try {
+      call();
+    } catch (const cli::FrameDecodeError& e) {
+      return std::string(e.what());
+    }
+    return std::string("(no error)");
+  };
+  {  // A delta with no key frame before it.
+    cli::FrameStreamDecoder dec;
+    EXPECT_NE(message([&] { dec.decode(delta, n, 0); }).find("no key frame"), std::string::npos);
+  }
+  {  // The stateless decoder says what it needs.
+    EXPECT_NE(message([&] { decode_frame(delta, n, 0); }).find("FrameStreamDecoder"),
+              std::string::npos);
+  }
+  {  // A delta after a key frame of another vertex count, then a corrupt one: later deltas
+     // fail until a key frame heals the stream.
+    cli::FrameStreamDecoder dec;
+    svc::FrameDeltaEncoder other;
+    pb::Frame small_key;
+    other.encode(random_frame(n / 2, 0, 1), &small_key);
+    dec.decode(small_key, n / 2, 0);
+    EXPECT_NE(message([&] { dec.decode(delta, n, 0); }).find("another vertex count"),
+              std::string::npos);
+    EXPECT_NE(message([&] { dec.decode(delta2, n, 0); }).find("no key frame"), std::string::npos);
+    dec.decode(key, n, 0);
+    pb::Frame corrupt = delta;
+    corrupt.mutable_vertices()->resize(corrupt.vertices().size() / 2);
+    EXPECT_NE(message([&] { dec.decode(corrupt, n, 0); }).find("not a meshopt vertex buffer"),
+              std::string::npos);
+    EXPECT_NE(message([&] { dec.decode(delta2, n, 0); }).find("no key frame"), std::string::npos);
+    dec.decode(key, n, 0);
+    EXPECT_NO_THROW(dec.decode(delta, n, 0));
+  }
+}
+
+// The cactus transform scaled from identity: `s` = 0 is the rest pose, 1 the benchmark's.
+pb::HandleTransform partial_transform(double s) {
+  const pb::HandleTransform full = cactus_transform();
+  pb::HandleTransform t;
+  for (int i = 0; i < 16; ++i) {
+    const double id = (i % 5 == 0) ? 1.0 : 0.0;
+    t.add_matrix(id + s * (full.matrix(i) - id));
+  }
+  return t;
+}
+
+pb::UpdateHandlesRequest drag_step(const std::string& name, std::int64_t seq, bool dragging) {
+  pb::UpdateHandlesRequest req;
+  req.set_name(name);
+  req.set_sequence(seq);
+  *req.add_transforms() = partial_transform(0.1 * static_cast<double>(seq));
+  req.set_dragging(dragging);
+  return req;  // FLOAT32 answers: the exact reference for what the watcher decodes
+}
+
+TEST(FrameDeltaService, AWatcherDecodesADragInMeshoptDeltaToTheServersFrames) {
+  TestServer t;
+  const auto s = constrained_cactus(t);
+  const std::size_t n = s.vertex_count(), tris = s.triangle_count();
+  grpc::ClientContext wctx;
+  pb::WatchSessionRequest wreq;
+  wreq.set_name(s.name());
+  wreq.mutable_format()->set_encoding(pb::FRAME_ENCODING_MESHOPT_DELTA);
+  wreq.mutable_format()->set_exact_as_float32(true);
+  auto watch = t.stub->WatchSession(&wctx, wreq);
+  pb::SessionEvent ev;
+  ASSERT_TRUE(watch->Read(&ev) && ev.has_state());
+
+  // Two drags: 1–5 dragging then 6 exact; 7–9 dragging then 10 exact.
+  std::map<std::int64_t, pb::Frame> answers;
+  for (std::int64_t seq = 1; seq <= 10; ++seq) {
+    grpc::ClientContext ctx;
+    pb::Frame f;
+    const bool dragging = seq != 6 && seq != 10;
+    ASSERT_TRUE(t.stub->UpdateHandles(&ctx, drag_step(s.name(), seq, dragging), &f).ok());
+    answers[seq] = f;
+  }
+  cli::FrameStreamDecoder dec;
+  int keys = 0, deltas = 0, exact = 0;
+  std::int64_t last = 0;
+  while (last != 10 && watch->Read(&ev)) {
+    if (!ev.has_frame()) continue;
+    const pb::Frame& f = ev.frame();
+    last = f.sequence();
+    ASSERT_TRUE(answers.count(last)) << "sequence " << last;
+    const pb::Frame& ref = answers[last];
+    const auto d = dec.decode(f, n, tris);
+    if (f.encoding() == pb::FRAME_ENCODING_FLOAT32) {
+      ++exact;
+      EXPECT_TRUE(f.exact());
+      EXPECT_EQ(f.positions(), ref.positions()) << "the frame ending a drag is the server's";
+      continue;
+    }
+    ASSERT_EQ(f.encoding(), pb::FRAME_ENCODING_MESHOPT_DELTA);
+    (f.delta() ? deltas : keys) += 1;
+    expect_within_stated_bounds(ref, d, f.position_box(), 0);
+  }
+  ASSERT_EQ(last, 10);
+  EXPECT_EQ(exact, 2);
+  EXPECT_GE(keys, 2) << "each drag starts with a key frame (after the exact float32 one)";
+  EXPECT_GE(deltas, 1);
+  wctx.TryCancel();
+  watch->Finish();
+}
+
+TEST(FrameDeltaService, CallsThatMayDropFramesRefuseMeshoptDeltaByName) {
+  TestServer t;
+  const auto s = constrained_cactus(t);
+  pb::Frame f;
+  {
+    grpc::ClientContext ctx;
+    auto req = drag_step(s.name(), 1, true);
+    req.mutable_format()->set_encoding(pb::FRAME_ENCODING_MESHOPT_DELTA);
+    const auto st = t.stub->UpdateHandles(&ctx, req, &f);
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_NE(st.error_message().find("UpdateHandles: frame encoding MESHOPT_DELTA needs a stream"),
+              std::string::npos)
+        << st.error_message();
+  }
+  {
+    grpc::ClientContext ctx;
+    auto stream = t.stub->Deform(&ctx);
+    auto req = deform_request(s.name(), 2, cactus_transform());
+    req.mutable_format()->set_encoding(pb::FRAME_ENCODING_MESHOPT_DELTA);
+    stream->Write(req);
+    stream->WritesDone();
+    while (stream->Read(&f)) {
+    }
+    const auto st = stream->Finish();
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_NE(st.error_message().find("Deform: frame encoding MESHOPT_DELTA"), std::string::npos)
+        << st.error_message();
+  }
+  grpc::ClientContext ctx;  // the session still serves
+  EXPECT_TRUE(t.stub->UpdateHandles(&ctx, drag_step(s.name(), 3, false), &f).ok());
+}
+
+}  // namespace
+}  // namespace hdeform::testing
