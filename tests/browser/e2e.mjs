@@ -11,7 +11,7 @@
 // second page and compare positions; drag again and check the second page follows live
 // (WatchSession); open the watch-only link (no editing tools); the display is indexed, and
 // split into 3 corners per triangle while the energy map is on; reopen the editor with
-// ?encoding=float32, quantized and meshopt and drag on each: it ends on exactly the shape
+// ?encoding=float32, quantized, meshopt and meshopt-delta and drag on each: it ends on exactly the shape
 // GetMesh returns (the drag's last frame is float32); upload a broken file and
 // check the error banner; upload a glTF split at a seam and check that regions picked in its
 // base GLB are accepted and shown where they were picked (base_ids / base_constraints);
@@ -566,7 +566,7 @@ try {
   await waitIdle(page1);
   check((await page1.evaluate(() => window.hdeform.displayVertices)) === labels.length, "energy map off: the display is indexed again");
   const editorLink = await page1.evaluate(() => window.hdeform.shareLink(false));
-  for (const [i, encoding] of ["float32", "quantized", "meshopt"].entries()) {
+  for (const [i, encoding] of ["float32", "quantized", "meshopt", "meshopt-delta"].entries()) {
     const url = new URL(editorLink);
     url.searchParams.set("encoding", encoding);
     await page1.goto(url.toString());

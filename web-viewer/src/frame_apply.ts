@@ -41,6 +41,13 @@ export function setupFrameApply({ state, client, banner, status }: App, sync: Sy
     }, RESYNC_QUIET_MS);
   };
 
+  sync.on("skippedFrame", ({ frame }) => {
+    const mesh = state.mesh;
+    // Not shown, but a MESHOPT_DELTA frame moves the decoder's state on; its errors show on
+    // the next frame that is shown.
+    if (mesh) decoder.skip(frame, mesh.n, mesh.m).catch(() => {});
+  });
+
   sync.on("frame", ({ frame, source }) => {
     const mesh = state.mesh;
     if (!mesh) return;
@@ -69,7 +76,7 @@ export function setupFrameApply({ state, client, banner, status }: App, sync: Sy
     const bytes = bufferBytes(frame);
     if (bytes === 0) return;
     sizes.set(frame.encoding, bytes);
-    const parts = [...sizes].map(([enc, b]) => `${FrameEncoding[enc].toLowerCase()} ${(b / 1024).toFixed(1)} KiB`);
+    const parts = [...sizes].map(([enc, b]) => `${FrameEncoding[enc].toLowerCase().replace("_", "-")} ${(b / 1024).toFixed(1)} KiB`);
     status.setFrameSizes(`frames: ${parts.join(", ")}`);
   }
 

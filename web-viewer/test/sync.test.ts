@@ -22,7 +22,7 @@ function setup(window = 1, format?: SyncOptions["format"]) {
     format,
     timing: FAST,
   });
-  const events: { [K in keyof SyncEvents]: SyncEvents[K][] } = { link: [], frame: [], state: [], error: [], clearError: [], revert: [], presence: [], step: [], timeline: [] };
+  const events: { [K in keyof SyncEvents]: SyncEvents[K][] } = { link: [], frame: [], skippedFrame: [], state: [], error: [], clearError: [], revert: [], presence: [], step: [], timeline: [] };
   for (const k of Object.keys(events) as (keyof SyncEvents)[]) sync.on(k, (p) => (events[k] as unknown[]).push(p));
   sync.open("sessions/s");
   opened.push(sync);
@@ -120,6 +120,17 @@ describe("sync, one update in flight (window 1)", () => {
     assert.equal(events.frame.length, 1);
   });
 
+  it("MESHOPT_DELTA: the watch stream asks for it, UpdateHandles for MESHOPT (a reply is no stream)", async () => {
+    const { fake, sync } = setup(1, { encoding: FrameEncoding.MESHOPT_DELTA, exactAsFloat32: true });
+    sync.watch();
+    await until(() => fake.streams.length === 1, "the watch stream");
+    sync.request();
+    sync.tick();
+    assert.equal(fake.watchRequests[0].format?.encoding, FrameEncoding.MESHOPT_DELTA);
+    assert.equal(fake.updates[0].request.format?.encoding, FrameEncoding.MESHOPT);
+    assert.equal(fake.updates[0].request.format?.exactAsFloat32, true);
+  });
+
   it("ignores WatchSession frames while its own update is pending, and duplicates", async () => {
     const { fake, sync, events } = setup();
     sync.watch();
@@ -136,6 +147,8 @@ describe("sync, one update in flight (window 1)", () => {
     fake.stream.push(frameEvent(frame({ version: 3, sequence: 4, positions: [2, 0, 0] }))); // another editor
     await until(() => sync.watchEvents === 3, "three watch events");
     assert.deepEqual(events.frame.map((e) => [e.frame.version, e.source]), [[2n, "reply"], [3n, "watch"]]);
+    // Every watch frame not shown is handed on (MESHOPT_DELTA's decoder must still see it).
+    assert.deepEqual(events.skippedFrame.map((e) => e.frame.version), [1n, 2n]);
   });
 
   it("never applies a frame older than the newest applied", async () => {

@@ -1,6 +1,8 @@
-// The decode worker: QUANTIZED / MESHOPT frames are unpacked here, off the main thread, and
-// their float32 arrays transferred back (not copied). Messages are answered in order.
-import { decodeFrame, meshoptReady } from "./frame_decode";
+// The decode worker: QUANTIZED / MESHOPT / MESHOPT_DELTA frames are unpacked here, off the
+// main thread, and their float32 arrays transferred back (not copied). Messages are answered
+// in order. MESHOPT_DELTA frames only come from the page's one WatchSession stream, in its
+// order, so the worker keeps that stream's state.
+import { decodeFrame, meshoptReady, MeshoptDeltaStream } from "./frame_decode";
 import type { DecodeReply, DecodeRequest } from "./worker_messages";
 
 const scope = self as unknown as {
@@ -9,11 +11,17 @@ const scope = self as unknown as {
 };
 
 let queue: Promise<void> = meshoptReady;
+const stream = new MeshoptDeltaStream();
 
 scope.onmessage = ({ data }) => {
   queue = queue.then(() => {
     try {
-      const { positions, normals, energies } = decodeFrame(data.frame, data.vertexCount, data.triangleCount);
+      if (data.advanceOnly) {
+        stream.advance(data.frame, data.vertexCount);
+        scope.postMessage({ id: data.id, decoded: { positions: null, normals: null, energies: null } }, []);
+        return;
+      }
+      const { positions, normals, energies } = decodeFrame(data.frame, data.vertexCount, data.triangleCount, stream);
       const transfer = [positions, normals, energies].flatMap((a) => (a ? [a.buffer] : []));
       scope.postMessage({ id: data.id, decoded: { positions, normals, energies } }, transfer);
     } catch (err) {

@@ -2,7 +2,7 @@
 import type { Frame } from "../gen/hdeform/v1/deform_pb";
 
 /** The part of a Frame that decoding reads (all the decode worker is sent). */
-export type FrameBuffers = Pick<Frame, "encoding" | "positions" | "normals" | "energies" | "vertices" | "positionBox" | "energiesMax">;
+export type FrameBuffers = Pick<Frame, "encoding" | "positions" | "normals" | "energies" | "vertices" | "positionBox" | "energiesMax" | "delta">;
 
 /**
  * A frame's buffers as float32, in the base GLB's vertex and triangle order; null when the

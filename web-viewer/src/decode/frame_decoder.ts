@@ -1,7 +1,8 @@
 // The page's frame decoder: FLOAT32 frames are views of the received bytes and decode on the
-// main thread (which so never loads the meshopt WebAssembly); QUANTIZED / MESHOPT frames go
-// to the decode worker (one, which answers in order). Callers that need frames in order
-// chain the promises (frame_apply.ts).
+// main thread (which so never loads the meshopt WebAssembly); QUANTIZED / MESHOPT /
+// MESHOPT_DELTA frames go to the decode worker (one, which answers in order and keeps the
+// watch stream's MESHOPT_DELTA state). Callers that need frames in order chain the promises
+// (frame_apply.ts).
 import { FrameEncoding, type Frame } from "../gen/hdeform/v1/deform_pb";
 import { FrameDecodeError, type DecodedFrame } from "./decoded_frame";
 import { decodeFloat32 } from "./float32";
@@ -21,7 +22,16 @@ export class FrameDecoder {
     }
   }
 
-  private inWorker(frame: Frame, vertexCount: number, triangleCount: number): Promise<DecodedFrame> {
+  /**
+   * A MESHOPT_DELTA frame of the watch stream the page will not show: the worker's state
+   * must still take it, or the deltas after it land wrong. Other encodings: nothing to do.
+   */
+  skip(frame: Frame, vertexCount: number, triangleCount: number): Promise<void> {
+    if (frame.encoding !== FrameEncoding.MESHOPT_DELTA) return Promise.resolve();
+    return this.inWorker(frame, vertexCount, triangleCount, true).then(() => undefined);
+  }
+
+  private inWorker(frame: Frame, vertexCount: number, triangleCount: number, advanceOnly = false): Promise<DecodedFrame> {
     const worker = (this.worker ??= this.start());
     const id = ++this.nextId;
     // Own copies of the bytes (they are views into the whole response) to transfer.
@@ -35,11 +45,13 @@ export class FrameDecoder {
         energies,
         positionBox: frame.positionBox,
         energiesMax: frame.energiesMax,
+        delta: frame.delta,
         positions: new Uint8Array(0),
         normals: new Uint8Array(0),
       },
       vertexCount,
       triangleCount,
+      advanceOnly,
     };
     return new Promise((resolve, reject) => {
       this.waiting.set(id, { resolve, reject });

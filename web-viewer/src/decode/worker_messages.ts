@@ -7,6 +7,8 @@ export interface DecodeRequest {
   frame: FrameBuffers;
   vertexCount: number;
   triangleCount: number;
+  /** MESHOPT_DELTA frames the page does not show: only the stream's state moves on. */
+  advanceOnly?: boolean;
 }
 
 export type DecodeReply = { id: number; decoded: DecodedFrame } | { id: number; error: string };

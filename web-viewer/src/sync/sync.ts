@@ -30,6 +30,7 @@ import type {
   SetBetaRequestSchema,
   SetConstraintsRequestSchema,
 } from "../gen/hdeform/v1/deform_pb";
+import { FrameEncoding } from "../gen/hdeform/v1/deform_pb";
 import type { SyncClient } from "./client";
 import { FrameOrder, type FrameSource } from "./frame_order";
 import { LinkState, type Link } from "./link";
@@ -45,6 +46,11 @@ export interface SyncEvents {
   link: { link: Link; why: string };
   /** A frame to show: in version order, not shown before. */
   frame: { frame: Frame; source: FrameSource };
+  /**
+   * A WatchSession frame not to show (older, repeated, or behind this page's own edit). A
+   * MESHOPT_DELTA one must still reach the decoder: the deltas after it build on it.
+   */
+  skippedFrame: { frame: Frame };
   /** A session state to adopt: from WatchSession, or re-read after a reconnect. */
   state: { session: Session; source: "watch" | "resync"; adoptTransforms: boolean };
   error: { message: string; kind: SyncErrorKind };
@@ -99,6 +105,7 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
   readonly timing: SyncTiming;
   readonly window: number;
   readonly format: MessageInitShape<typeof FrameFormatSchema> | undefined;
+  private readonly replyFormat: MessageInitShape<typeof FrameFormatSchema> | undefined;
   /** Completed reconnects. */
   reconnects = 0;
   /** WatchSession events received (frames and states). */
@@ -135,6 +142,9 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
     this.refreshShape = options.refreshShape ?? (async () => {});
     this.window = Math.max(1, options.window ?? 1);
     this.format = options.format;
+    // MESHOPT_DELTA is a stream's (WatchSession); a reply carries its frame as MESHOPT.
+    this.replyFormat =
+      options.format?.encoding === FrameEncoding.MESHOPT_DELTA ? { ...options.format, encoding: FrameEncoding.MESHOPT } : options.format;
     this.timing = { ...DEFAULT_TIMING, ...options.timing };
     this.link = new LinkState((link, why) => this.emit("link", { link, why }));
   }
@@ -257,7 +267,7 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
         dragging: this.held,
         coalesce,
         omitBuffers,
-        format: this.format,
+        format: this.replyFormat,
       });
     })
       .then((frame) => {
@@ -338,7 +348,10 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
 
   private offer(frame: Frame, source: FrameSource): void {
     const ownEditPending = !this.pipelined && (this.held || this.inFlight > 0 || this.dirty);
-    if (!this.order.accept(frame, source, ownEditPending)) return;
+    if (!this.order.accept(frame, source, ownEditPending)) {
+      if (source === "watch") this.emit("skippedFrame", { frame });
+      return;
+    }
     if (carriesShape(frame) && frame.version >= this.awaitingBuffers) {
       this.awaitingBuffers = 0n;
     }
