@@ -3,7 +3,7 @@
 // Run by bench/wan/run.sh inside a shaped network namespace; also usable alone:
 //
 //   web-viewer/node_modules/.bin/tsx bench/wan/drag.ts --url http://127.0.0.1:8080 \
-//     [--vertices 100000] [--seconds 10] [--hz 60] [--encoding float32|quantized|meshopt] [--rate LABEL]
+//     [--vertices 100000] [--seconds 10] [--hz 60] [--encoding float32|quantized|meshopt|meshopt-delta] [--rate LABEL]
 //
 // Flow: POST /upload a procedural capsule (CreateSession is client-streaming, which
 // connect-web cannot call over fetch, so we use the gateway's upload door like the viewer);
@@ -19,7 +19,7 @@ import { parseArgs } from "node:util";
 // instance the generated code uses (bench/wan has no node_modules of its own).
 import { fromBinary } from "../../web-viewer/node_modules/@bufbuild/protobuf/dist/esm/index.js";
 import { describeError, makeClient, newSessionId, setRoutingSession, setTokens } from "../../web-viewer/src/api";
-import { decodeFrame, FrameDecodeError } from "../../web-viewer/src/decode/frame_decode";
+import { decodeFrame, FrameDecodeError, MeshoptDeltaStream } from "../../web-viewer/src/decode/frame_decode";
 import { FrameEncoding, SessionSchema, type Frame } from "../../web-viewer/src/gen/hdeform/v1/deform_pb";
 import { capsule, toOff } from "./capsule";
 
@@ -43,9 +43,13 @@ const encodings: Record<string, FrameEncoding> = {
   float32: FrameEncoding.FLOAT32,
   quantized: FrameEncoding.QUANTIZED,
   meshopt: FrameEncoding.MESHOPT,
+  "meshopt-delta": FrameEncoding.MESHOPT_DELTA,
 };
 if (!(opt.encoding! in encodings)) throw new Error(`--encoding: one of ${Object.keys(encodings).join(", ")}`);
 const format = { encoding: encodings[opt.encoding!], exactAsFloat32: true };
+// As the viewer's sync does: MESHOPT_DELTA is the watch stream's; replies (buffers omitted
+// anyway) ask MESHOPT, which UpdateHandles can carry.
+const replyFormat = format.encoding === FrameEncoding.MESHOPT_DELTA ? { ...format, encoding: FrameEncoding.MESHOPT } : format;
 const adminToken = process.env.HDEFORM_ADMIN_TOKEN ?? "";
 
 // Count the bytes of the WatchSession response as they come off the socket (gRPC-Web
@@ -125,7 +129,7 @@ async function main() {
   let seq = 0;
   const update = (t: number, dragging: boolean) =>
     client.updateHandles(
-      { name, sequence: BigInt(++seq), transforms: [move(t)], dragging, coalesce: true, omitBuffers: true, format },
+      { name, sequence: BigInt(++seq), transforms: [move(t)], dragging, coalesce: true, omitBuffers: true, format: replyFormat },
       { timeoutMs: 120_000 },
     );
   phase = "warm-up";
@@ -151,6 +155,8 @@ async function main() {
   let resolveOpen!: () => void;
   const opened = new Promise<void>((r) => (resolveOpen = r));
   const abort = new AbortController();
+  const deltaStream = new MeshoptDeltaStream(); // MESHOPT_DELTA: this watch stream's state
+  let keyFrames = 0;
   const watching = (async () => {
     for await (const ev of client.watchSession({ name, format }, { signal: abort.signal })) {
       ++events;
@@ -169,7 +175,8 @@ async function main() {
       try {
         const t1 = now();
         // `await`: a decoder moved off the main thread may return a promise.
-        const d = await decodeFrame(frame, vc, tc);
+        const d = await decodeFrame(frame, vc, tc, deltaStream);
+        if (frame.encoding === FrameEncoding.MESHOPT_DELTA && !frame.delta) ++keyFrames;
         decodedOk = d.positions?.length === 3 * vc;
         if (inDrag) {
           decodeMs.push(now() - t1); // drag frames only: the final exact one is FLOAT32
@@ -277,6 +284,7 @@ async function main() {
     final_reply_superseded: finalReply.superseded,
     final_ms: r1(finalMs),
     frames_total: framesTotal,
+    key_frames: keyFrames, // MESHOPT_DELTA: frames sent whole (the first of the drag, grid exits)
   };
   console.log(JSON.stringify(result));
   console.log(

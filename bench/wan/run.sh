@@ -5,7 +5,7 @@
 # Results and method: docs/benchmarks.md "WAN bench (issue 11)".
 #
 #   sudo bench/wan/run.sh [--server PATH] [--vertices N] [--seconds S] [--hz H]
-#                         [--rate 50mbit,none] [--encodings float32,quantized,meshopt]
+#                         [--rate 50mbit,none] [--encodings float32,quantized,meshopt,meshopt-delta]
 #
 # Needs root (ip netns, tc), node 20 and web-viewer's node_modules (npm ci) with the
 # generated stubs (npm run generate; done here when missing). netem is not assumed: only the
@@ -19,7 +19,7 @@ vertices=100000
 seconds=10
 hz=60
 rates="50mbit,none"
-encodings="float32,quantized,meshopt"
+encodings="float32,quantized,meshopt,meshopt-delta"
 while [[ $# -gt 0 ]]; do
   case "$1" in
     --server) server=$2; shift 2 ;;
@@ -90,7 +90,7 @@ const rows = require("fs").readFileSync(process.argv[1], "utf8").trim().split("\
 const cols = [["encoding","encoding"],["rate","rate"],["vertices","N"],["fps_delivered","fps deliv"],["fps_decoded","fps dec"],
   ["latency_p50_ms","lat p50 ms"],["latency_p99_ms","lat p99 ms"],["frame_buffer_bytes_p50","buffer B"],["wire_bytes_per_frame","wire B/frame"],
   ["watch_mbit_s","Mbit/s"],["decode_p50_ms","decode ms"],["solve_p50_ms","solve ms"],["superseded","superseded"],["skipped_full_window","skipped"],
-  ["final_ok","final ok"],["decoder","decoder"]];
+  ["key_frames","key frames"],["final_ok","final ok"],["decoder","decoder"]];
 console.log("| " + cols.map(c => c[1]).join(" | ") + " |");
 console.log("|" + cols.map(() => "---").join("|") + "|");
 for (const r of rows) console.log("| " + cols.map(([k]) => k === "decoder" && r[k] !== "ok" ? "missing" : (r[k] === null ? "—" : String(r[k]))).join(" | ") + " |");
