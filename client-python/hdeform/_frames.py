@@ -53,8 +53,8 @@ _ENCODINGS = {"float32": pb.FRAME_ENCODING_FLOAT32, "quantized": pb.FRAME_ENCODI
 
 def encoding_value(name):
     if name not in _ENCODINGS:
-        raise ValueError(f"encoding: one of {sorted(_ENCODINGS)} (MESHOPT is not supported by "
-                         f"the Python client), got {name!r}")
+        raise ValueError(f"encoding: one of {sorted(_ENCODINGS)} (MESHOPT and MESHOPT_DELTA are "
+                         f"not supported by the Python client), got {name!r}")
     return _ENCODINGS[name]
 
 

@@ -345,6 +345,10 @@ remote)
   "$HDEFORM" --server "$ADDR" --token "$VIEW" watch "$SESSION" --encoding meshopt --for 60 \
     >"$TMP/watch-meshopt" 2>"$TMP/watch-meshopt.err" &
   WATCH_MESHOPT_PID=$!
+  # A third as meshopt-delta: its first frame is a key frame (delta=0).
+  "$HDEFORM" --server "$ADDR" --token "$VIEW" watch "$SESSION" --encoding meshopt-delta --for 60 \
+    >"$TMP/watch-delta" 2>"$TMP/watch-delta.err" &
+  WATCH_DELTA_PID=$!
   sleep 1
   "$HDEFORM" --server "$ADDR" --token "$EDIT" deform --session "$SESSION" --beta 0.1 --translate 0,0.01,0 \
     >"$TMP/out3" || fail "deform --session exited $?"
@@ -367,6 +371,15 @@ remote)
   cat "$TMP/watch-meshopt" "$TMP/watch-meshopt.err"
   grep -Eq '^frame seq=1 .* encoding=meshopt bytes=[0-9]+$' "$TMP/watch-meshopt" \
     || fail "watch --encoding meshopt printed no meshopt frame"
+  for _ in $(seq 1 100); do
+    grep -q '^frame seq=1 ' "$TMP/watch-delta" && break
+    kill -0 "$WATCH_DELTA_PID" 2>/dev/null || break
+    sleep 0.1
+  done
+  kill "$WATCH_DELTA_PID" 2>/dev/null; wait "$WATCH_DELTA_PID" 2>/dev/null
+  cat "$TMP/watch-delta" "$TMP/watch-delta.err"
+  grep -Eq '^frame seq=1 .* encoding=meshopt-delta bytes=[0-9]+ delta=0$' "$TMP/watch-delta" \
+    || fail "watch --encoding meshopt-delta printed no key frame"
   kill "$WATCH_PID" 2>/dev/null; wait "$WATCH_PID" 2>/dev/null; WATCH_PID=""
   expect_fail "watch unknown session" 'hdeform: WatchSession: NOT_FOUND: ' -- \
     "$HDEFORM" --server "$ADDR" --token "$VIEW" watch sessions/doesnotexist --for 10
