@@ -33,6 +33,7 @@
 // Extra flag (ours): --hdeform_smoke  a handful of iterations everywhere (ctest bench-smoke).
 #include "bench_common.h"
 #include "frame_decode.h"
+#include "frame_delta.h"
 #include "frame_encoding.h"
 #include "openmp_wait.h"
 #include "hdeform/v1/deform.grpc.pb.h"
@@ -327,6 +328,55 @@ void BM_Encode(benchmark::State& state, int n, pb::FrameEncoding encoding) {
   state.counters["decode_ms"] = percentile(decode, 0.5);
 }
 
+// MESHOPT_DELTA: one watcher's encoder fed two frames of a drag in turn (moves `apart`
+// apart, as set_move numbers them: 300 ≈ 1.7° of the cap's tilt), so every encode is a delta
+// of that size; the C++ stream decoder times the decode of the last one.
+void BM_EncodeDelta(benchmark::State& state, int n, int apart) {
+  Case* c = get_case(n, state);
+  if (!c) return;
+  pb::Frame frames[2];
+  for (int i = 0; i < 2; ++i) {
+    const auto status = update_once(*g_main->stub, c->name, g_move + i * apart, &frames[i]);
+    if (!status.ok()) {
+      state.SkipWithError(("UpdateHandles: " + status.error_message()).c_str());
+      return;
+    }
+  }
+  g_move += 2 * apart;
+  service::FrameDeltaEncoder encoder;
+  pb::Frame out, key;
+  encoder.encode(frames[0], &key);
+  int i = 1;
+  for (auto _ : state) {
+    encoder.encode(frames[i], &out);
+    benchmark::DoNotOptimize(out.vertices().data());
+    i ^= 1;
+  }
+  if (!out.delta()) {
+    state.SkipWithError("the frames left the key frame's grid: not a delta");
+    return;
+  }
+  const auto vertices = static_cast<std::size_t>(c->vertices);
+  std::vector<double> decode;
+  for (int k = 0; k < 5; ++k) {
+    cli::FrameStreamDecoder decoder;
+    decoder.decode(key, vertices, 0);
+    pb::Frame delta;
+    encoder.reset();
+    encoder.encode(frames[0], &delta);  // a key frame again, then the delta to frames[1]
+    encoder.encode(frames[1], &delta);
+    const auto t0 = Clock::now();
+    const auto d = decoder.decode(delta, vertices, 0);
+    decode.push_back(ms_since(t0));
+    benchmark::DoNotOptimize(d.positions.data());
+  }
+  common_counters(state, *c);
+  state.counters["key_MB"] = static_cast<double>(key.vertices().size()) / 1e6;
+  state.counters["delta_MB"] = static_cast<double>(out.vertices().size()) / 1e6;
+  state.counters["bytes_per_vertex"] = static_cast<double>(out.vertices().size()) / c->vertices;
+  state.counters["decode_ms"] = percentile(decode, 0.5);
+}
+
 void BM_Stream(benchmark::State& state, int n) {
   Case* c = get_case(n, state);
   if (!c) return;
@@ -523,6 +573,10 @@ void register_all() {
           ->Iterations(iters(s.unary))
           ->Unit(benchmark::kMillisecond)
           ->UseRealTime();
+    benchmark::RegisterBenchmark(("EncodeDelta" + N + "/apart:300").c_str(), BM_EncodeDelta, s.n, 300)
+        ->Iterations(iters(s.unary))
+        ->Unit(benchmark::kMillisecond)
+        ->UseRealTime();
     benchmark::RegisterBenchmark(("Stream" + N).c_str(), BM_Stream, s.n)
         ->Iterations(iters(s.stream))
         ->Unit(benchmark::kMillisecond)

@@ -1,7 +1,8 @@
 // libFuzzer target for the client's frame decoder (client-cli/frame_decode.h): a client must
 // survive whatever bytes a server (or a man in the middle) sends. Input: byte 0 picks a mode.
 //   0: bytes 1–4 vertex count, 5–8 triangle count (both small), the rest a serialized Frame:
-//      decode_frame returns buffers of the right sizes or throws FrameDecodeError.
+//      decode_frame returns buffers of the right sizes or throws FrameDecodeError; so does a
+//      FrameStreamDecoder fed it as a key frame, then as it is, twice (MESHOPT_DELTA).
 //   1: the rest is a QUANTIZED vertex buffer: meshopt-encoded then decoded through a Frame, it
 //      must come back with the same quantized values (checked through the dequantized box).
 #include "frame_decode.h"
@@ -42,6 +43,20 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       const auto d = hdeform::cli::decode_frame(frame, n, t);
       if (!frame.superseded()) check_sizes(d, n, t);
     } catch (const hdeform::cli::FrameDecodeError&) {
+    }
+    // A stream: the frame as a key frame, then as it is (a MESHOPT_DELTA delta builds on the
+    // key frame), then once more.
+    hdeform::cli::FrameStreamDecoder stream;
+    pb::Frame key = frame;
+    key.set_delta(false);
+    for (const pb::Frame* f : {&key, &frame, &frame}) {
+      try {
+        const auto d = stream.decode(*f, n, t);
+        if (!f->superseded() && !(f->encoding() == pb::FRAME_ENCODING_MESHOPT_DELTA &&
+                                  f->vertices().empty()))
+          check_sizes(d, n, t);
+      } catch (const hdeform::cli::FrameDecodeError&) {
+      }
     }
     return 0;
   }

@@ -191,6 +191,10 @@ def frame_decode():
     f32 = pb_field(4, 2, struct.pack("<12f", *range(12))) + pb_field(5, 2, struct.pack("<12f", *([0, 0, 1] * 4)))
     put("fuzz_frame_decode", "float32", head(0) + f32 + pb_field(6, 2, struct.pack("<2f", 0.5, 1)))
     put("fuzz_frame_decode", "superseded", head(0) + pb_field(15, 0, 1))
+    # MESHOPT_DELTA (not meshopt bytes: the fuzzer finds its way from here to the codec).
+    put("fuzz_frame_decode", "meshopt-delta-key", head(0) + pb_field(11, 0, 3) + pb_field(12, 2, verts) + pb_field(13, 2, box))
+    put("fuzz_frame_decode", "meshopt-delta", head(0) + pb_field(11, 0, 3) + pb_field(12, 2, verts) + pb_field(13, 2, box)
+        + pb_field(18, 0, 1))
     put("fuzz_frame_decode", "roundtrip", bytes([1]) + verts * 40)
 
 
