@@ -330,8 +330,11 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
  public:
   // `client_id`: the watcher joined the session's presence under it (empty: anonymous).
   WatchReactor(std::shared_ptr<Session> session, const v1::FrameFormat& format,
-               std::string client_id)
-      : session_(std::move(session)), format_(format), client_id_(std::move(client_id)) {
+               std::string client_id, WorkerPool& pool)
+      : session_(std::move(session)),
+        format_(format),
+        client_id_(std::move(client_id)),
+        pool_(pool) {
     sink_ = std::make_shared<Sink>(this);
     session_->add_watcher(sink_);
   }
@@ -359,6 +362,11 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
     }
     session_->remove_watcher(sink_.get());
     if (!client_id_.empty()) session_->leave(client_id_);  // its grabs end with it
+    {
+      std::lock_guard lock(mutex_);
+      done_ = true;
+      if (encoding_) return;  // the encode in progress deletes this when it ends
+    }
     delete this;
   }
 
@@ -421,28 +429,51 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
       if (closing_) finish_locked(grpc::Status::OK);
       return;
     }
-    current_ = std::move(pending_.front());
+    auto event = std::move(pending_.front());
     pending_.pop_front();
-    // Encoded here, not at broadcast: only frames that are written cost an encoding, and
-    // the session's watchers share one encode per encoding. A FLOAT32 watcher writes the
-    // shared event as it is. MESHOPT_DELTA is this stream's own: a delta to what it wrote.
-    if (format_.encoding() == v1::FRAME_ENCODING_MESHOPT_DELTA && current_->has_frame())
-      current_ = delta_encoded(std::move(current_));
-    else
-      current_ = session_->encoded_frames().get(std::move(current_), format_);
     writing_ = true;
-    StartWrite(current_.get());
+    if (!event->has_frame() || encoding_for(event->frame(), format_) == v1::FRAME_ENCODING_FLOAT32) {
+      if (event->has_frame()) delta_.reset();  // the client's state is no longer ours
+      start_write_locked(std::move(event));
+      return;
+    }
+    // Encoded here, not at broadcast: only frames that are written cost an encoding, and
+    // the session's watchers share one encode per encoding (MESHOPT_DELTA is this stream's
+    // own: a delta to what it wrote). On the pool, not inline: this may run on the session's
+    // strand (a broadcast), whose next solve must not wait for N watchers' encodes.
+    ++encoding_;
+    pool_.submit([this, event = std::move(event)]() mutable { encode_and_write(std::move(event)); });
   }
 
-  std::shared_ptr<const v1::SessionEvent> delta_encoded(
-      std::shared_ptr<const v1::SessionEvent> event) {
-    if (encoding_for(event->frame(), format_) == v1::FRAME_ENCODING_FLOAT32) {
-      delta_.reset();  // an exact frame as FLOAT32: the client's state is no longer ours
-      return event;
+  // One at a time (writing_ stays set until the write is done), so delta_ needs no lock.
+  void encode_and_write(std::shared_ptr<const v1::SessionEvent> event) {
+    grpc::Status failed;
+    try {
+      if (format_.encoding() == v1::FRAME_ENCODING_MESHOPT_DELTA) {
+        auto out = std::make_shared<v1::SessionEvent>();
+        delta_.encode(event->frame(), out->mutable_frame());
+        event = std::move(out);
+      } else {
+        event = session_->encoded_frames().get(std::move(event), format_);
+      }
+    } catch (const std::exception& e) {
+      failed = grpc::Status(grpc::StatusCode::INTERNAL, std::string("frame encoding failed: ") + e.what());
     }
-    auto out = std::make_shared<v1::SessionEvent>();
-    delta_.encode(event->frame(), out->mutable_frame());
-    return out;
+    std::unique_lock lock(mutex_);
+    --encoding_;
+    if (done_) {
+      lock.unlock();
+      delete this;
+      return;
+    }
+    if (!failed.ok()) finish_locked(failed);
+    if (finished_) return;
+    start_write_locked(std::move(event));
+  }
+
+  void start_write_locked(std::shared_ptr<const v1::SessionEvent> event) {
+    current_ = std::move(event);
+    StartWrite(current_.get());
   }
 
   void finish_locked(const grpc::Status& status) {
@@ -454,13 +485,15 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
 
   std::shared_ptr<Session> session_;
   const v1::FrameFormat format_;
-  FrameDeltaEncoder delta_;
   const std::string client_id_;
+  WorkerPool& pool_;
+  FrameDeltaEncoder delta_;
   std::shared_ptr<Sink> sink_;
   std::mutex mutex_;
   std::deque<std::shared_ptr<const v1::SessionEvent>> pending_;
   std::shared_ptr<const v1::SessionEvent> current_;
-  bool writing_ = false, closing_ = false, finished_ = false;
+  bool writing_ = false, closing_ = false, finished_ = false, done_ = false;
+  int encoding_ = 0;  // 0 or 1: an encode on the pool, which then owns this
   std::uint64_t skipped_ = 0;
 };
 
@@ -1062,7 +1095,7 @@ grpc::ServerWriteReactor<v1::SessionEvent>* DeformService::WatchSession(
     }
     client_id = request->client().client_id();
   }
-  return new WatchReactor(std::move(session), request->format(), std::move(client_id));
+  return new WatchReactor(std::move(session), request->format(), std::move(client_id), *pool_);
 }
 
 grpc::ServerUnaryReactor* DeformService::ExportSession(grpc::CallbackServerContext* ctx,
