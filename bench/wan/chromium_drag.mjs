@@ -5,7 +5,7 @@
 //
 //   node bench/wan/chromium_drag.mjs --server build/server/hdeform-server [--viewer web-viewer]
 //        [--chromium /usr/bin/chromium] [--rings 300 --around 280] [--seconds 10]
-//        [--encodings float32,quantized,meshopt]
+//        [--encodings float32,quantized,meshopt,meshopt-delta]
 //
 // The mesh is an open tube of rings × around vertices (default 84,000), written as OFF and
 // uploaded through the page; the bottom tenth is fixed, the top tenth is the handle.
@@ -24,7 +24,7 @@ const viewerDir = resolve(args.viewer ?? "web-viewer");
 const chromiumPath = args.chromium ?? "/usr/bin/chromium";
 const rings = Number(args.rings ?? 300), around = Number(args.around ?? 280);
 const seconds = Number(args.seconds ?? 10);
-const encodings = (args.encodings ?? "float32,quantized,meshopt").split(",");
+const encodings = (args.encodings ?? "float32,quantized,meshopt,meshopt-delta").split(",");
 const require = createRequire(join(viewerDir, "package.json"));
 const { chromium } = require("playwright-core");
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
@@ -119,11 +119,15 @@ try {
     await page.waitForFunction(() => !window.hdeform.busy, null, { timeout: 60_000 }).catch(() => {});
     const status = await page.evaluate(() => window.hdeform.status);
     const error = await page.evaluate(() => window.hdeform.lastError);
+    // The decode worker's own time per frame (float32 frames decode on the main thread: none).
+    const workerMs = (await page.evaluate(() => window.hdeform.workerDecodeMs())).sort((a, b) => a - b);
+    const pct = (q) => (workerMs.length ? +workerMs[Math.min(workerMs.length - 1, Math.floor(q * workerMs.length))].toFixed(2) : null);
     const row = {
       encoding, vertices, displayed, fixed: nFixed, handle: nHandle, open_ms: openMs,
       mouse_moves_per_s: +(moves / elapsed).toFixed(1),
       frames_per_s: +((f1 - f0) / elapsed).toFixed(1),
       animation_frames_per_s: +((r1 - r0) / elapsed).toFixed(1),
+      worker_decode_p50_ms: pct(0.5), worker_decode_p90_ms: pct(0.9), worker_decodes: workerMs.length,
       status, error,
     };
     rows.push(row);
@@ -135,7 +139,7 @@ try {
   server.kill();
   rmSync(work, { recursive: true, force: true });
 }
-console.log("| encoding | vertices (displayed) | mouse moves/s | animation frames/s | frames applied/s | status after the drag |");
-console.log("|---|---|---|---|---|---|");
+console.log("| encoding | vertices (displayed) | mouse moves/s | animation frames/s | frames applied/s | worker decode p50 / p90 ms | status after the drag |");
+console.log("|---|---|---|---|---|---|---|");
 for (const r of rows)
-  console.log(`| ${r.encoding} | ${r.vertices} (${r.displayed}) | ${r.mouse_moves_per_s} | ${r.animation_frames_per_s} | ${r.frames_per_s} | ${r.status}${r.error ? ` — error: ${r.error}` : ""} |`);
+  console.log(`| ${r.encoding} | ${r.vertices} (${r.displayed}) | ${r.mouse_moves_per_s} | ${r.animation_frames_per_s} | ${r.frames_per_s} | ${r.worker_decode_p50_ms ?? "—"} / ${r.worker_decode_p90_ms ?? "—"} | ${r.status}${r.error ? ` — error: ${r.error}` : ""} |`);

@@ -18,6 +18,8 @@ function bufferBytes(f: Frame): number {
 export interface FrameApply {
   /** Frames given by sync and not yet shown (decoding). */
   readonly pending: number;
+  /** The decode worker's time per frame for the newest frames it decoded (ms). */
+  readonly workerDecodeMs: readonly number[];
 }
 
 export function setupFrameApply({ state, client, banner, status }: App, sync: Sync): FrameApply {
@@ -95,5 +97,6 @@ export function setupFrameApply({ state, client, banner, status }: App, sync: Sy
     get pending() {
       return pending;
     },
+    workerDecodeMs: decoder.workerMs,
   };
 }

@@ -97,6 +97,8 @@ export function installTestHook({ state, client, banner, status }: App, parts: H
     get lastError() {
       return banner.shown;
     },
+    /** The decode worker's time per frame, newest frames (ms; benches read it). */
+    workerDecodeMs: () => [...parts.frameApply.workerDecodeMs],
     /** This page's own edit is not yet shown, or a frame is still being decoded. */
     get busy() {
       return sync.busy || parts.frameApply.pending > 0;

@@ -16,14 +16,15 @@ const stream = new MeshoptDeltaStream();
 scope.onmessage = ({ data }) => {
   queue = queue.then(() => {
     try {
+      const t0 = performance.now();
       if (data.advanceOnly) {
         stream.advance(data.frame, data.vertexCount);
-        scope.postMessage({ id: data.id, decoded: { positions: null, normals: null, energies: null } }, []);
+        scope.postMessage({ id: data.id, decoded: { positions: null, normals: null, energies: null }, ms: performance.now() - t0 }, []);
         return;
       }
       const { positions, normals, energies } = decodeFrame(data.frame, data.vertexCount, data.triangleCount, stream);
       const transfer = [positions, normals, energies].flatMap((a) => (a ? [a.buffer] : []));
-      scope.postMessage({ id: data.id, decoded: { positions, normals, energies } }, transfer);
+      scope.postMessage({ id: data.id, decoded: { positions, normals, energies }, ms: performance.now() - t0 }, transfer);
     } catch (err) {
       scope.postMessage({ id: data.id, error: (err as Error).message }, []);
     }

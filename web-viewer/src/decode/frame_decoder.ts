@@ -8,7 +8,11 @@ import { FrameDecodeError, type DecodedFrame } from "./decoded_frame";
 import { decodeFloat32 } from "./float32";
 import type { DecodeReply, DecodeRequest } from "./worker_messages";
 
+const KEPT_TIMES = 256;
+
 export class FrameDecoder {
+  /** The worker's decode times of the newest frames it decoded (ms; at most 256). */
+  readonly workerMs: number[] = [];
   private worker: Worker | null = null;
   private nextId = 0;
   private readonly waiting = new Map<number, { resolve: (d: DecodedFrame) => void; reject: (e: Error) => void }>();
@@ -65,8 +69,15 @@ export class FrameDecoder {
       const w = this.waiting.get(data.id);
       if (!w) return;
       this.waiting.delete(data.id);
-      if ("error" in data) w.reject(new FrameDecodeError(data.error));
-      else w.resolve(data.decoded);
+      if ("error" in data) {
+        w.reject(new FrameDecodeError(data.error));
+        return;
+      }
+      if (data.decoded.positions) {
+        this.workerMs.push(data.ms);
+        if (this.workerMs.length > KEPT_TIMES) this.workerMs.shift();
+      }
+      w.resolve(data.decoded);
     };
     worker.onerror = (e) => {
       // The worker failed to load or crashed: every frame it holds fails, the next starts anew.

@@ -11,4 +11,5 @@ export interface DecodeRequest {
   advanceOnly?: boolean;
 }
 
-export type DecodeReply = { id: number; decoded: DecodedFrame } | { id: number; error: string };
+/** `ms`: the worker's time for the decode (performance.now, in the worker). */
+export type DecodeReply = { id: number; decoded: DecodedFrame; ms: number } | { id: number; error: string };
