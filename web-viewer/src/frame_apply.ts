@@ -68,6 +68,8 @@ export function setupFrameApply({ state, client, banner, status }: App, sync: Sy
         showFrameSize(frame);
       } catch (err) {
         banner.show((err as Error).message);
+        // A delta stream is broken from here on: a new stream starts with a key frame.
+        if (frame.encoding === FrameEncoding.MESHOPT_DELTA) sync.rewatch("a frame did not decode");
       } finally {
         pending--;
       }

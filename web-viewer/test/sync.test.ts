@@ -181,6 +181,17 @@ describe("sync, connection", () => {
     assert.equal(events.error.length, 0); // an outage shorter than lostBannerAfterMs
   });
 
+  it("rewatch: a broken delta stream is dropped and watched anew (a new stream starts with a key frame)", async () => {
+    const { fake, sync, events } = setup();
+    fake.session = () => create(SessionSchema, { name: "sessions/s", version: 3n });
+    sync.watch();
+    await until(() => fake.streams.length === 1 && sync.link.state === "connected", "the watch stream");
+    sync.rewatch("a frame did not decode");
+    await until(() => fake.streams.length === 2 && sync.link.state === "connected", "the second stream");
+    assert.deepEqual(events.link.map((l) => [l.link, l.why]).slice(1, 2), [["reconnecting", "a frame did not decode"]]);
+    assert.equal(events.state.at(-1)?.source, "resync");
+  });
+
   it("retries an edit that failed for a transient reason once, after the reconnect", async () => {
     const { fake, pose, sync, events, sentX } = setup();
     sync.watch();

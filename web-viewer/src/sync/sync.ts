@@ -339,6 +339,15 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
     }
   }
 
+  /**
+   * The watch stream's frames cannot be used any more (a MESHOPT_DELTA frame that did not
+   * decode: the ones after it build on it): watch anew, which re-reads the session and its
+   * shape, and the new stream starts with a key frame.
+   */
+  rewatch(why: string): void {
+    this.kickReconnect(why);
+  }
+
   /** An edit failed for a transient reason: reconnect now (the stream may not know yet). */
   private kickReconnect(why: string): void {
     if (this.link.state !== "connected") return;
