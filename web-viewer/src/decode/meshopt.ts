@@ -9,10 +9,10 @@ export const meshoptReady: Promise<void> = MeshoptDecoder.ready;
 let ready = false;
 void meshoptReady.then(() => (ready = true));
 
-/** meshopt vertex stream → the 8-byte quantized vertices it packs. */
-export function unpackMeshopt(source: Uint8Array, vertexCount: number): Uint8Array {
+/** meshopt vertex stream → the 8-byte quantized vertices it packs (into `into` if given). */
+export function unpackMeshopt(source: Uint8Array, vertexCount: number, into?: Uint8Array): Uint8Array {
   if (!ready) throw new FrameDecodeError("The meshopt decoder is not loaded yet (await meshoptReady)");
-  const target = new Uint8Array(QUANTIZED_VERTEX_BYTES * vertexCount);
+  const target = into ?? new Uint8Array(QUANTIZED_VERTEX_BYTES * vertexCount);
   try {
     MeshoptDecoder.decodeVertexBuffer(target, vertexCount, QUANTIZED_VERTEX_BYTES, source);
   } catch (err) {
