@@ -133,6 +133,12 @@ int main(int argc, char** argv) {
       ->envname("HDEFORM_MAX_WATCHERS")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  app.add_option("--max-delta-watchers", request.max_delta_watchers,
+                 "WatchSession streams per session asking MESHOPT_DELTA frames (each encodes "
+                 "every frame for itself)")
+      ->envname("HDEFORM_MAX_DELTA_WATCHERS")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   app.add_option("--max-pending-updates", request.max_pending_updates,
                  "coalescing UpdateHandles (pipelined clients) waiting per session")
       ->envname("HDEFORM_MAX_PENDING_UPDATES")

@@ -362,6 +362,7 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
     }
     session_->remove_watcher(sink_.get());
     if (!client_id_.empty()) session_->leave(client_id_);  // its grabs end with it
+    if (format_.encoding() == v1::FRAME_ENCODING_MESHOPT_DELTA) session_->release_delta_watcher();
     {
       std::lock_guard lock(mutex_);
       done_ = true;
@@ -1086,11 +1087,21 @@ grpc::ServerWriteReactor<v1::SessionEvent>* DeformService::WatchSession(
                      session->name() + " has " + std::to_string(session->observers()) +
                          " watchers, the limit (--max-watchers)"});
   }
+  // MESHOPT_DELTA costs an encode per frame and 8 bytes per vertex per watcher: fewer of them.
+  const bool delta = request->format().encoding() == v1::FRAME_ENCODING_MESHOPT_DELTA;
+  if (delta && !session->acquire_delta_watcher(options_.request.max_delta_watchers)) {
+    return failed_stream<v1::SessionEvent>(
+        {grpc::StatusCode::RESOURCE_EXHAUSTED,
+         session->name() + " has " + std::to_string(session->delta_watchers()) +
+             " MESHOPT_DELTA watchers, the limit (--max-delta-watchers); ask MESHOPT, whose "
+             "encode all watchers share"});
+  }
   std::string client_id;
   if (request->has_client()) {
     const auto joined = guarded(
         [&] { session->join(request->client(), can_edit(*ctx, *session)); }, "WatchSession");
     if (!joined.ok()) {
+      if (delta) session->release_delta_watcher();
       return failed_stream<v1::SessionEvent>(joined);
     }
     client_id = request->client().client_id();

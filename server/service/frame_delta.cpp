@@ -52,19 +52,21 @@ void FrameDeltaEncoder::encode(const v1::Frame& frame, v1::Frame* out) {
   if (p.empty()) return;  // superseded: nothing to send, nothing the client's state changes by
   const std::size_t n = p.size() / 3;
   const bool has_normals = nrm.size() == p.size();
-  current_.resize(kQuantizedVertexBytes * n);
-  auto* now = reinterpret_cast<unsigned char*>(current_.data());
-  bool key = !has_reference_ || reference_.size() != current_.size() ||
+  // Scratch per thread, not per watcher: a watcher keeps only its reference (8 bytes a vertex).
+  thread_local std::string current, deltas;
+  current.resize(kQuantizedVertexBytes * n);
+  auto* now = reinterpret_cast<unsigned char*>(current.data());
+  bool key = !has_reference_ || reference_.size() != current.size() ||
              reference_has_normals_ != has_normals || !quantize_onto(p, nrm, grid_, now);
   if (key) {
     grid_ = grown(bounding_box(p), kGridMargin);
     quantize_onto(p, nrm, grid_, now);  // inside: the grid holds the box with room to spare
-    out->set_vertices(meshopt_encode(current_, kQuantizedVertexBytes));
+    out->set_vertices(meshopt_encode(current, kQuantizedVertexBytes));
     ++key_frames_;
   } else {
-    deltas_.resize(current_.size());
+    deltas.resize(current.size());
     const auto* before = reinterpret_cast<const unsigned char*>(reference_.data());
-    auto* d = reinterpret_cast<unsigned char*>(deltas_.data());
+    auto* d = reinterpret_cast<unsigned char*>(deltas.data());
     for (std::size_t i = 0; i < n; ++i) {
       const std::size_t o = kQuantizedVertexBytes * i;
       for (int k = 0; k < 3; ++k) {
@@ -77,12 +79,12 @@ void FrameDeltaEncoder::encode(const v1::Frame& frame, v1::Frame* out) {
       d[o + 6] = zigzag8(now[o + 6], before[o + 6]);
       d[o + 7] = zigzag8(now[o + 7], before[o + 7]);
     }
-    out->set_vertices(meshopt_encode(deltas_, kQuantizedVertexBytes));
+    out->set_vertices(meshopt_encode(deltas, kQuantizedVertexBytes));
     out->set_delta(true);
     ++delta_frames_;
   }
   *out->mutable_position_box() = grid_;
-  std::swap(reference_, current_);
+  std::swap(reference_, current);  // the old reference is this thread's next scratch
   reference_has_normals_ = has_normals;
   has_reference_ = true;
 }

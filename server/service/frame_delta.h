@@ -10,7 +10,8 @@
 
 namespace hdeform::service {
 
-// Not thread-safe: one per stream, used in the stream's write order.
+// Not thread-safe: one per stream, used in the stream's write order (from any thread: its
+// scratch buffers are per thread). Holds 8 bytes per vertex.
 class FrameDeltaEncoder {
  public:
   // The grid a key frame sets: the frame's bounding box grown by this fraction of its largest
@@ -32,7 +33,7 @@ class FrameDeltaEncoder {
  private:
   bool has_reference_ = false, reference_has_normals_ = false;
   v1::Box grid_;
-  std::string reference_, current_, deltas_;  // 8 bytes per vertex each
+  std::string reference_;  // the last frame encoded, quantized: 8 bytes per vertex
   std::uint64_t key_frames_ = 0, delta_frames_ = 0;
 };
 

@@ -16,6 +16,9 @@ struct RequestLimits {
   std::size_t max_sweep_betas = 64;          // --max-sweep-betas: β values in one Sweep
   std::size_t max_concurrent_sweeps = 1;     // --max-sweeps: Sweeps running at once (server)
   std::size_t max_watchers = 64;             // --max-watchers: WatchSession streams per session
+  // --max-delta-watchers: of those, MESHOPT_DELTA ones per session (each encodes every frame
+  // for itself and keeps 8 bytes per vertex: N of them cost N encodes per frame)
+  std::size_t max_delta_watchers = 8;
   std::size_t max_pending_updates = 16;      // --max-pending-updates: coalescing UpdateHandles
                                              // waiting per session
   std::chrono::milliseconds max_lease{60'000};  // --max-lease-ms: longest GrabHandles lease

@@ -1136,6 +1136,14 @@ void Session::expire_leases() {
   if (roster_.expire(Roster::Clock::now())) broadcast_presence();
 }
 
+bool Session::acquire_delta_watcher(std::size_t limit) {
+  int n = delta_watchers_.load();
+  do {
+    if (static_cast<std::size_t>(n) >= limit) return false;
+  } while (!delta_watchers_.compare_exchange_weak(n, n + 1));
+  return true;
+}
+
 void Session::add_watcher(std::shared_ptr<EventSink> sink) {
   touch();
   auto event = std::make_shared<pb::SessionEvent>();

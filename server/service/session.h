@@ -198,6 +198,11 @@ class Session : public std::enable_shared_from_this<Session> {
   EncodedFrameCache& encoded_frames() { return encoded_frames_; }
   void remove_watcher(const EventSink* sink);
   int observers() const;
+  // MESHOPT_DELTA watchers (each encodes every frame for itself): false, and nothing taken,
+  // when `limit` are already watching so.
+  bool acquire_delta_watcher(std::size_t limit);
+  void release_delta_watcher() { delta_watchers_.fetch_sub(1); }
+  int delta_watchers() const { return delta_watchers_.load(); }
   void stream_opened() { ++streams_; touch(); }
   void stream_closed() { --streams_; touch(); }
   bool busy() const { return streams_.load() > 0 || observers() > 0; }
@@ -330,6 +335,7 @@ class Session : public std::enable_shared_from_this<Session> {
   EncodedFrameCache encoded_frames_;
 
   std::atomic<int> streams_{0};
+  std::atomic<int> delta_watchers_{0};
   std::atomic<std::size_t> coalesce_waiting_{0};
   std::atomic<std::uint64_t> coalesce_newest_{0};
   std::atomic<bool> closed_{false};

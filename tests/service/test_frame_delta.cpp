@@ -9,8 +9,10 @@
 #include "service/frame_encoding.h"
 #include "service_fixture.h"
 
+#include <chrono>
 #include <cstring>
 #include <map>
+#include <thread>
 
 namespace hdeform::testing {
 namespace {
@@ -311,6 +313,52 @@ TEST(FrameDeltaService, WatchersThatLeaveMidEncodeHurtNoOne) {
   }
   keep_ctx.TryCancel();
   kept->Finish();
+}
+
+// Each MESHOPT_DELTA watcher encodes every frame for itself: --max-delta-watchers caps them
+// per session (RESOURCE_EXHAUSTED naming the flag); other watchers are not counted, and a
+// watcher that leaves frees its place.
+TEST(FrameDeltaService, DeltaWatchersAreCappedPerSession) {
+  service::ServerOptions options;
+  options.request.max_delta_watchers = 2;
+  TestServer t(options);
+  const auto s = constrained_cactus(t);
+  auto open = [&](pb::FrameEncoding enc, grpc::ClientContext* ctx) {
+    pb::WatchSessionRequest req;
+    req.set_name(s.name());
+    req.mutable_format()->set_encoding(enc);
+    return t.stub->WatchSession(ctx, req);
+  };
+  pb::SessionEvent ev;
+  grpc::ClientContext c1, c2, c3, c4;
+  auto w1 = open(pb::FRAME_ENCODING_MESHOPT_DELTA, &c1);
+  auto w2 = open(pb::FRAME_ENCODING_MESHOPT_DELTA, &c2);
+  ASSERT_TRUE(w1->Read(&ev) && w2->Read(&ev));
+  auto w3 = open(pb::FRAME_ENCODING_MESHOPT_DELTA, &c3);
+  EXPECT_FALSE(w3->Read(&ev));
+  const auto st = w3->Finish();
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_NE(st.error_message().find("2 MESHOPT_DELTA watchers, the limit (--max-delta-watchers)"),
+            std::string::npos)
+      << st.error_message();
+  auto w4 = open(pb::FRAME_ENCODING_MESHOPT, &c4);  // not a delta watcher: not counted
+  EXPECT_TRUE(w4->Read(&ev) && ev.has_state());
+  c1.TryCancel();
+  w1->Finish();
+  bool reopened = false;  // the place frees once the server has seen the first one go
+  for (int i = 0; i < 100 && !reopened; ++i) {
+    grpc::ClientContext c5;
+    auto w5 = open(pb::FRAME_ENCODING_MESHOPT_DELTA, &c5);
+    reopened = w5->Read(&ev) && ev.has_state();
+    c5.TryCancel();
+    w5->Finish();
+    if (!reopened) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_TRUE(reopened);
+  c2.TryCancel();
+  c4.TryCancel();
+  w2->Finish();
+  w4->Finish();
 }
 
 }  // namespace
