@@ -21,7 +21,7 @@ namespace svc = ::hdeform::service;
 
 std::vector<float> floats_of(const std::string& bytes) {
   std::vector<float> v(bytes.size() / sizeof(float));
-  std::memcpy(v.data(), bytes.data(), v.size() * sizeof(float));
+  if (!v.empty()) std::memcpy(v.data(), bytes.data(), v.size() * sizeof(float));  // null if empty
   return v;
 }
 
