@@ -480,7 +480,8 @@ void BM_UpdateConcurrent(benchmark::State& state, std::string key, double beta) 
 enum class Phase {
   guidance, rhs, solve, measures, measures_ef2, normals, normals_gather,
   // Candidate improvements, measured on the same data (not used by the engine):
-  guidance_sketch,  // single handle: slerp angle precomputed, g row-major
+  guidance_no_R,          // the engine's guidance without R_l (drag frames: no measures)
+  guidance_per_triangle,  // one sincos per triangle (the engine before 2026-12-03)
   // Eigen's products against the engine's sparse_times3.h kernels, on the same data:
   rhs_fused,        // (GᵀW)_F g − K_FC x_C with sparse_times3 (what update() runs)
   residual,         // b − K_FF x with Eigen (three passes over K_FF, one per column)
@@ -490,32 +491,36 @@ enum class Phase {
 
 using RowMajorX3 = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 
-// Sketch of a cheaper single-handle guidance field (same result as guidance_field for
-// k = 1): slerp(I, q, h) = (cos(hθ/2), sin(hθ/2)·axis), so the angle and axis are computed
-// once and each triangle needs one sincos; g is written as 9 contiguous doubles.
-void guidance_sketch(const Triangles& F, const Vertices& normals, const Eigen::MatrixXd& Phi,
-                     const HandleTransform& t, RowMajorX3& g,
-                     std::vector<Eigen::Quaterniond>& R_l) {
+// The single-handle guidance field as the engine computed it before one sincos per vertex
+// (guidance.cpp): one sincos per triangle, R_l always written. The reference for
+// Phase/N/guidance's time and for its `diff_vs_per_triangle` counter.
+void guidance_per_triangle(const Triangles& F, const Vertices& normals, const Eigen::MatrixXd& Phi,
+                           const HandleTransform& t, RowMajorX3& g,
+                           std::vector<Eigen::Quaterniond>& R_l) {
   const Eigen::Index m = F.rows();
   g.resize(3 * m, 3);
   R_l.resize(static_cast<std::size_t>(m));
   Eigen::Quaterniond q = t.rotation.normalized();
   if (q.w() < 0) q.coeffs() *= -1.0;
   const double s = q.vec().norm();
-  const double theta = 2.0 * std::atan2(s, q.w());
+  const double half_angle = std::atan2(s, q.w());
   const Eigen::Vector3d axis = s > 0 ? Eigen::Vector3d(q.vec() / s) : Eigen::Vector3d::UnitX();
   const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
   const Eigen::Matrix3d S1 = t.stretch;
   const double* phi = Phi.data();
+#pragma omp parallel for schedule(static)
   for (Eigen::Index l = 0; l < m; ++l) {
-    const double h = (phi[F(l, 0)] + phi[F(l, 1)] + phi[F(l, 2)]) * (1.0 / 3.0);
-    const double half = 0.5 * h * theta;
-    const Eigen::Quaterniond R(std::cos(half), std::sin(half) * axis.x(),
-                               std::sin(half) * axis.y(), std::sin(half) * axis.z());
+    const double h = (phi[F(l, 0)] + phi[F(l, 1)] + phi[F(l, 2)]) / 3.0;
+    const double a = h * half_angle;
+    const Eigen::Quaterniond R(std::cos(a), std::sin(a) * axis.x(), std::sin(a) * axis.y(),
+                               std::sin(a) * axis.z());
     R_l[l] = R;
     const Eigen::Matrix3d M = R.toRotationMatrix() * ((1.0 - h) * I + h * S1);
     const Eigen::Vector3d n = normals.row(l).transpose();
-    g.middleRows<3>(3 * l) = M.transpose() - n * (M * n).transpose();
+    const Eigen::Vector3d Mn = M * n;
+    double* gl = g.data() + 9 * l;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) gl[3 * r + c] = M(c, r) - n[r] * Mn[c];
   }
 }
 
@@ -525,7 +530,8 @@ void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta
   const HandleTransform t = move(c, 0);
   GuidanceField g;
   std::vector<Eigen::Quaterniond> R_l;
-  c.cs->guidance(std::span(&t, 1), g, R_l);
+  GuidanceScratch scratch;
+  c.cs->guidance(std::span(&t, 1), g, &R_l, scratch);
   const Frame frame = c.cs->update(std::span(&t, 1), Beta{beta}, {false, false});
   Eigen::MatrixX3d x_C(static_cast<Eigen::Index>(c.constrained.size()), 3);
   for (std::size_t r = 0; r < c.constrained.size(); ++r)
@@ -542,7 +548,11 @@ void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta
   for (auto _ : state) {
     switch (phase) {
       case Phase::guidance:
-        c.cs->guidance(std::span(&t, 1), g, R_l);
+        c.cs->guidance(std::span(&t, 1), g, &R_l, scratch);
+        benchmark::DoNotOptimize(g.data());
+        break;
+      case Phase::guidance_no_R:
+        c.cs->guidance(std::span(&t, 1), g, nullptr, scratch);
         benchmark::DoNotOptimize(g.data());
         break;
       case Phase::rhs:  // with Eigen, as update() did before sparse_times3
@@ -562,8 +572,9 @@ void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta
         benchmark::DoNotOptimize(m);
         break;
       }
-      case Phase::guidance_sketch:
-        guidance_sketch(c.pm->mesh().F, c.pm->normals(), c.cs->harmonic_basis(), t, g_row, R_l);
+      case Phase::guidance_per_triangle:
+        guidance_per_triangle(c.pm->mesh().F, c.pm->normals(), c.cs->harmonic_basis(), t, g_row,
+                              R_l);
         benchmark::DoNotOptimize(g_row.data());
         break;
       case Phase::rhs_fused:
@@ -597,11 +608,10 @@ void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta
     }
   }
   size_counters(state, c);
-  if (phase == Phase::guidance_sketch) {  // same field as the engine's?
-    GuidanceField g_engine;
-    std::vector<Eigen::Quaterniond> R_engine;
-    c.cs->guidance(std::span(&t, 1), g_engine, R_engine);
-    state.counters["diff_vs_engine"] = (RowMajorX3(g_engine) - g_row).cwiseAbs().maxCoeff();
+  if (phase == Phase::guidance) {  // the same field as one sincos per triangle, to rounding
+    guidance_per_triangle(c.pm->mesh().F, c.pm->normals(), c.cs->harmonic_basis(), t, g_row, R_l);
+    c.cs->guidance(std::span(&t, 1), g, &R_l, scratch);
+    state.counters["diff_vs_per_triangle"] = (RowMajorX3(g) - g_row).cwiseAbs().maxCoeff();
   }
   // The kernels against Eigen's products: 0 (bit-identical sums, sparse_times3.h).
   if (phase == Phase::rhs_fused)
@@ -792,7 +802,9 @@ void register_size(int n) {
   reg("Phase" + N + "/normals", fast, BM_Phase, key, Phase::normals, 0.0);
   reg("Phase" + N + "/normals_gather", fast, BM_Phase, key, Phase::normals_gather, 0.0);
   reg("Phase" + N + "/GX", fast, BM_Phase, key, Phase::GX, 0.0);
-  reg("Phase" + N + "/guidance_sketch", fast, BM_Phase, key, Phase::guidance_sketch, 0.0);
+  reg("Phase" + N + "/guidance_no_R", fast, BM_Phase, key, Phase::guidance_no_R, 0.0);
+  reg("Phase" + N + "/guidance_per_triangle", fast, BM_Phase, key, Phase::guidance_per_triangle,
+      0.0);
   for (double beta : kBetas) {
     reg("Phase" + N + "/rhs/" + beta_tag(beta), fast, BM_Phase, key, Phase::rhs, beta);
     reg("Phase" + N + "/rhs_fused/" + beta_tag(beta), fast, BM_Phase, key, Phase::rhs_fused,

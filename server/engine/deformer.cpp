@@ -498,8 +498,9 @@ std::shared_ptr<const BetaSystem> ConstraintSet::local_system(const LocalBeta& f
 void ConstraintSet::prepare(Beta beta) const { system(mesh_->raw_beta(beta)); }
 
 void ConstraintSet::guidance(std::span<const HandleTransform> transforms, GuidanceField& g,
-                             std::vector<Eigen::Quaterniond>& R_l) const {
-  guidance_field(mesh_->mesh().F, mesh_->normals(), basis_, transforms, g, R_l);
+                             std::vector<Eigen::Quaterniond>* R_l,
+                             GuidanceScratch& scratch) const {
+  guidance_field(mesh_->mesh().F, mesh_->normals(), basis_, transforms, g, R_l, scratch);
 }
 
 void ConstraintSet::check(std::span<const HandleTransform> transforms) const {
@@ -574,7 +575,8 @@ void ConstraintSet::solve(const std::shared_ptr<const BetaSystem>& system,
                           std::span<const HandleTransform> transforms,
                           const UpdateOptions& options, UpdateWorkspace& ws, Frame& out) const {
   const BetaSystem& sys = *system;
-  guidance(transforms, ws.g, ws.R_l);
+  const bool with_measures = options.measures || options.energies;
+  guidance(transforms, ws.g, with_measures ? &ws.R_l : nullptr, ws.guidance_scratch);
 
   const Vertices& X = mesh_->mesh().V;
   const auto nF = static_cast<Eigen::Index>(free_.size());
@@ -615,7 +617,7 @@ void ConstraintSet::solve(const std::shared_ptr<const BetaSystem>& system,
     throw;
   }
   out.exact = options.precision == FramePrecision::exact;
-  out.has_measures = options.measures || options.energies;
+  out.has_measures = with_measures;
   if (out.has_measures) {
     out.measures = measure(*mesh_, out.positions, ws.g, ws.R_l,
                            options.energies ? &out.energies : nullptr);
@@ -672,7 +674,8 @@ void ConstraintSet::drag_solve(const std::shared_ptr<const BetaSystem>& system,
 std::size_t UpdateWorkspace::memory_bytes() const {
   const auto doubles = g.size() + x_C.size() + rhs.size() + x_F.size() + residual.size() +
                        correction.size() + face_w.size();
-  return static_cast<std::size_t>(doubles) * sizeof(double) + R_l.capacity() * sizeof(R_l[0]);
+  return static_cast<std::size_t>(doubles) * sizeof(double) + R_l.capacity() * sizeof(R_l[0]) +
+         guidance_scratch.turn.capacity() * sizeof(guidance_scratch.turn[0]);
 }
 
 void ConstraintSet::check_result(const Vertices& X, std::span<const HandleTransform> transforms) const {

@@ -2,6 +2,7 @@
 // sessions, a ConstraintSet that owns its factorizations, and a cheap update().
 #pragma once
 
+#include "guidance.h"
 #include "measures.h"
 #include "mesh.h"
 #include "operators.h"
@@ -163,7 +164,8 @@ class UpdateWorkspace {
  private:
   friend class ConstraintSet;
   GuidanceField g;
-  std::vector<Eigen::Quaterniond> R_l;
+  std::vector<Eigen::Quaterniond> R_l;  // filled only for frames with measures
+  GuidanceScratch guidance_scratch;
   Eigen::MatrixXd x_C, rhs, x_F, residual, correction;
   Vertices face_w;  // per-triangle normal weights (vertex_normals' scratch)
   std::weak_ptr<const BetaSystem> warm_system;  // x_F solves this system (drag path)
@@ -226,8 +228,9 @@ class ConstraintSet {
   static constexpr std::size_t kMaxCachedFields = 4;
 
   // Guidance per triangle (SPEC §Harmonic guidance field): g (3m×3) and R_l.
+  // `R_l` may be null (only the measures read it); `scratch` is reused across calls.
   void guidance(std::span<const HandleTransform> transforms, GuidanceField& g,
-                std::vector<Eigen::Quaterniond>& R_l) const;
+                std::vector<Eigen::Quaterniond>* R_l, GuidanceScratch& scratch) const;
 
   std::size_t memory_bytes() const;
   std::size_t num_cached_factorizations() const;

@@ -6,11 +6,12 @@ namespace hdeform {
 
 void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::MatrixXd& Phi,
                     std::span<const HandleTransform> transforms, GuidanceField& g,
-                    std::vector<Eigen::Quaterniond>& R_l) {
+                    std::vector<Eigen::Quaterniond>* R_l, GuidanceScratch& scratch) {
   const Eigen::Index m = F.rows();
+  const Eigen::Index n = Phi.rows();
   const int k = static_cast<int>(transforms.size());
   g.resize(3 * m, 3);
-  R_l.resize(static_cast<std::size_t>(m));
+  if (R_l) R_l->resize(static_cast<std::size_t>(m));
 
   std::vector<Eigen::Quaterniond> q(static_cast<std::size_t>(k));
   for (int j = 0; j < k; ++j) {
@@ -18,11 +19,13 @@ void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::Ma
     if (q[j].w() < 0) q[j].coeffs() *= -1.0;
   }
   const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
-  // One handle: slerp(I, q, h) = (cos(hθ/2), sin(hθ/2) a) with q = (cos(θ/2), sin(θ/2) a),
-  // so the angle and axis are computed once instead of per triangle.
+  // One handle: slerp(I, q, h) = (cos(hθ/2), sin(hθ/2) a) with q = (cos(θ/2), sin(θ/2) a).
+  // With h the mean of three vertex values, e^{i h θ/2} is the product of the vertices'
+  // e^{i φ_v θ/6}: one sincos per vertex instead of one per triangle (twice as many).
   double half_angle = 0;
   Eigen::Vector3d axis = Eigen::Vector3d::UnitX();
   bool stretched = false;
+  std::complex<double>* turn = nullptr;
   if (k == 1) {
     const double s = q[0].vec().norm();
     if (s > 0) {
@@ -30,47 +33,60 @@ void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::Ma
       axis = q[0].vec() / s;
     }
     stretched = !transforms[0].stretch.isIdentity(0.0);
+    scratch.turn.resize(static_cast<std::size_t>(n));
+    turn = scratch.turn.data();
   }
+  const double third = half_angle / 3.0;
 
-#pragma omp parallel for schedule(static)
-  for (Eigen::Index l = 0; l < m; ++l) {
-    Eigen::Quaterniond R;
-    Eigen::Matrix3d S;
-    if (k == 1) {
-      const double h = (Phi(F(l, 0), 0) + Phi(F(l, 1), 0) + Phi(F(l, 2), 0)) / 3.0;
-      const double a = h * half_angle;
-      R.w() = std::cos(a);
-      R.vec() = std::sin(a) * axis;
-      if (stretched) {
-        S = (1.0 - h) * I + h * transforms[0].stretch;
-      } else {
-        S = I;
-      }
-    } else {
-      Eigen::Vector4d qc = Eigen::Vector4d::Zero();  // (x, y, z, w) as Eigen stores it
-      S.setZero();
-      double rest = 1.0;  // weight of the identity on F₀: 1 − Σ_j h_lj
-      for (int j = 0; j < k; ++j) {
-        const double h = (Phi(F(l, 0), j) + Phi(F(l, 1), j) + Phi(F(l, 2), j)) / 3.0;
-        qc += h * q[j].coeffs();
-        S += h * transforms[j].stretch;
-        rest -= h;
-      }
-      qc[3] += rest;
-      S += rest * I;
-      R.coeffs() = qc.normalized();
+#pragma omp parallel
+  {
+    if (turn) {
+#pragma omp for schedule(static)
+      for (Eigen::Index v = 0; v < n; ++v) turn[v] = {std::cos(Phi(v, 0) * third), std::sin(Phi(v, 0) * third)};
     }
-    R_l[l] = R;
-    const Eigen::Matrix3d M = stretched || k != 1 ? Eigen::Matrix3d(R.toRotationMatrix() * S)
-                                                  : R.toRotationMatrix();
-    const Eigen::Vector3d n = normals.row(l).transpose();
-    const Eigen::Vector3d Mn = M * n;
-    // g_l = Y_l Mᵀ with Y_l = I − n nᵀ (the rest gradient block, SPEC's check), written out
-    // into g's row-major storage: Phase/100000/guidance 2.58 -> 2.42 ms against Eigen's
-    // `g.middleRows<3>(3l) = Mᵀ − n (M n)ᵀ` (same run, interleaved).
-    double* gl = g.data() + 9 * l;  // g is row-major: block l is 9 contiguous doubles
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) gl[3 * r + c] = M(c, r) - n[r] * Mn[c];
+#pragma omp for schedule(static)
+    for (Eigen::Index l = 0; l < m; ++l) {
+      Eigen::Quaterniond R;
+      Eigen::Matrix3d S;
+      if (k == 1) {
+        // Written out: std::complex's operator* calls __muldc3 (Annex G's inf/NaN cases).
+        const std::complex<double> a = turn[F(l, 0)], b = turn[F(l, 1)], c = turn[F(l, 2)];
+        const double re = a.real() * b.real() - a.imag() * b.imag();
+        const double im = a.real() * b.imag() + a.imag() * b.real();
+        R.w() = re * c.real() - im * c.imag();
+        R.vec() = (re * c.imag() + im * c.real()) * axis;
+        if (stretched) {
+          const double h = (Phi(F(l, 0), 0) + Phi(F(l, 1), 0) + Phi(F(l, 2), 0)) / 3.0;
+          S = (1.0 - h) * I + h * transforms[0].stretch;
+        } else {
+          S = I;
+        }
+      } else {
+        Eigen::Vector4d qc = Eigen::Vector4d::Zero();  // (x, y, z, w) as Eigen stores it
+        S.setZero();
+        double rest = 1.0;  // weight of the identity on F₀: 1 − Σ_j h_lj
+        for (int j = 0; j < k; ++j) {
+          const double h = (Phi(F(l, 0), j) + Phi(F(l, 1), j) + Phi(F(l, 2), j)) / 3.0;
+          qc += h * q[j].coeffs();
+          S += h * transforms[j].stretch;
+          rest -= h;
+        }
+        qc[3] += rest;
+        S += rest * I;
+        R.coeffs() = qc.normalized();
+      }
+      if (R_l) (*R_l)[l] = R;
+      const Eigen::Matrix3d M = stretched || k != 1 ? Eigen::Matrix3d(R.toRotationMatrix() * S)
+                                                    : R.toRotationMatrix();
+      const Eigen::Vector3d nl = normals.row(l).transpose();
+      const Eigen::Vector3d Mn = M * nl;
+      // g_l = Y_l Mᵀ with Y_l = I − n nᵀ (the rest gradient block, SPEC's check), written out
+      // into g's row-major storage: Phase/100000/guidance 2.58 -> 2.42 ms against Eigen's
+      // `g.middleRows<3>(3l) = Mᵀ − n (M n)ᵀ` (same run, interleaved).
+      double* gl = g.data() + 9 * l;  // g is row-major: block l is 9 contiguous doubles
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) gl[3 * r + c] = M(c, r) - nl[r] * Mn[c];
+    }
   }
 }
 

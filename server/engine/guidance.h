@@ -7,18 +7,25 @@
 
 #include <Eigen/Geometry>
 
+#include <complex>
 #include <span>
 #include <vector>
 
 namespace hdeform {
 
+// Scratch of guidance_field, reused across calls (one per caller; n entries).
+struct GuidanceScratch {
+  std::vector<std::complex<double>> turn;  // one handle: e^{i φ_v θ/6} per vertex
+};
+
 // `Phi` (n × k) is the harmonic basis, `normals` the rest normals n_l (Y_l = I − n_l n_lᵀ).
 // One handle: R_l = slerp(I, R₁, h_l), S_l = (1 − h_l) I + h_l S₁, h_l the mean of Φ over
 // triangle l. Several: the per-vertex quaternion field (q_j flipped to w ≥ 0, identity on
 // F₀) averaged per triangle and normalized; S entries blended the same way.
-// Output: g (3m × 3), block l = rows 3l..3l+2; R_l per triangle.
+// Output: g (3m × 3), block l = rows 3l..3l+2; R_l per triangle unless `R_l` is null
+// (only the measures read it).
 void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::MatrixXd& Phi,
                     std::span<const HandleTransform> transforms, GuidanceField& g,
-                    std::vector<Eigen::Quaterniond>& R_l);
+                    std::vector<Eigen::Quaterniond>* R_l, GuidanceScratch& scratch);
 
 }  // namespace hdeform

@@ -145,8 +145,8 @@ TEST(Deformer, SolutionSatisfiesKKTOptimality) {
   for (double beta : {0.0, 0.3}) {
     const Frame f = cs.update(std::span(&h, 1), {beta, BetaUnits::raw});
     GuidanceField g;
-    std::vector<Eigen::Quaterniond> R;
-    cs.guidance(std::span(&h, 1), g, R);
+    GuidanceScratch scratch;
+    cs.guidance(std::span(&h, 1), g, nullptr, scratch);
     const SparseMatrix W = W_beta(b.mesh->areas(), b.mesh->edges(), beta);
     const Eigen::MatrixX3d grad =
         SparseMatrix(b.mesh->G().transpose()) * (W * (b.mesh->G() * f.positions - g));

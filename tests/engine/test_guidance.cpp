@@ -1,0 +1,126 @@
+// guidance.h against SPEC.md §Harmonic guidance field written out the plain way (Eigen's
+// slerp per triangle, the quaternion average, g_l = Y_l M_lᵀ), on any Φ: the engine's one
+// sincos per vertex (a product of three per-vertex turns) is the same field to rounding.
+#include "fixtures.h"
+#include "guidance.h"
+
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include <random>
+
+namespace hdeform {
+namespace {
+
+GuidanceField reference(const Triangles& F, const Vertices& normals, const Eigen::MatrixXd& Phi,
+                        std::span<const HandleTransform> t, std::vector<Eigen::Quaterniond>& R) {
+  const Eigen::Index m = F.rows();
+  const int k = static_cast<int>(t.size());
+  GuidanceField g(3 * m, 3);
+  R.resize(static_cast<std::size_t>(m));
+  const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
+  for (Eigen::Index l = 0; l < m; ++l) {
+    Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
+    Eigen::Vector4d qc = Eigen::Vector4d::Zero();
+    double rest = 1;
+    for (int j = 0; j < k; ++j) {
+      const double h = (Phi(F(l, 0), j) + Phi(F(l, 1), j) + Phi(F(l, 2), j)) / 3.0;
+      Eigen::Quaterniond q = t[j].rotation.normalized();
+      if (q.w() < 0) q.coeffs() *= -1.0;
+      if (k == 1) R[l] = Eigen::Quaterniond::Identity().slerp(h, q);
+      qc += h * q.coeffs();
+      S += h * t[j].stretch;
+      rest -= h;
+    }
+    S += rest * I;
+    if (k > 1) {
+      qc[3] += rest;
+      R[l].coeffs() = qc.normalized();
+    }
+    const Eigen::Matrix3d M = R[l].toRotationMatrix() * S;
+    const Eigen::Vector3d n = normals.row(l).transpose();
+    const Eigen::Matrix3d Y = I - n * n.transpose();
+    g.middleRows<3>(3 * l) = Y * M.transpose();
+  }
+  return g;
+}
+
+HandleTransform rotation(double degrees, Eigen::Vector3d axis, Eigen::Matrix3d S) {
+  HandleTransform h;
+  h.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(degrees * M_PI / 180, axis.normalized()));
+  h.stretch = S;
+  return h;
+}
+
+// Quaternions are compared as rotations (q and −q are the same one).
+double rotation_gap(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) {
+  return std::min((a.coeffs() - b.coeffs()).cwiseAbs().maxCoeff(),
+                  (a.coeffs() + b.coeffs()).cwiseAbs().maxCoeff());
+}
+
+void expect_same_field(const PreparedMesh& pm, const Eigen::MatrixXd& Phi,
+                       std::span<const HandleTransform> t, const char* what) {
+  std::vector<Eigen::Quaterniond> R_ref, R;
+  const GuidanceField expected = reference(pm.mesh().F, pm.normals(), Phi, t, R_ref);
+  GuidanceField g;
+  GuidanceScratch scratch;
+  guidance_field(pm.mesh().F, pm.normals(), Phi, t, g, &R, scratch);
+  ASSERT_EQ(g.rows(), expected.rows());
+  EXPECT_LT((g - expected).cwiseAbs().maxCoeff(), 1e-13) << what;
+  double gap = 0;
+  for (std::size_t l = 0; l < R.size(); ++l) gap = std::max(gap, rotation_gap(R[l], R_ref[l]));
+  EXPECT_LT(gap, 1e-13) << what;
+  // Without R_l (drag frames): the same g, bit for bit, and R_l untouched.
+  GuidanceField g2;
+  guidance_field(pm.mesh().F, pm.normals(), Phi, t, g2, nullptr, scratch);
+  EXPECT_EQ(g2, g) << what;
+}
+
+TEST(Guidance, OneHandleIsThePerTriangleSlerp) {
+  const test::Benchmark b = test::load_benchmark("cactus");
+  const ConstraintSet cs(b.mesh, b.constraints);
+  const HandleTransform def = HandleTransform::from_matrix(b.T, cs.centroid(0));
+  expect_same_field(*b.mesh, cs.harmonic_basis(), std::span(&def, 1), "cactus .def");
+  // Large angles (to 179°, where slerp is furthest from linear) with and without stretch.
+  Eigen::Matrix3d S;
+  S << 1.5, 0.2, 0, 0.2, 0.8, 0.1, 0, 0.1, 1.2;
+  for (double deg : {1e-7, 30.0, 120.0, 179.0}) {
+    const HandleTransform plain = rotation(deg, {1, 2, 3}, Eigen::Matrix3d::Identity());
+    const HandleTransform stretched = rotation(deg, {-1, 0.5, 2}, S);
+    expect_same_field(*b.mesh, cs.harmonic_basis(), std::span(&plain, 1), "rotation");
+    expect_same_field(*b.mesh, cs.harmonic_basis(), std::span(&stretched, 1), "stretched");
+  }
+}
+
+TEST(Guidance, SeveralHandlesAverageTheQuaternions) {
+  const test::Benchmark b = test::load_benchmark("cactus");
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(0, 0.5);
+  Eigen::MatrixXd Phi(b.mesh->n(), 2);
+  for (Eigen::Index v = 0; v < Phi.rows(); ++v) Phi(v, 0) = u(rng), Phi(v, 1) = u(rng);
+  Eigen::Matrix3d S = Eigen::Vector3d(1.3, 0.9, 1.1).asDiagonal();
+  const HandleTransform t[2] = {rotation(100, {0, 0, 1}, S),
+                                rotation(-60, {1, 1, 0}, Eigen::Matrix3d::Identity())};
+  expect_same_field(*b.mesh, Phi, t, "two handles");
+}
+
+// Threads only split the loops: 1 and 2 OpenMP threads give the same bits.
+TEST(Guidance, SameBitsOnOneAndTwoThreads) {
+  const test::Benchmark b = test::load_benchmark("cactus");
+  const ConstraintSet cs(b.mesh, b.constraints);
+  const HandleTransform t = rotation(75, {0, 1, 1}, Eigen::Matrix3d::Identity());
+  GuidanceScratch scratch;
+  GuidanceField g1, g2;
+  const int before = omp_get_max_threads();
+  omp_set_num_threads(1);
+  guidance_field(b.mesh->mesh().F, b.mesh->normals(), cs.harmonic_basis(), std::span(&t, 1), g1,
+                 nullptr, scratch);
+  omp_set_num_threads(2);
+  guidance_field(b.mesh->mesh().F, b.mesh->normals(), cs.harmonic_basis(), std::span(&t, 1), g2,
+                 nullptr, scratch);
+  omp_set_num_threads(before);
+  EXPECT_EQ(g1, g2);
+}
+
+}  // namespace
+}  // namespace hdeform
