@@ -85,6 +85,22 @@ Sparse combine(double a, const Sparse& x, double b, const Sparse& y) {
   return out;
 }
 
+// x += dx, returning max |dx| (NaN if dx has one): one pass on the OpenMP team.
+double add_and_measure(const Eigen::MatrixXd& dx, Eigen::MatrixXd& x) {
+  const Eigen::Index size = x.size();
+  const double* d = dx.data();
+  double* y = x.data();
+  double step = 0;
+  bool finite = true;
+#pragma omp parallel for schedule(static) reduction(max : step) reduction(&& : finite)
+  for (Eigen::Index k = 0; k < size; ++k) {
+    y[k] += d[k];
+    step = std::max(step, std::abs(d[k]));
+    finite = finite && !std::isnan(d[k]);
+  }
+  return finite ? step : std::numeric_limits<double>::quiet_NaN();
+}
+
 std::string fmt_result_error(int handle, const HandleTransform& t) {
   char buf[320];
   std::snprintf(buf, sizeof buf,
@@ -580,16 +596,24 @@ void ConstraintSet::solve(const std::shared_ptr<const BetaSystem>& system,
 
   const Vertices& X = mesh_->mesh().V;
   const auto nF = static_cast<Eigen::Index>(free_.size());
-  ws.x_C.resize(static_cast<Eigen::Index>(constrained_.size()), 3);
-  for (std::size_t i = 0; i < constrained_.size(); ++i) {
+  const auto nC = static_cast<Eigen::Index>(constrained_.size());
+  ws.x_C.resize(nC, 3);
+  // Targets x'_v = p + M (x_v − p) + t (SPEC §Constraints), M and p once per handle: the
+  // same arithmetic as HandleTransform::apply.
+  std::vector<Eigen::Matrix3d> M(transforms.size());
+  std::vector<Eigen::Vector3d> p(transforms.size());
+  for (std::size_t j = 0; j < transforms.size(); ++j) {
+    M[j] = transforms[j].linear();
+    p[j] = transforms[j].pivot.value_or(centroids_[j]);
+  }
+#pragma omp parallel for schedule(static)
+  for (Eigen::Index i = 0; i < nC; ++i) {
     const int v = constrained_[i], j = region_of_[v] - 1;
     const Eigen::Vector3d x = X.row(v).transpose();
-    if (j < 0) {
+    if (j < 0)
       ws.x_C.row(i) = x.transpose();
-    } else {
-      const HandleTransform& t = transforms[j];
-      ws.x_C.row(i) = t.apply(x, t.pivot.value_or(centroids_[j])).transpose();
-    }
+    else
+      ws.x_C.row(i) = (p[j] + M[j] * (x - p[j]) + transforms[j].translation).transpose();
   }
 
   out.positions.resize(X.rows(), 3);
@@ -605,16 +629,26 @@ void ConstraintSet::solve(const std::shared_ptr<const BetaSystem>& system,
     }
     ws.warm = true;
     ws.warm_system = system;
-    for (Eigen::Index i = 0; i < nF; ++i) out.positions.row(free_[i]) = ws.x_F.row(i);
   }
-  for (std::size_t i = 0; i < constrained_.size(); ++i)
-    out.positions.row(constrained_[i]) = ws.x_C.row(i);
-
-  try {
-    check_result(out.positions, transforms);
-  } catch (...) {
+  // Scatter into vertex order and check the result in the same pass (both cores).
+  double reach = 0;  // max |coordinate|; NaN never compares above it: counted apart
+  bool finite = true;
+#pragma omp parallel for schedule(static) reduction(max : reach) reduction(&& : finite)
+  for (Eigen::Index i = 0; i < nF + nC; ++i) {
+    const bool is_free = i < nF;
+    const Eigen::Index r = is_free ? i : i - nF;
+    const int v = is_free ? free_[r] : constrained_[r];
+    const Eigen::MatrixXd& from = is_free ? ws.x_F : ws.x_C;
+    for (int d = 0; d < 3; ++d) {
+      const double x = from(r, d);
+      out.positions(v, d) = x;
+      finite = finite && std::isfinite(x);
+      reach = std::max(reach, std::abs(x));
+    }
+  }
+  if (!finite || reach > kMaxCoordinate) {
     ws.warm = false;  // never start the next drag frame from a rejected solution
-    throw;
+    throw_result_error(transforms);
   }
   out.exact = options.precision == FramePrecision::exact;
   out.has_measures = with_measures;
@@ -658,9 +692,8 @@ void ConstraintSet::drag_solve(const std::shared_ptr<const BetaSystem>& system,
   for (int k = 0; k < kMaxSteps; ++k) {
     symmetric_residual3(sys.K_FF, ws.x_F, ws.rhs, ws.residual);
     solve3(*sys.factor, ws.residual, ws.correction, SolvePrecision::float32);
-    ws.x_F += ws.correction;
+    const double step = add_and_measure(ws.correction, ws.x_F);
     ++out.solves;
-    const double step = ws.correction.cwiseAbs().maxCoeff();
     if (delta < 0 && previous > 0 && step > 0)
       delta = std::clamp(step / previous, kMinContraction, 1.0);
     if (delta >= 0 && kSafety * delta * step <= tol) break;
@@ -678,9 +711,7 @@ std::size_t UpdateWorkspace::memory_bytes() const {
          guidance_scratch.turn.capacity() * sizeof(guidance_scratch.turn[0]);
 }
 
-void ConstraintSet::check_result(const Vertices& X, std::span<const HandleTransform> transforms) const {
-  const double bound = X.size() > 0 ? X.cwiseAbs().maxCoeff() : 0.0;
-  if (X.allFinite() && bound <= kMaxCoordinate) return;
+void ConstraintSet::throw_result_error(std::span<const HandleTransform> transforms) const {
   // Name the handle whose transform moves its region farthest: the likely culprit.
   int worst = 0;
   double reach = -1;

@@ -268,8 +268,9 @@ class ConstraintSet {
   std::shared_ptr<const Factorization> factor_wide(const SparseMatrix& K_FF,
                                                    BuildTimings& timings) const;
   void check(std::span<const HandleTransform> transforms) const;  // count, validity
-  // Throws InvalidInput naming a handle when X is non-finite or beyond kMaxCoordinate.
-  void check_result(const Vertices& X, std::span<const HandleTransform> transforms) const;
+  // Throws InvalidInput naming the handle that likely made a result non-finite or beyond
+  // kMaxCoordinate.
+  [[noreturn]] void throw_result_error(std::span<const HandleTransform> transforms) const;
   void solve(const std::shared_ptr<const BetaSystem>& sys,
              std::span<const HandleTransform> transforms, const UpdateOptions& options,
              UpdateWorkspace& ws, Frame& out) const;

@@ -57,6 +57,44 @@ DragResult drag(const ConstraintSet& cs, const HandleTransform& h, Beta beta,
 // the answer), and a cold start at the end.
 const std::vector<double> kDrag = {0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 0.0, 1.0};
 
+// A transform that throws the surface out of range (beyond kMaxCoordinate, or to inf / NaN)
+// is refused by name on both paths, and the drag that follows is as good as ever (a rejected
+// solution is never a warm start).
+TEST(DragPath, OutOfRangeResultsAreRefusedByNameAndLoseNothing) {
+  const auto b = test::load_benchmark("cactus");
+  const ConstraintSet cs(b.mesh, b.constraints);
+  const HandleTransform h = HandleTransform::from_matrix(b.T, cs.centroid(0));
+  UpdateWorkspace ws;
+  Frame frame;
+  UpdateOptions dragging;
+  dragging.precision = FramePrecision::drag;
+  const HandleTransform start = part_way(h, 0.5);
+  cs.update(std::span(&start, 1), {0.0, BetaUnits::raw}, dragging, ws, frame);
+  HandleTransform far = start, huge = start;
+  far.translation = Eigen::Vector3d(2e30, 0, 0);  // finite targets beyond kMaxCoordinate
+  huge.stretch = 1e300 * Eigen::Matrix3d::Identity();  // x − p times 1e300: inf
+  for (const HandleTransform* bad : {&far, &huge})
+    for (FramePrecision precision : {FramePrecision::exact, FramePrecision::drag}) {
+      UpdateOptions o;
+      o.precision = precision;
+      try {
+        cs.update(std::span(bad, 1), {0.0, BetaUnits::raw}, o, ws, frame);
+        ADD_FAILURE() << "no error";
+      } catch (const InvalidInput& e) {
+        EXPECT_NE(std::string(e.what()).find("handle 0's transform"), std::string::npos)
+            << e.what();
+        EXPECT_NE(std::string(e.what()).find("moves the surface out of range"), std::string::npos)
+            << e.what();
+      }
+    }
+  const HandleTransform next = part_way(h, 0.6);
+  cs.update(std::span(&next, 1), {0.0, BetaUnits::raw}, dragging, ws, frame);
+  const Frame exact = cs.update(std::span(&next, 1), {0.0, BetaUnits::raw});
+  EXPECT_LE((frame.positions - exact.positions).cwiseAbs().maxCoeff() /
+                bbox_diagonal(b.mesh->mesh().V),
+            kDragTolerance);
+}
+
 TEST(DragPath, BenchmarkDragsStayWithinToleranceOfTheExactSolve) {
   for (const char* model : {"bar", "cactus", "cylinder", "plane"}) {
     const auto b = test::load_benchmark(model);
