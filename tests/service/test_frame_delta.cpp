@@ -12,6 +12,7 @@
 #include <chrono>
 #include <cstring>
 #include <map>
+#include <omp.h>
 #include <thread>
 
 namespace hdeform::testing {
@@ -75,6 +76,41 @@ TEST(FrameDelta, EveryFrameDecodesToItsQuantizationOnTheKeyGrid) {
   EXPECT_LT(delta_bytes * 2, key_bytes) << "key " << key_bytes << " B, delta " << delta_bytes << " B";
   std::printf("[ measured ] %zu vertices: key frame %zu B, delta frame %zu B\n", n, key_bytes,
               delta_bytes);
+}
+
+// Frames from 16,384 vertices are quantized, boxed and differenced on the OpenMP team: one
+// and two threads give the same bytes, and a single vertex off the grid anywhere (here in the
+// second thread's half) still makes a key frame.
+TEST(FrameDelta, LargeFramesEncodeTheSameOnOneAndTwoThreads) {
+  const std::size_t n = 50000;
+  const pb::Frame f0 = random_frame(n, 0, 21), f1 = moved(f0, 0.05f);
+  auto stray = floats_of(f1.positions());
+  stray[3 * (n - 10) + 1] += 1e4f;
+  pb::Frame f2 = f1;
+  f2.set_positions(float_bytes(stray));
+  auto run = [&](int threads) {
+    const int before = omp_get_max_threads();
+    omp_set_num_threads(threads);
+    svc::FrameDeltaEncoder enc;
+    std::vector<pb::Frame> out(4);
+    enc.encode(f0, &out[0]);
+    enc.encode(f1, &out[1]);
+    enc.encode(f2, &out[2]);
+    pb::FrameFormat meshopt;
+    meshopt.set_encoding(pb::FRAME_ENCODING_MESHOPT);
+    svc::encode_frame_to(f1, meshopt, false, &out[3]);
+    omp_set_num_threads(before);
+    return out;
+  };
+  const auto one = run(1), two = run(2);
+  for (std::size_t k = 0; k < one.size(); ++k) {
+    EXPECT_EQ(one[k].vertices(), two[k].vertices()) << "frame " << k;
+    EXPECT_EQ(one[k].position_box().SerializeAsString(), two[k].position_box().SerializeAsString())
+        << "frame " << k;
+  }
+  EXPECT_FALSE(two[0].delta());
+  EXPECT_TRUE(two[1].delta());
+  EXPECT_FALSE(two[2].delta()) << "a vertex off the grid must force a key frame";
 }
 
 TEST(FrameDelta, KeyFramesComeWhenTheGridOrTheStreamChanges) {
