@@ -20,6 +20,18 @@ namespace {
 
 namespace svc = ::hdeform::service;
 
+#if defined(__SANITIZE_THREAD__)
+constexpr bool kThreadSanitizer = true;
+#elif defined(__has_feature)
+#if __has_feature(thread_sanitizer)
+constexpr bool kThreadSanitizer = true;
+#else
+constexpr bool kThreadSanitizer = false;
+#endif
+#else
+constexpr bool kThreadSanitizer = false;
+#endif
+
 std::vector<float> floats_of(const std::string& bytes) {
   std::vector<float> v(bytes.size() / sizeof(float));
   if (!v.empty()) std::memcpy(v.data(), bytes.data(), v.size() * sizeof(float));  // null if empty
@@ -82,9 +94,8 @@ TEST(FrameDelta, EveryFrameDecodesToItsQuantizationOnTheKeyGrid) {
 // and two threads give the same bytes, and a single vertex off the grid anywhere (here in the
 // second thread's half) still makes a key frame.
 TEST(FrameDelta, LargeFramesEncodeTheSameOnOneAndTwoThreads) {
-#if defined(__SANITIZE_THREAD__) || (defined(__has_feature) && __has_feature(thread_sanitizer))
-  GTEST_SKIP() << "the OpenMP runtime is not instrumented for TSan (scripts/tsan.sh runs one thread)";
-#endif
+  if (kThreadSanitizer)
+    GTEST_SKIP() << "the OpenMP runtime is not instrumented for TSan (scripts/tsan.sh: one thread)";
   const std::size_t n = 50000;
   const pb::Frame f0 = random_frame(n, 0, 21), f1 = moved(f0, 0.05f);
   auto stray = floats_of(f1.positions());
