@@ -653,15 +653,20 @@ void ConstraintSet::solve(const std::shared_ptr<const BetaSystem>& system,
   out.exact = options.precision == FramePrecision::exact;
   out.has_measures = with_measures;
   if (out.has_measures) {
+    // The measures' pass also leaves the normals' face weights: one pass over the triangles.
     out.measures = measure(*mesh_, out.positions, ws.g, ws.R_l,
-                           options.energies ? &out.energies : nullptr);
+                           options.energies ? &out.energies : nullptr,
+                           options.normals ? &ws.face_w : nullptr);
   } else {
     out.measures = Measures{};
   }
   if (!options.energies) out.energies.resize(0);
-  if (options.normals)
+  if (!options.normals)
+    out.normals.resize(0, 3);
+  else if (out.has_measures)
+    vertex_normals_from_faces(mesh_->vertex_triangles(), ws.face_w, out.normals);
+  else
     vertex_normals(out.positions, mesh_->mesh().F, mesh_->vertex_triangles(), ws.face_w, out.normals);
-  else out.normals.resize(0, 3);
 }
 
 // Iterative refinement with the float32 factor M ≈ K_FF (SPEC §Drag frames). Each step

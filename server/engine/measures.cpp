@@ -8,12 +8,14 @@
 namespace hdeform {
 
 Measures measure(const PreparedMesh& pm, const Vertices& X, const GuidanceField& g,
-                 const std::vector<Eigen::Quaterniond>& R_l, Eigen::VectorXf* ef2) {
+                 const std::vector<Eigen::Quaterniond>& R_l, Eigen::VectorXf* ef2,
+                 Vertices* face_w) {
   const Triangles& F = pm.mesh().F;
   const Eigen::VectorXd& a = pm.areas();
   const Eigen::Index m = F.rows();
   const TriangleGradients& grads = pm.gradients();
   if (ef2) ef2->resize(m);
+  if (face_w) face_w->resize(m, 3);
 
   Measures out;
   double E = 0, max_ef2 = 0, max_iso = 0, max_conf = 0;
@@ -36,6 +38,7 @@ Measures measure(const PreparedMesh& pm, const Vertices& X, const GuidanceField&
     if (ef2) (*ef2)[l] = static_cast<float>(r2);
 
     const Eigen::Vector3d c = (x1 - x0).cross(x2 - x0);
+    if (face_w) face_w->row(l) = c.transpose();
     const double a_def = 0.5 * c.norm();
     area_deformed += a_def;
 

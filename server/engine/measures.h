@@ -23,9 +23,10 @@ struct Measures {
 class PreparedMesh;
 
 // Measures of deformed positions X' against guidance g (3m×3, block l = g_l) with the
-// per-triangle guidance rotations R_l. `ef2` (optional) receives ‖r_l‖²_F per triangle.
+// per-triangle guidance rotations R_l. `ef2` (optional) receives ‖r_l‖²_F per triangle;
+// `face_w` (optional, m×3) the deformed (x₁ − x₀) × (x₂ − x₀), the vertex normals' weights.
 Measures measure(const PreparedMesh& pm, const Vertices& X_deformed,
                  const GuidanceField& g, const std::vector<Eigen::Quaterniond>& R_l,
-                 Eigen::VectorXf* ef2 = nullptr);
+                 Eigen::VectorXf* ef2 = nullptr, Vertices* face_w = nullptr);
 
 }  // namespace hdeform

@@ -18,6 +18,20 @@ VertexTriangles VertexTriangles::build(int n, const Triangles& F) {
   return vt;
 }
 
+namespace {
+
+// N_v: the sum of v's triangles' weights in ascending triangle order, normalized.
+inline void gather(const VertexTriangles& vt, const Vertices& face_w, Eigen::Index v, Vertices& N) {
+  Eigen::RowVector3d s = Eigen::RowVector3d::Zero();
+  for (int i = vt.offsets[static_cast<std::size_t>(v)]; i < vt.offsets[static_cast<std::size_t>(v) + 1]; ++i)
+    s += face_w.row(vt.triangles[static_cast<std::size_t>(i)]);
+  const double len = s.norm();
+  if (len > 0) s /= len;
+  N.row(v) = s;
+}
+
+}  // namespace
+
 void vertex_normals(const Vertices& X, const Triangles& F, const VertexTriangles& vt,
                     Vertices& face_w, Vertices& N) {
   const Eigen::Index m = F.rows(), n = X.rows();
@@ -31,15 +45,15 @@ void vertex_normals(const Vertices& X, const Triangles& F, const VertexTriangles
       face_w.row(t) = (b - a).cross(c - a);  // |w| = 2 · area: area weighting
     }
 #pragma omp for schedule(static)
-    for (Eigen::Index v = 0; v < n; ++v) {
-      Eigen::RowVector3d s = Eigen::RowVector3d::Zero();
-      for (int i = vt.offsets[static_cast<std::size_t>(v)]; i < vt.offsets[static_cast<std::size_t>(v) + 1]; ++i)
-        s += face_w.row(vt.triangles[static_cast<std::size_t>(i)]);
-      const double len = s.norm();
-      if (len > 0) s /= len;
-      N.row(v) = s;
-    }
+    for (Eigen::Index v = 0; v < n; ++v) gather(vt, face_w, v, N);
   }
+}
+
+void vertex_normals_from_faces(const VertexTriangles& vt, const Vertices& face_w, Vertices& N) {
+  const auto n = static_cast<Eigen::Index>(vt.offsets.size()) - 1;
+  N.resize(n, 3);
+#pragma omp parallel for schedule(static)
+  for (Eigen::Index v = 0; v < n; ++v) gather(vt, face_w, v, N);
 }
 
 }  // namespace hdeform

@@ -23,4 +23,8 @@ struct VertexTriangles {
 void vertex_normals(const Vertices& X, const Triangles& F, const VertexTriangles& vt,
                     Vertices& face_w, Vertices& N);
 
+// The gathering half alone, from face_w = (x₁ − x₀) × (x₂ − x₀) per triangle already
+// computed (measure() writes them when asked: an exact frame's one pass over the triangles).
+void vertex_normals_from_faces(const VertexTriangles& vt, const Vertices& face_w, Vertices& N);
+
 }  // namespace hdeform
