@@ -350,13 +350,34 @@ std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_
   BuildTimings timings;
   if (raw_beta == 0.0) {
     // The Laplacian's own narrow pattern (SPEC: factoring β = 0 on the wide one is slower).
-    auto t0 = Clock::now();
-    Blocks b = split(mesh_->L(), nullptr, BlockLayout{region_of_, block_index_, nF, nC});
-    b.GtW_F = free_rows_gta(mesh_->mesh().F, mesh_->gradients(), mesh_->areas(),
-                            mesh_->vertex_triangles(), free_);
-    timings.blocks_ms = ms(t0);
+    // The blocks and the ordering (METIS, serial; the mesh's first constraint set pays it)
+    // need nothing from each other: one core each. Once the mesh has its order, the blocks
+    // take both cores instead.
+    Blocks b;
+    std::vector<int> perm;
+    std::exception_ptr blocks_failed, order_failed;
+#pragma omp parallel sections if (!mesh_->has_order())
+    {
+#pragma omp section
+      try {
+        const auto t0 = Clock::now();
+        b = split(mesh_->L(), nullptr, BlockLayout{region_of_, block_index_, nF, nC});
+        b.GtW_F = free_rows_gta(mesh_->mesh().F, mesh_->gradients(), mesh_->areas(),
+                                mesh_->vertex_triangles(), free_);
+        timings.blocks_ms = ms(t0);
+      } catch (...) {
+        blocks_failed = std::current_exception();
+      }
+#pragma omp section
+      try {
+        perm = free_order(/*wide=*/false, timings);
+      } catch (...) {
+        order_failed = std::current_exception();
+      }
+    }
+    if (blocks_failed) std::rethrow_exception(blocks_failed);
+    if (order_failed) std::rethrow_exception(order_failed);
     // Its symbolic analysis is never reused (β > 0 has its own, wider pattern): not kept.
-    const auto perm = free_order(/*wide=*/false, timings);
     sys->factor = std::make_shared<Factorization>(b.FF, /*keep_analysis=*/false, &perm);
     sys->K_FF = std::move(b.FF);
     sys->K_FC = std::move(b.FC);

@@ -59,6 +59,8 @@ class PreparedMesh {
   // when it was already there).
   const std::vector<int>& order(double* ms = nullptr) const;
   const std::vector<int>& wide_order(double* ms = nullptr) const;
+  // Whether order() is computed (its next call returns at once).
+  bool has_order() const { return order_ready_.load(std::memory_order_acquire); }
   SparseMatrix GtA() const;                                      // Gᵀ A (n × 3m)
   SparseMatrix GtDBD() const;                                    // Gᵀ D₃ᵀ B₃ D₃ (n × 3m)
   double total_area() const { return total_area_; }
