@@ -71,8 +71,7 @@ std::vector<int> vertex_components(int n, const Triangles& F, int& count) {
 }
 
 // values(out) = a·values(x) + b·values(y) for matrices of identical structure.
-// On the OpenMP team: K_FF's values at 100K are 2 × 95 MB to read (the β change's
-// `K_FF_ms`).
+// On the OpenMP team: every β change combines K_FF's and K_FC's values (`K_FF_ms`).
 template <typename Sparse>
 Sparse combine(double a, const Sparse& x, double b, const Sparse& y) {
   Sparse out = x;
