@@ -11,11 +11,14 @@
 #include "vertex_ordering.h"
 #include "vertex_normals.h"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <exception>
+#include <future>
 #include <limits>
 #include <numeric>
 #include <string>
@@ -82,6 +85,25 @@ Sparse combine(double a, const Sparse& x, double b, const Sparse& y) {
 #pragma omp parallel for schedule(static)
   for (Eigen::Index k = 0; k < nnz; ++k) o[k] = a * xv[k] + b * yv[k];
   return out;
+}
+
+// Runs `side` on a thread of its own, with one OpenMP thread, while `main` runs on the
+// caller; rethrows main's exception, else side's. Not OpenMP sections: CHOLMOD's numeric
+// factorization runs OpenMP loops of its own, which must not be nested in a parallel region
+// (nested, LLVM's libomp leaked 176 bytes per region: scripts/sanitize.sh's LeakSanitizer).
+template <class Main, class Side>
+void run_beside(Main&& main, Side&& side) {
+  auto beside = std::async(std::launch::async, [&side] {
+    omp_set_num_threads(1);
+    side();
+  });
+  try {
+    main();
+  } catch (...) {
+    beside.wait();
+    throw;
+  }
+  beside.get();
 }
 
 // x += dx, returning max |dx| (NaN if dx has one): one pass on the OpenMP team.
@@ -354,28 +376,20 @@ std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_
     // take both cores instead.
     Blocks b;
     std::vector<int> perm;
-    std::exception_ptr blocks_failed, order_failed;
-#pragma omp parallel sections if (!mesh_->has_order())
-    {
-#pragma omp section
-      try {
-        const auto t0 = Clock::now();
-        b = split(mesh_->L(), nullptr, BlockLayout{region_of_, block_index_, nF, nC});
-        b.GtW_F = free_rows_gta(mesh_->mesh().F, mesh_->gradients(), mesh_->areas(),
-                                mesh_->vertex_triangles(), free_);
-        timings.blocks_ms = ms(t0);
-      } catch (...) {
-        blocks_failed = std::current_exception();
-      }
-#pragma omp section
-      try {
-        perm = free_order(/*wide=*/false, timings);
-      } catch (...) {
-        order_failed = std::current_exception();
-      }
+    auto blocks = [&] {
+      const auto t0 = Clock::now();
+      b = split(mesh_->L(), nullptr, BlockLayout{region_of_, block_index_, nF, nC});
+      b.GtW_F = free_rows_gta(mesh_->mesh().F, mesh_->gradients(), mesh_->areas(),
+                              mesh_->vertex_triangles(), free_);
+      timings.blocks_ms = ms(t0);
+    };
+    auto order = [&] { perm = free_order(/*wide=*/false, timings); };
+    if (mesh_->has_order()) {
+      blocks();
+      order();
+    } else {
+      run_beside(order, blocks);
     }
-    if (blocks_failed) std::rethrow_exception(blocks_failed);
-    if (order_failed) std::rethrow_exception(order_failed);
     // Its symbolic analysis is never reused (β > 0 has its own, wider pattern): not kept.
     sys->factor = std::make_shared<Factorization>(b.FF, /*keep_analysis=*/false, &perm);
     sys->K_FF = std::move(b.FF);
@@ -395,34 +409,21 @@ std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_
     t0 = Clock::now();
     sys->K_FF = combine(1.0 - raw_beta, wide_->area.FF, raw_beta, wide_->reg.FF);
     timings.K_FF_ms = ms(t0);
-    // The factorization (CHOLMOD, one core) and the right-hand side's blocks need nothing
-    // from each other: the blocks are built on the other core meanwhile.
-    std::exception_ptr factor_failed, rest_failed;
-#pragma omp parallel sections
-    {
-#pragma omp section
-      try {
-        sys->factor = factor_wide(sys->K_FF, timings);
-      } catch (...) {
-        factor_failed = std::current_exception();
-      }
-#pragma omp section
-      try {
-        const auto t1 = Clock::now();
-        sys->K_FC = combine(1.0 - raw_beta, wide_->area.FC, raw_beta, wide_->reg.FC);
-        // (GᵀW_β)_F straight from the gradients for this β: its two parts are not kept (they
-        // would be 2 × 0.45 GB at 1M) and no n × 3m Gᵀ A or Gᵀ D₃ᵀ B₃ D₃ is formed.
-        const PreparedMesh& pm = *mesh_;
-        sys->GtW_F = assemble_wide_free_rows(pm.mesh().F, pm.gradients(), pm.areas(), pm.edges(),
-                                             pm.vertex_triangles(), free_, 1.0 - raw_beta,
-                                             raw_beta);
-        timings.rest_ms = ms(t1);
-      } catch (...) {
-        rest_failed = std::current_exception();
-      }
-    }
-    if (factor_failed) std::rethrow_exception(factor_failed);
-    if (rest_failed) std::rethrow_exception(rest_failed);
+    // The factorization (CHOLMOD) and the right-hand side's blocks need nothing from each
+    // other: the blocks are built on the other core meanwhile.
+    run_beside([&] { sys->factor = factor_wide(sys->K_FF, timings); },
+               [&] {
+                 const auto t1 = Clock::now();
+                 sys->K_FC = combine(1.0 - raw_beta, wide_->area.FC, raw_beta, wide_->reg.FC);
+                 // (GᵀW_β)_F straight from the gradients for this β: its two parts are not
+                 // kept (they would be 2 × 0.45 GB at 1M) and no n × 3m Gᵀ A or
+                 // Gᵀ D₃ᵀ B₃ D₃ is formed.
+                 const PreparedMesh& pm = *mesh_;
+                 sys->GtW_F = assemble_wide_free_rows(pm.mesh().F, pm.gradients(), pm.areas(),
+                                                      pm.edges(), pm.vertex_triangles(), free_,
+                                                      1.0 - raw_beta, raw_beta);
+                 timings.rest_ms = ms(t1);
+               });
   }
   const Factorization::Timings& f = sys->factor->timings();
   timings.analysis_ms = f.analysis_ms;
