@@ -621,8 +621,10 @@ void ConstraintSet::solve(const std::shared_ptr<const BetaSystem>& system,
   ws.x_C.resize(nC, 3);
   // Targets x'_v = p + M (x_v − p) + t (SPEC §Constraints), M and p once per handle: the
   // same arithmetic as HandleTransform::apply.
-  std::vector<Eigen::Matrix3d> M(transforms.size());
-  std::vector<Eigen::Vector3d> p(transforms.size());
+  std::vector<Eigen::Matrix3d>& M = ws.handle_M;  // reused: the move allocates nothing
+  std::vector<Eigen::Vector3d>& p = ws.handle_p;
+  M.resize(transforms.size());
+  p.resize(transforms.size());
   for (std::size_t j = 0; j < transforms.size(); ++j) {
     M[j] = transforms[j].linear();
     p[j] = transforms[j].pivot.value_or(centroids_[j]);

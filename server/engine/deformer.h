@@ -168,6 +168,8 @@ class UpdateWorkspace {
   GuidanceField g;
   std::vector<Eigen::Quaterniond> R_l;  // filled only for frames with measures
   GuidanceScratch guidance_scratch;
+  std::vector<Eigen::Matrix3d> handle_M;  // per handle: M_j = R_j S_j and the pivot p_j
+  std::vector<Eigen::Vector3d> handle_p;
   Eigen::MatrixXd x_C, rhs, x_F, residual, correction;
   Vertices face_w;  // per-triangle normal weights (vertex_normals' scratch)
   std::weak_ptr<const BetaSystem> warm_system;  // x_F solves this system (drag path)
