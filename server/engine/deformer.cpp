@@ -4,6 +4,7 @@
 #include "harmonic.h"
 #include "mesh_io.h"
 #include "operator_assembly.h"
+#include "serial_openmp.h"
 #include "solver.h"
 #include "sparse_times3.h"
 #include "system_blocks.h"
@@ -87,17 +88,18 @@ Sparse combine(double a, const Sparse& x, double b, const Sparse& y) {
   return out;
 }
 
-// Runs `side` on a thread of its own, with one OpenMP thread, while `main` runs on the
-// caller; rethrows main's exception, else side's. Not OpenMP sections: CHOLMOD's numeric
-// factorization runs OpenMP loops of its own, which must not be nested in a parallel region
-// (nested, LLVM's libomp leaked 176 bytes per region: scripts/sanitize.sh's LeakSanitizer).
+// Runs `side` on a thread of its own while `main` runs on the caller, each on one OpenMP
+// thread (two cores, two threads); rethrows main's exception, else side's. Not OpenMP
+// sections: CHOLMOD's numeric factorization must not be nested in a parallel region
+// (nested, LLVM's libomp leaked 176 bytes per region: scripts/sanitize.sh).
 template <class Main, class Side>
 void run_beside(Main&& main, Side&& side) {
   auto beside = std::async(std::launch::async, [&side] {
-    omp_set_num_threads(1);
+    SerialOpenMP serial;
     side();
   });
   try {
+    SerialOpenMP serial;
     main();
   } catch (...) {
     beside.wait();

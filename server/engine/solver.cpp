@@ -1,6 +1,7 @@
 #include "solver.h"
 
 #include "mesh.h"
+#include "serial_openmp.h"
 #include "supernodal_solve.h"
 
 #include <chrono>
@@ -56,7 +57,10 @@ Eigen::MatrixXd CholmodLLT::solve_concurrently(const Eigen::MatrixXd& B) const {
   b.z = nullptr;
   b.xtype = CHOLMOD_REAL;
   b.dtype = CHOLMOD_DOUBLE;
-  cholmod_dense* x = cholmod_solve(CHOLMOD_A, m_cholmodFactor, &b, &common);
+  cholmod_dense* x = [&] {
+    SerialOpenMP serial;  // CHOLMOD's own loops: four threads on two cores (serial_openmp.h)
+    return cholmod_solve(CHOLMOD_A, m_cholmodFactor, &b, &common);
+  }();
   if (!x) {
     cholmod_finish(&common);
     throw std::runtime_error("CHOLMOD solve failed (status " + std::to_string(common.status) + ")");
@@ -86,6 +90,7 @@ Factorization::Factorization(const SparseMatrix& K_FF, bool keep_analysis,
                              const std::vector<int>* order)
     : size_(static_cast<int>(K_FF.rows())) {
   if (size_ == 0) return;
+  SerialOpenMP serial;  // CHOLMOD's own loops: four threads on two cores (serial_openmp.h)
   const auto t0 = std::chrono::steady_clock::now();
   if (order)
     llt_.analyze_given(K_FF, *order);
@@ -105,6 +110,7 @@ Factorization::Factorization(const SparseMatrix& K_FF, bool keep_analysis,
 Factorization::Factorization(const Factorization& analysis, const SparseMatrix& K_FF)
     : size_(static_cast<int>(K_FF.rows())) {
   if (size_ == 0) return;
+  SerialOpenMP serial;  // as above
   const auto t0 = std::chrono::steady_clock::now();
   if (!analysis.analysis_.factor())
     throw std::logic_error("Factorization: the analysis was built without keep_analysis");
