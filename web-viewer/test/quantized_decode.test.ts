@@ -7,6 +7,7 @@ import { create } from "@bufbuild/protobuf";
 import { MeshoptEncoder } from "meshoptimizer/encoder";
 import { before, describe, it } from "node:test";
 import { decodeFrame, FrameDecodeError, meshoptReady } from "../src/decode/frame_decode";
+import { octahedralDecode, octahedralNormals } from "../src/decode/quantized";
 import { BoxSchema, FrameEncoding, FrameSchema, type Box, type Frame } from "../src/gen/hdeform/v1/deform_pb";
 
 type QuantizedFields = Partial<Pick<Frame, "energies" | "energiesMax" | "positionBox">>;
@@ -62,6 +63,21 @@ const qe = quantizeEnergies(energyValues);
 
 describe("decodeFrame QUANTIZED / MESHOPT", () => {
   before(() => meshoptReady);
+
+  it("the normals' look-up table is octahedralDecode of every int8 pair, keyed as the frame's bytes", () => {
+    const table = octahedralNormals();
+    const bytes = new Uint8Array(2);
+    const key = new Uint16Array(bytes.buffer); // the frame's fourth uint16, little-endian
+    const want = new Float32Array(3);
+    for (let qu = -128; qu <= 127; qu++) {
+      for (let qv = -128; qv <= 127; qv++) {
+        new Int8Array(bytes.buffer).set([qu, qv]);
+        octahedralDecode(qu, qv, want, 0);
+        const t = 3 * key[0];
+        assert.deepEqual([table[t], table[t + 1], table[t + 2]], [...want], `pair (${qu}, ${qv})`);
+      }
+    }
+  });
 
   it("QUANTIZED: positions, normals and energies within the proto's bounds", () => {
     const frame = create(FrameSchema, { encoding: FrameEncoding.QUANTIZED, vertices: q.vertices, positionBox: q.box, ...qe });

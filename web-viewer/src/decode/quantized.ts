@@ -27,6 +27,23 @@ export function octahedralDecode(qu: number, qv: number, out: Float32Array, o: n
   out[o + 2] = z * inv;
 }
 
+let octahedralTable: Float32Array | null = null;
+
+/**
+ * Every int8 pair's unit normal, indexed by the pair as one little-endian uint16 (u in the
+ * low byte): 65,536 × 3 floats (768 KiB), built on first use (≈ 1 ms). A look-up instead of a
+ * square root and a division per vertex halves the dequantization (100K in node, interleaved:
+ * 1.49 → 0.83 ms; docs/benchmarks.md "WAN bench"), with the same bits.
+ */
+export function octahedralNormals(): Float32Array {
+  if (!octahedralTable) {
+    const table = new Float32Array(3 * 65536);
+    for (let key = 0; key < 65536; key++) octahedralDecode(((key & 0xff) << 24) >> 24, (key << 16) >> 24, table, 3 * key);
+    octahedralTable = table;
+  }
+  return octahedralTable;
+}
+
 /** Box corner arrays, checked: a box that is not one would place vertices anywhere. */
 function boxOf(frame: QuantizedFrame): { lo: number[]; step: number[] } {
   const b = frame.positionBox;
@@ -56,20 +73,25 @@ export function dequantizeVertices(
   // Typed views, not a DataView, and locals, not array lookups: this loop runs per vertex per
   // frame (100K in node: 14.5 ms with DataView + Math.hypot, 5.0 ms so; docs/benchmarks.md
   // "WAN bench"). Little-endian hosts only, as every browser is; a Uint16Array needs an even
-  // offset, so an odd one is copied.
+  // offset, so an odd one is copied. The normal's two int8 are the fourth uint16: its key in
+  // octahedralNormals().
   const aligned = bytes.byteOffset % 2 === 0 ? bytes : bytes.slice();
   const q = new Uint16Array(aligned.buffer, aligned.byteOffset, 4 * vertexCount);
-  const s8 = new Int8Array(aligned.buffer, aligned.byteOffset, aligned.byteLength);
+  const table = octahedralNormals();
   const [x0, y0, z0] = lo;
   const [sx, sy, sz] = step;
   const positions = new Float32Array(3 * vertexCount);
   const normals = new Float32Array(3 * vertexCount);
   for (let i = 0; i < vertexCount; i++) {
     const w = 4 * i;
-    positions[3 * i] = x0 + q[w] * sx;
-    positions[3 * i + 1] = y0 + q[w + 1] * sy;
-    positions[3 * i + 2] = z0 + q[w + 2] * sz;
-    octahedralDecode(s8[2 * w + 6], s8[2 * w + 7], normals, 3 * i);
+    const o = 3 * i;
+    positions[o] = x0 + q[w] * sx;
+    positions[o + 1] = y0 + q[w + 1] * sy;
+    positions[o + 2] = z0 + q[w + 2] * sz;
+    const t = 3 * q[w + 3];
+    normals[o] = table[t];
+    normals[o + 1] = table[t + 1];
+    normals[o + 2] = table[t + 2];
   }
   return { positions, normals };
 }
