@@ -11,7 +11,6 @@
 
 #include <chrono>
 #include <cstring>
-#include <map>
 #include <omp.h>
 #include <thread>
 
