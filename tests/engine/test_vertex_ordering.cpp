@@ -12,6 +12,8 @@
 #include <cstdio>
 #include <numeric>
 #include <stdexcept>
+#include <thread>
+#include <utility>
 
 namespace hdeform {
 namespace {
@@ -77,6 +79,41 @@ TEST(VertexOrdering, RestrictedMeshOrderSolvesLikeMetisOnKFF) {
   c.fixed = cc.base;
   c.handles = {cc.cap};
   check_model("capsule 8K", *pm, c);
+}
+
+// METIS's random generator is global: calls at once still give each its serial order.
+TEST(VertexOrdering, ConcurrentCallsGiveTheSerialOrder) {
+  const test::Benchmark b = test::load_benchmark("bar");
+  const SparseMatrix& L = b.mesh->L();
+  const SparseMatrix& R = b.mesh->Reg();
+  const std::vector<int> narrow = nested_dissection(L), wide = nested_dissection(L, R);
+  std::vector<std::vector<int>> got(4);
+  std::vector<std::thread> threads;
+  for (std::size_t k = 0; k < got.size(); ++k)
+    threads.emplace_back([&, k] { got[k] = k % 2 ? nested_dissection(L, R) : nested_dissection(L); });
+  for (auto& t : threads) t.join();
+  for (std::size_t k = 0; k < got.size(); ++k) EXPECT_EQ(got[k], k % 2 ? wide : narrow) << k;
+}
+
+// The graph is the union of the patterns' strictly lower parts: a diagonal adds no edge, an
+// edge both parts hold is one, and vertices without edges are still ordered.
+TEST(VertexOrdering, GraphIsTheUnionOfTheLowerPatterns) {
+  auto matrix = [](int n, std::vector<std::pair<int, int>> lower) {
+    std::vector<Eigen::Triplet<double>> t;
+    for (int i = 0; i < n; ++i) t.emplace_back(i, i, 4.0);
+    for (auto [i, j] : lower) t.emplace_back(i, j, -1.0), t.emplace_back(j, i, -1.0);
+    SparseMatrix M(n, n);
+    M.setFromTriplets(t.begin(), t.end());
+    return M;
+  };
+  const SparseMatrix diagonal = matrix(5, {});
+  EXPECT_EQ(nested_dissection(diagonal), (std::vector<int>{0, 1, 2, 3, 4}));
+  // A path 0–1–2–3–4 and vertex 5 alone, split over two parts that share the edge 1–2.
+  const SparseMatrix A = matrix(6, {{1, 0}, {2, 1}}), B = matrix(6, {{2, 1}, {3, 2}, {4, 3}});
+  const std::vector<int> order = nested_dissection(A, B);
+  EXPECT_TRUE(is_permutation_of_iota(order));
+  EXPECT_EQ(order, nested_dissection(matrix(6, {{1, 0}, {2, 1}, {3, 2}, {4, 3}})));
+  EXPECT_THROW(nested_dissection(A, matrix(5, {})), std::logic_error);
 }
 
 // Two constraint sets on one mesh: the first computes the mesh's orderings (β = 0 at open,
