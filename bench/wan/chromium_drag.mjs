@@ -14,6 +14,7 @@ import { mkdtempSync, rmSync, writeFileSync } from "node:fs";
 import { createRequire } from "node:module";
 import { tmpdir } from "node:os";
 import { join, resolve } from "node:path";
+import { pathToFileURL } from "node:url";
 
 const args = Object.fromEntries(
   process.argv.slice(2).reduce((a, v, i, all) => (v.startsWith("--") ? [...a, [v.slice(2), all[i + 1]]] : a), []),
@@ -25,6 +26,7 @@ const chromiumPath = args.chromium ?? "/usr/bin/chromium";
 const rings = Number(args.rings ?? 300), around = Number(args.around ?? 280);
 const seconds = Number(args.seconds ?? 10);
 const encodings = (args.encodings ?? "float32,quantized,meshopt,meshopt-delta").split(",");
+const decodes = Number(args.decodes ?? 40); // decodes of one frame by the worker alone (0: none)
 const require = createRequire(join(viewerDir, "package.json"));
 const { chromium } = require("playwright-core");
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
@@ -115,23 +117,12 @@ try {
     const f1 = await page.evaluate(() => window.hdeform.framesApplied);
     const r1 = await page.evaluate(() => window.__rafCount);
     const elapsed = (Date.now() - start) / 1000;
-    // The worker's decode with nothing else running: still holding the gizmo, single moves
-    // far enough apart that each frame is decoded and rendered before the next update.
-    const idleMoves = encoding === "float32" ? 0 : 10;
-    for (let k = 0; k < idleMoves; k++) {
-      await page.waitForFunction(() => !window.hdeform.busy, null, { timeout: 60_000 }).catch(() => {});
-      await sleep(700);
-      await page.mouse.move(p.x + 8 * (k + 1), p.y + 4);
-    }
-    await page.waitForFunction(() => !window.hdeform.busy, null, { timeout: 60_000 }).catch(() => {});
-    await sleep(700);
-    const idleMs = (await page.evaluate(() => window.hdeform.workerDecodeMs())).slice(-idleMoves).sort((a, b) => a - b);
     await page.mouse.up();
     await page.waitForFunction(() => !window.hdeform.busy, null, { timeout: 60_000 }).catch(() => {});
     const status = await page.evaluate(() => window.hdeform.status);
     const error = await page.evaluate(() => window.hdeform.lastError);
     // The decode worker's own time per frame (float32 frames decode on the main thread: none).
-    const workerMs = (await page.evaluate(() => window.hdeform.workerDecodeMs())).slice(0, -idleMoves || undefined).sort((a, b) => a - b);
+    const workerMs = (await page.evaluate(() => window.hdeform.workerDecodeMs())).sort((a, b) => a - b);
     const pct = (q) => (workerMs.length ? +workerMs[Math.min(workerMs.length - 1, Math.floor(q * workerMs.length))].toFixed(2) : null);
     const row = {
       encoding, vertices, displayed, fixed: nFixed, handle: nHandle, open_ms: openMs,
@@ -139,12 +130,41 @@ try {
       frames_per_s: +((f1 - f0) / elapsed).toFixed(1),
       animation_frames_per_s: +((r1 - r0) / elapsed).toFixed(1),
       worker_decode_p50_ms: pct(0.5), worker_decode_p90_ms: pct(0.9), worker_decodes: workerMs.length,
-      idle_decode_median_ms: idleMs.length ? +idleMs[idleMs.length >> 1].toFixed(2) : null,
-      idle_decode_max_ms: idleMs.length ? +idleMs[idleMs.length - 1].toFixed(2) : null,
       status, error,
     };
     rows.push(row);
     log(JSON.stringify(row));
+    await page.close();
+  }
+  // ---- the decode worker alone: one MESHOPT frame of the tube (positions quantized in its
+  // box, the tube's outward normals octahedral) decoded `decodes` times, one after another,
+  // by a decode worker of the page's own code, with no session open and nothing rendering.
+  if (decodes > 0) {
+    const { MeshoptEncoder } = await import(pathToFileURL(join(viewerDir, "node_modules/meshoptimizer/meshopt_encoder.js")).href);
+    await MeshoptEncoder.ready;
+    const n = rings * around;
+    const q = new Uint8Array(8 * n);
+    const view = new DataView(q.buffer);
+    for (let r = 0; r < rings; r++)
+      for (let a = 0; a < around; a++) {
+        const i = r * around + a, t = (2 * Math.PI * a) / around, c = Math.cos(t), s = Math.sin(t);
+        view.setUint16(8 * i, Math.round(((c + 1) / 2) * 65535), true);
+        view.setUint16(8 * i + 2, Math.round(((s + 1) / 2) * 65535), true);
+        view.setUint16(8 * i + 4, Math.round((r / (rings - 1)) * 65535), true);
+        view.setInt8(8 * i + 6, Math.round((c / (Math.abs(c) + Math.abs(s))) * 127));
+        view.setInt8(8 * i + 7, Math.round((s / (Math.abs(c) + Math.abs(s))) * 127));
+      }
+    const packed = MeshoptEncoder.encodeVertexBuffer(q, n, 8);
+    const page = await context.newPage();
+    await page.goto(`http://127.0.0.1:${httpPort}/`);
+    await page.waitForFunction(() => window.hdeform, null, { timeout: 30_000 });
+    await sleep(1000);
+    const box = [[-radius, -radius, 0], [radius, radius, height]];
+    const ms = (await page.evaluate(([v, b, count, k]) => window.hdeform.workerDecodeTimes(v, b, count, k), [Array.from(packed), box, n, decodes]));
+    const sorted = ms.slice(1).sort((a, b) => a - b); // the first decode builds the normals' table
+    const at = (f) => +sorted[Math.min(sorted.length - 1, Math.floor(f * sorted.length))].toFixed(2);
+    rows.idle = { vertices: n, bytes: packed.byteLength, first_ms: +ms[0].toFixed(2), median_ms: at(0.5), p90_ms: at(0.9), decodes: ms.length };
+    log(JSON.stringify({ worker_decode_alone: rows.idle }));
     await page.close();
   }
 } finally {
@@ -152,7 +172,11 @@ try {
   server.kill();
   rmSync(work, { recursive: true, force: true });
 }
-console.log("| encoding | vertices (displayed) | mouse moves/s | animation frames/s | frames applied/s | worker decode p50 / p90 ms | worker decode idle, median / max ms | status after the drag |");
-console.log("|---|---|---|---|---|---|---|---|");
+console.log("| encoding | vertices (displayed) | mouse moves/s | animation frames/s | frames applied/s | worker decode p50 / p90 ms | status after the drag |");
+console.log("|---|---|---|---|---|---|---|");
 for (const r of rows)
-  console.log(`| ${r.encoding} | ${r.vertices} (${r.displayed}) | ${r.mouse_moves_per_s} | ${r.animation_frames_per_s} | ${r.frames_per_s} | ${r.worker_decode_p50_ms ?? "—"} / ${r.worker_decode_p90_ms ?? "—"} | ${r.idle_decode_median_ms ?? "—"} / ${r.idle_decode_max_ms ?? "—"} | ${r.status}${r.error ? ` — error: ${r.error}` : ""} |`);
+  console.log(`| ${r.encoding} | ${r.vertices} (${r.displayed}) | ${r.mouse_moves_per_s} | ${r.animation_frames_per_s} | ${r.frames_per_s} | ${r.worker_decode_p50_ms ?? "—"} / ${r.worker_decode_p90_ms ?? "—"} | ${r.status}${r.error ? ` — error: ${r.error}` : ""} |`);
+if (rows.idle) {
+  const w = rows.idle;
+  console.log(`\nworker decode alone (MESHOPT, ${w.vertices} vertices, ${w.bytes} bytes, ${w.decodes} decodes): first ${w.first_ms} ms, median ${w.median_ms} ms, p90 ${w.p90_ms} ms`);
+}

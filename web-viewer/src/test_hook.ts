@@ -3,7 +3,9 @@ import * as THREE from "three";
 import { Code, ConnectError } from "@connectrpc/connect";
 import { fetchMesh, tokens } from "./api";
 import type { App } from "./app";
-import { MeshFormat } from "./gen/hdeform/v1/deform_pb";
+import { create } from "@bufbuild/protobuf";
+import { FrameDecoder } from "./decode/frame_decoder";
+import { FrameEncoding, FrameSchema, MeshFormat } from "./gen/hdeform/v1/deform_pb";
 import type { FrameApply } from "./frame_apply";
 import { shareLink } from "./links";
 import type { SelectionTools } from "./selection/tools";
@@ -99,6 +101,26 @@ export function installTestHook({ state, client, banner, status }: App, parts: H
     },
     /** The decode worker's time per frame, newest frames (ms; benches read it). */
     workerDecodeMs: () => [...parts.frameApply.workerDecodeMs],
+    /**
+     * A MESHOPT frame (`vertices`: the meshopt vertex stream, `box`: min and max corners)
+     * decoded `times` times, one after another, by a decode worker of its own, as the page
+     * decodes frames: the worker's time per decode (ms). Benches (bench/wan/chromium_drag.mjs).
+     */
+    async workerDecodeTimes(vertices: number[], box: number[][], vertexCount: number, times: number): Promise<number[]> {
+      const vec = (a: number[]) => ({ x: a[0], y: a[1], z: a[2] });
+      const frame = create(FrameSchema, {
+        encoding: FrameEncoding.MESHOPT,
+        vertices: Uint8Array.from(vertices),
+        positionBox: { min: vec(box[0]), max: vec(box[1]) },
+      });
+      const decoder = new FrameDecoder();
+      try {
+        for (let k = 0; k < times; k++) await decoder.decode(frame, vertexCount, 0);
+        return [...decoder.workerMs];
+      } finally {
+        decoder.close();
+      }
+    },
     /** This page's own edit is not yet shown, or a frame is still being decoded. */
     get busy() {
       return sync.busy || parts.frameApply.pending > 0;

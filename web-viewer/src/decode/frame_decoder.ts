@@ -35,6 +35,14 @@ export class FrameDecoder {
     return this.inWorker(frame, vertexCount, triangleCount, true).then(() => undefined);
   }
 
+  /** Ends the worker (frames still decoding fail); a later decode starts a new one. */
+  close(): void {
+    for (const w of this.waiting.values()) w.reject(new FrameDecodeError("Frame decoder closed"));
+    this.waiting.clear();
+    this.worker?.terminate();
+    this.worker = null;
+  }
+
   private inWorker(frame: Frame, vertexCount: number, triangleCount: number, advanceOnly = false): Promise<DecodedFrame> {
     const worker = (this.worker ??= this.start());
     const id = ++this.nextId;
