@@ -34,6 +34,7 @@ import http from "node:http";
 import { createRequire } from "node:module";
 import { tmpdir } from "node:os";
 import { join, resolve } from "node:path";
+import { pathToFileURL } from "node:url";
 import { editorChecks } from "./editor_checks.mjs";
 import { severalEditorsChecks } from "./several_editors_checks.mjs";
 import { historyChecks } from "./history_checks.mjs";
@@ -588,6 +589,29 @@ try {
       `?encoding=${encoding}: the drag ends on the server's exact shape (max |Δ| = ${maxDiff(shown, exact).toExponential(2)}; status "${sizes}")`,
     );
     if (encoding !== "float32") check(sizes.includes(`${encoding} `), `?encoding=${encoding}: drag frames came ${encoding}`);
+  }
+  // 7d. The decode worker writes a frame into the arrays of one the page handed back
+  // (frame_decoder.ts): the same values as into fresh arrays, every entry written.
+  {
+    const { MeshoptEncoder } = await import(pathToFileURL(join(viewerDir, "node_modules/meshoptimizer/meshopt_encoder.js")).href);
+    await MeshoptEncoder.ready;
+    const n = 300;
+    const packed = (t) => {
+      const q = new Uint8Array(8 * n);
+      const v = new DataView(q.buffer);
+      for (let i = 0; i < n; i++) {
+        for (let k = 0; k < 3; k++) v.setUint16(8 * i + 2 * k, Math.round(32767 * (1 + Math.sin(0.1 * i + k + t))), true);
+        v.setInt8(8 * i + 6, Math.round(100 * Math.sin(0.2 * i + t)));
+        v.setInt8(8 * i + 7, Math.round(-100 * Math.cos(0.3 * i - t)));
+      }
+      return Array.from(MeshoptEncoder.encodeVertexBuffer(q, n, 8));
+    };
+    const box = [[-1, -2, 0], [1, 2, 3]];
+    const r = await page1.evaluate(([a, b, bx, count]) => window.hdeform.workerDecodeRecycled(a, b, bx, count), [packed(0), packed(1.5), box, n]);
+    check(
+      r.recycled[0].length === 3 * n && JSON.stringify(r.recycled) === JSON.stringify(r.fresh),
+      "the decode worker's frame in handed-back arrays equals the fresh decode",
+    );
   }
 
   // 8. A bad upload shows its error in the banner.

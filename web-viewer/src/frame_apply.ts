@@ -60,7 +60,8 @@ export function setupFrameApply({ state, client, banner, status }: App, sync: Sy
         const decoded = await decoding;
         if (state.mesh !== mesh) return; // another session opened meanwhile
         if (decoded.positions) {
-          state.setShape(decoded.positions, decoded.normals);
+          state.setShape(decoded.positions, decoded.normals); // copies: the arrays go round
+          decoder.recycle(decoded);
           if (source === "watch") scheduleResync();
         }
         if (decoded.energies) state.setEnergies(decoded.energies);

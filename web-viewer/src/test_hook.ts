@@ -42,6 +42,16 @@ function plainTransform(t: HandleTransform) {
   };
 }
 
+/** A MESHOPT frame: `vertices` the meshopt vertex stream, `box` its min and max corners. */
+function meshoptFrame(vertices: number[], box: number[][]) {
+  const vec = (a: number[]) => ({ x: a[0], y: a[1], z: a[2] });
+  return create(FrameSchema, {
+    encoding: FrameEncoding.MESHOPT,
+    vertices: Uint8Array.from(vertices),
+    positionBox: { min: vec(box[0]), max: vec(box[1]) },
+  });
+}
+
 declare global {
   interface Window {
     hdeform: unknown;
@@ -103,22 +113,38 @@ export function installTestHook({ state, client, banner, status }: App, parts: H
     workerDecodeMs: () => [...parts.frameApply.workerDecodeMs],
     /**
      * A MESHOPT frame (`vertices`: the meshopt vertex stream, `box`: min and max corners)
-     * decoded `times` times, one after another, by a decode worker of its own, as the page
-     * decodes frames: the worker's time per decode (ms). Benches (bench/wan/chromium_drag.mjs).
+     * decoded `times` times, one after another, by a decode worker of its own: the worker's
+     * time per decode (ms), each frame's arrays handed back as the page does (`recycled`) or
+     * not (`fresh`). Benches (bench/wan/chromium_drag.mjs).
      */
-    async workerDecodeTimes(vertices: number[], box: number[][], vertexCount: number, times: number): Promise<number[]> {
-      const vec = (a: number[]) => ({ x: a[0], y: a[1], z: a[2] });
-      const frame = create(FrameSchema, {
-        encoding: FrameEncoding.MESHOPT,
-        vertices: Uint8Array.from(vertices),
-        positionBox: { min: vec(box[0]), max: vec(box[1]) },
-      });
+    async workerDecodeTimes(vertices: number[], box: number[][], vertexCount: number, times: number): Promise<{ fresh: number[]; recycled: number[] }> {
+      const frame = meshoptFrame(vertices, box);
       const decoder = new FrameDecoder();
       try {
         for (let k = 0; k < times; k++) await decoder.decode(frame, vertexCount, 0);
-        return [...decoder.workerMs];
+        const fresh = [...decoder.workerMs];
+        for (let k = 0; k < times; k++) decoder.recycle(await decoder.decode(frame, vertexCount, 0));
+        return { fresh, recycled: decoder.workerMs.slice(fresh.length) };
       } finally {
         decoder.close();
+      }
+    },
+    /**
+     * Two MESHOPT frames (as in workerDecodeTimes) through the page's decode worker, the
+     * second decoded into the first's arrays handed back, and the second alone by a fresh
+     * worker: its positions and normals both ways (e2e: equal).
+     */
+    async workerDecodeRecycled(first: number[], second: number[], box: number[][], vertexCount: number) {
+      const plain = (d: { positions: Float32Array | null; normals: Float32Array | null }) => [Array.from(d.positions!), Array.from(d.normals!)];
+      const decoder = new FrameDecoder();
+      const fresh = new FrameDecoder();
+      try {
+        decoder.recycle(await decoder.decode(meshoptFrame(first, box), vertexCount, 0));
+        const recycled = plain(await decoder.decode(meshoptFrame(second, box), vertexCount, 0));
+        return { recycled, fresh: plain(await fresh.decode(meshoptFrame(second, box), vertexCount, 0)) };
+      } finally {
+        decoder.close();
+        fresh.close();
       }
     },
     /** This page's own edit is not yet shown, or a frame is still being decoded. */

@@ -103,3 +103,45 @@ describe("decodeFrame MESHOPT_DELTA", () => {
     assert.throws(() => decodeFrame(d1, N, 0, stream), /no key frame/);
   });
 });
+
+// The decode worker decodes into the arrays the page handed back (frame_decoder.ts): every
+// quantized encoding writes them whole, and gives the same values as into fresh arrays.
+describe("decodeFrame into given arrays", () => {
+  before(() => Promise.all([meshoptReady, MeshoptEncoder.ready]));
+
+  it("QUANTIZED, MESHOPT and MESHOPT_DELTA fill `out` with the fresh decode; other sizes are not used", () => {
+    const k1 = quantizedAt(0.3), k2 = quantizedAt(0.7);
+    const frames: Frame[] = [
+      create(FrameSchema, { encoding: FrameEncoding.QUANTIZED, vertices: k2, positionBox: box }),
+      create(FrameSchema, { encoding: FrameEncoding.MESHOPT, vertices: MeshoptEncoder.encodeVertexBuffer(k2, N, 8), positionBox: box }),
+    ];
+    const delta = create(FrameSchema, {
+      encoding: FrameEncoding.MESHOPT_DELTA,
+      delta: true,
+      vertices: MeshoptEncoder.encodeVertexBuffer(deltaBytes(k2, k1), N, 8),
+      positionBox: box,
+    });
+    const key = create(FrameSchema, { encoding: FrameEncoding.MESHOPT_DELTA, vertices: MeshoptEncoder.encodeVertexBuffer(k1, N, 8), positionBox: box });
+    const want = dequantizeVertices(k2, N, { vertices: k2, positionBox: box, energies: new Uint8Array(0), energiesMax: 0 });
+    const stale = () => ({ positions: new Float32Array(3 * N).fill(NaN), normals: new Float32Array(3 * N).fill(NaN) });
+    for (const frame of frames) {
+      const out = stale();
+      const d = decodeFrame(frame, N, 0, undefined, out);
+      assert.equal(d.positions, out.positions, `encoding ${frame.encoding}: decoded into the given positions`);
+      assert.equal(d.normals, out.normals);
+      assert.deepEqual([d.positions, d.normals], [want.positions, want.normals], `encoding ${frame.encoding}`);
+    }
+    const stream = new MeshoptDeltaStream();
+    decodeFrame(key, N, 0, stream);
+    const out = stale();
+    const d = decodeFrame(delta, N, 0, stream, out);
+    assert.equal(d.positions, out.positions);
+    assert.deepEqual([d.positions, d.normals], [want.positions, want.normals], "MESHOPT_DELTA");
+    // Arrays of another mesh's size are left alone.
+    const small = { positions: new Float32Array(3), normals: new Float32Array(3) };
+    const other = decodeFrame(frames[1], N, 0, undefined, small);
+    assert.notEqual(other.positions, small.positions);
+    assert.deepEqual(small.positions, new Float32Array(3));
+    assert.deepEqual(other.positions, want.positions);
+  });
+});

@@ -19,14 +19,18 @@ scope.onmessage = ({ data }) => {
       const t0 = performance.now();
       if (data.advanceOnly) {
         stream.advance(data.frame, data.vertexCount);
-        scope.postMessage({ id: data.id, decoded: { positions: null, normals: null, energies: null }, ms: performance.now() - t0 }, []);
+        const spent = data.frame.vertices;
+        scope.postMessage({ id: data.id, decoded: { positions: null, normals: null, energies: null }, ms: performance.now() - t0, spent }, spent.byteLength ? [spent.buffer] : []);
         return;
       }
-      const { positions, normals, energies } = decodeFrame(data.frame, data.vertexCount, data.triangleCount, stream);
-      const transfer = [positions, normals, energies].flatMap((a) => (a ? [a.buffer] : []));
-      scope.postMessage({ id: data.id, decoded: { positions, normals, energies }, ms: performance.now() - t0 }, transfer);
+      const { positions, normals, energies } = decodeFrame(data.frame, data.vertexCount, data.triangleCount, stream, data.reuse);
+      const ms = performance.now() - t0;
+      const spent = data.frame.vertices;
+      const transfer = [positions, normals, energies, spent].flatMap((a) => (a?.byteLength ? [a.buffer] : []));
+      scope.postMessage({ id: data.id, decoded: { positions, normals, energies }, ms, spent }, [...new Set(transfer)]);
     } catch (err) {
-      scope.postMessage({ id: data.id, error: (err as Error).message }, []);
+      const spent = data.frame.vertices;
+      scope.postMessage({ id: data.id, error: (err as Error).message, spent }, spent.byteLength ? [spent.buffer] : []);
     }
   });
 };

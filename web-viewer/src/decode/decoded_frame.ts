@@ -15,6 +15,16 @@ export interface DecodedFrame {
   energies: Float32Array | null; // 1 per triangle
 }
 
+/**
+ * Float32 arrays a decode may write into instead of allocating (3 per vertex each). Fresh
+ * arrays cost a page fault per 4 KiB on first touch: in Chromium's decode worker that was most
+ * of an 84K frame's decode (docs/benchmarks.md "WAN bench", "The decode").
+ */
+export interface VertexArrays {
+  positions: Float32Array;
+  normals: Float32Array;
+}
+
 /** A frame whose buffers do not fit the mesh, or that this viewer cannot decode. */
 export class FrameDecodeError extends Error {
   override name = "FrameDecodeError";

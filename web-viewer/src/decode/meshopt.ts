@@ -2,7 +2,7 @@
 // (vertex size 8, count = the mesh's vertices); energies as QUANTIZED. The decoder is
 // WebAssembly: await `meshoptReady` once before the first decode.
 import { MeshoptDecoder } from "meshoptimizer/decoder";
-import { FrameDecodeError, type DecodedFrame } from "./decoded_frame";
+import { FrameDecodeError, type DecodedFrame, type VertexArrays } from "./decoded_frame";
 import { dequantizeEnergies, dequantizeVertices, QUANTIZED_VERTEX_BYTES, type QuantizedFrame } from "./quantized";
 
 export const meshoptReady: Promise<void> = MeshoptDecoder.ready;
@@ -23,8 +23,13 @@ export function unpackMeshopt(source: Uint8Array, vertexCount: number, into?: Ui
   return target;
 }
 
-export function decodeMeshopt(frame: QuantizedFrame, vertexCount: number, triangleCount: number): DecodedFrame {
+/** Where MESHOPT frames unpack: one buffer, reused (it is read at once by the dequantization). */
+let unpacked: Uint8Array | undefined;
+
+export function decodeMeshopt(frame: QuantizedFrame, vertexCount: number, triangleCount: number, out?: VertexArrays): DecodedFrame {
   const energies = dequantizeEnergies(frame, triangleCount);
   if (frame.vertices.byteLength === 0) return { positions: null, normals: null, energies };
-  return { ...dequantizeVertices(unpackMeshopt(frame.vertices, vertexCount), vertexCount, frame), energies };
+  if (unpacked?.byteLength !== QUANTIZED_VERTEX_BYTES * vertexCount) unpacked = undefined;
+  unpacked = unpackMeshopt(frame.vertices, vertexCount, unpacked);
+  return { ...dequantizeVertices(unpacked, vertexCount, frame, out), energies };
 }

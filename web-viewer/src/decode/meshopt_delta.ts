@@ -2,7 +2,7 @@
 // meshopt-packed differences to the previous frame on a key frame's grid. The state is the
 // stream's: one MeshoptDeltaStream per stream, fed every frame of it in order — frames the
 // page does not show too (advance) — or the deltas after a missed one land wrong.
-import { FrameDecodeError, type DecodedFrame } from "./decoded_frame";
+import { FrameDecodeError, type DecodedFrame, type VertexArrays } from "./decoded_frame";
 import { unpackMeshopt } from "./meshopt";
 import { dequantizeEnergies, dequantizeVertices, QUANTIZED_VERTEX_BYTES, type QuantizedFrame } from "./quantized";
 
@@ -62,11 +62,11 @@ export class MeshoptDeltaStream {
   }
 
   /** Advance, then the frame as float32 (the state keeps its own bytes). */
-  decode(frame: DeltaFrame, vertexCount: number, triangleCount: number): DecodedFrame {
+  decode(frame: DeltaFrame, vertexCount: number, triangleCount: number, out?: VertexArrays): DecodedFrame {
     const energies = dequantizeEnergies(frame, triangleCount);
     const vertices = this.advance(frame, vertexCount);
     if (!vertices) return { positions: null, normals: null, energies };
-    return { ...dequantizeVertices(vertices, vertexCount, frame), energies };
+    return { ...dequantizeVertices(vertices, vertexCount, frame, out), energies };
   }
 
   /** A new stream: nothing to add deltas to until its key frame. */

@@ -3,7 +3,7 @@
 // by Frame.energies_max. The byte layout is the server's (server/service/frame_encoding.cpp);
 // the arithmetic mirrors the C++ reference decoder (client-cli/frame_decode.cpp).
 import type { Frame } from "../gen/hdeform/v1/deform_pb";
-import { FrameDecodeError, type DecodedFrame } from "./decoded_frame";
+import { FrameDecodeError, type DecodedFrame, type VertexArrays } from "./decoded_frame";
 
 export const QUANTIZED_VERTEX_BYTES = 8;
 
@@ -58,12 +58,16 @@ function boxOf(frame: QuantizedFrame): { lo: number[]; step: number[] } {
   return { lo, step: lo.map((l, k) => (hi[k] - l) / 65535) };
 }
 
-/** 8-byte quantized vertices (already unpacked from MESHOPT if need be) → positions, normals. */
+/**
+ * 8-byte quantized vertices (already unpacked from MESHOPT if need be) → positions, normals,
+ * written into `out`'s arrays when they have 3 × vertexCount entries.
+ */
 export function dequantizeVertices(
   bytes: Uint8Array,
   vertexCount: number,
   frame: QuantizedFrame,
-): { positions: Float32Array; normals: Float32Array } {
+  out?: VertexArrays,
+): VertexArrays {
   if (bytes.byteLength !== QUANTIZED_VERTEX_BYTES * vertexCount) {
     throw new FrameDecodeError(
       `Frame has quantized vertices for ${bytes.byteLength / QUANTIZED_VERTEX_BYTES} vertices; the mesh has ${vertexCount} (${bytes.byteLength} bytes, expected ${QUANTIZED_VERTEX_BYTES * vertexCount})`,
@@ -80,8 +84,9 @@ export function dequantizeVertices(
   const table = octahedralNormals();
   const [x0, y0, z0] = lo;
   const [sx, sy, sz] = step;
-  const positions = new Float32Array(3 * vertexCount);
-  const normals = new Float32Array(3 * vertexCount);
+  const fits = (a: Float32Array | undefined) => a?.length === 3 * vertexCount;
+  const positions = out && fits(out.positions) ? out.positions : new Float32Array(3 * vertexCount);
+  const normals = out && fits(out.normals) ? out.normals : new Float32Array(3 * vertexCount);
   for (let i = 0; i < vertexCount; i++) {
     const w = 4 * i;
     const o = 3 * i;
@@ -114,8 +119,8 @@ export function dequantizeEnergies(frame: QuantizedFrame, triangleCount: number)
   return out;
 }
 
-export function decodeQuantized(frame: QuantizedFrame, vertexCount: number, triangleCount: number): DecodedFrame {
+export function decodeQuantized(frame: QuantizedFrame, vertexCount: number, triangleCount: number, out?: VertexArrays): DecodedFrame {
   const energies = dequantizeEnergies(frame, triangleCount);
   if (frame.vertices.byteLength === 0) return { positions: null, normals: null, energies };
-  return { ...dequantizeVertices(frame.vertices, vertexCount, frame), energies };
+  return { ...dequantizeVertices(frame.vertices, vertexCount, frame, out), energies };
 }

@@ -1,5 +1,5 @@
 // What the page and the decode worker send each other.
-import type { DecodedFrame, FrameBuffers } from "./decoded_frame";
+import type { DecodedFrame, FrameBuffers, VertexArrays } from "./decoded_frame";
 
 export interface DecodeRequest {
   id: number;
@@ -9,7 +9,12 @@ export interface DecodeRequest {
   triangleCount: number;
   /** MESHOPT_DELTA frames the page does not show: only the stream's state moves on. */
   advanceOnly?: boolean;
+  /** Arrays of earlier frames the page is done with (transferred): decoded into if they fit. */
+  reuse?: VertexArrays;
 }
 
-/** `ms`: the worker's time for the decode (performance.now, in the worker). */
-export type DecodeReply = { id: number; decoded: DecodedFrame; ms: number } | { id: number; error: string };
+/**
+ * `ms`: the worker's time for the decode (performance.now, in the worker). `spent`: the
+ * request's vertex bytes, handed back for the next request to copy into.
+ */
+export type DecodeReply = { id: number; decoded: DecodedFrame; ms: number; spent?: Uint8Array } | { id: number; error: string; spent?: Uint8Array };
