@@ -1,6 +1,7 @@
 // The viewer's MESHOPT frame decode in node, per stage: meshopt's vertex codec (WebAssembly)
-// and the dequantization (web-viewer/src/decode/quantized.ts), against the per-vertex
-// octahedral decode it replaced, interleaved in one process. Not a CI test: it reports.
+// and the dequantization (web-viewer/src/decode/quantized.ts) into fresh and into reused
+// arrays (as the decode worker now does), against the per-vertex octahedral decode it
+// replaced, interleaved in one process. Not a CI test: it reports.
 //
 //   web-viewer/node_modules/.bin/tsx bench/wan/decode_bench.ts [--vertices 100000,84000] [--repeats 300]
 //
@@ -55,27 +56,32 @@ async function main(): Promise<void> {
   await meshoptReady;
   await MeshoptEncoder.ready;
   const median = (a: number[]) => [...a].sort((x, y) => x - y)[a.length >> 1];
-  console.log("| vertices | meshopt bytes | unpack (meshopt codec) | dequantize, table | dequantize, per vertex | unpack + dequantize |");
-  console.log("|---|---|---|---|---|---|");
+  console.log("| vertices | meshopt bytes | unpack (meshopt codec) | dequantize, table | … into reused arrays | dequantize, per vertex | unpack + dequantize (reused) |");
+  console.log("|---|---|---|---|---|---|---|");
   for (const target of values.vertices!.split(",").map(Number)) {
     const { n, packed, frame } = quantizedCapsule(target);
-    const t = { unpack: [] as number[], table: [] as number[], perVertex: [] as number[] };
+    const t = { unpack: [] as number[], table: [] as number[], reused: [] as number[], perVertex: [] as number[] };
+    const out = { positions: new Float32Array(3 * n), normals: new Float32Array(3 * n) };
+    const into = new Uint8Array(8 * n); // as decodeMeshopt's scratch
     for (let r = 0; r < repeats + 50; r++) {
       const t0 = performance.now();
-      const raw = unpackMeshopt(packed, n);
+      const raw = unpackMeshopt(packed, n, into);
       const t1 = performance.now();
       const got = dequantizeVertices(raw, n, frame);
       const t2 = performance.now();
       const old = perVertex(raw, n, frame);
       const t3 = performance.now();
+      dequantizeVertices(raw, n, frame, out);
+      const t4 = performance.now();
       if (r === 0 && old[1].some((x, i) => x !== got.normals[i])) throw new Error("the table's normals differ from the per-vertex decode");
       if (r < 50) continue; // warm-up: V8 optimizes the loops first
       t.unpack.push(t1 - t0);
       t.table.push(t2 - t1);
       t.perVertex.push(t3 - t2);
+      t.reused.push(t4 - t3);
     }
     const f = (x: number) => `${x.toFixed(2)} ms`;
-    console.log(`| ${n} | ${packed.byteLength} | ${f(median(t.unpack))} | ${f(median(t.table))} | ${f(median(t.perVertex))} | ${f(median(t.unpack.map((u, i) => u + t.table[i])))} |`);
+    console.log(`| ${n} | ${packed.byteLength} | ${f(median(t.unpack))} | ${f(median(t.table))} | ${f(median(t.reused))} | ${f(median(t.perVertex))} | ${f(median(t.unpack.map((u, i) => u + t.reused[i])))} |`);
   }
 }
 
