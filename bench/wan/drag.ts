@@ -157,6 +157,7 @@ async function main() {
   const abort = new AbortController();
   const deltaStream = new MeshoptDeltaStream(); // MESHOPT_DELTA: this watch stream's state
   let keyFrames = 0;
+  const reuse = { positions: new Float32Array(3 * vc), normals: new Float32Array(3 * vc) };
   const watching = (async () => {
     for await (const ev of client.watchSession({ name, format }, { signal: abort.signal })) {
       ++events;
@@ -174,8 +175,9 @@ async function main() {
       let decodedOk = false;
       try {
         const t1 = now();
-        // `await`: a decoder moved off the main thread may return a promise.
-        const d = await decodeFrame(frame, vc, tc, deltaStream);
+        // `await`: a decoder moved off the main thread may return a promise. Into the same
+        // arrays every frame, as the viewer's decode worker does (frame_decoder.ts).
+        const d = await decodeFrame(frame, vc, tc, deltaStream, reuse);
         if (frame.encoding === FrameEncoding.MESHOPT_DELTA && !frame.delta) ++keyFrames;
         decodedOk = d.positions?.length === 3 * vc;
         if (inDrag) {
