@@ -12,8 +12,6 @@
 #include "vertex_ordering.h"
 #include "vertex_normals.h"
 
-#include <omp.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>

@@ -12,10 +12,9 @@
 
 namespace hdeform {
 
-// METIS nested dissection (METIS_NodeND, default options, as cholmod_metis calls it) of the
-// graph of the symmetric pattern of A, n × n, read from its strictly lower triangle:
-// order[k] = the vertex eliminated k-th. Deterministic, also with concurrent calls (METIS
-// runs one call at a time: its random generator is global). Serial.
+// METIS nested dissection (through CHOLMOD) of the symmetric pattern of A, n × n, read
+// from its lower triangle: order[k] = the vertex eliminated k-th. Deterministic, also with
+// concurrent calls (METIS runs one call at a time: its random generator is global). Serial.
 std::vector<int> nested_dissection(const SparseMatrix& A);
 // The same for the union of the patterns of A and B (both n × n, symmetric).
 std::vector<int> nested_dissection(const SparseMatrix& A, const SparseMatrix& B);

@@ -15,22 +15,22 @@ const stream = new MeshoptDeltaStream();
 
 scope.onmessage = ({ data }) => {
   queue = queue.then(() => {
+    // The request's vertex bytes go back with every answer, for a later request to copy into.
+    const spent = data.frame.vertices;
+    const spentBuffers = spent.byteLength ? [spent.buffer] : [];
     try {
       const t0 = performance.now();
       if (data.advanceOnly) {
         stream.advance(data.frame, data.vertexCount);
-        const spent = data.frame.vertices;
-        scope.postMessage({ id: data.id, decoded: { positions: null, normals: null, energies: null }, ms: performance.now() - t0, spent }, spent.byteLength ? [spent.buffer] : []);
+        scope.postMessage({ id: data.id, decoded: { positions: null, normals: null, energies: null }, ms: performance.now() - t0, spent }, spentBuffers);
         return;
       }
       const { positions, normals, energies } = decodeFrame(data.frame, data.vertexCount, data.triangleCount, stream, data.reuse);
       const ms = performance.now() - t0;
-      const spent = data.frame.vertices;
-      const transfer = [positions, normals, energies, spent].flatMap((a) => (a?.byteLength ? [a.buffer] : []));
-      scope.postMessage({ id: data.id, decoded: { positions, normals, energies }, ms, spent }, [...new Set(transfer)]);
+      const arrays = [positions, normals, energies].flatMap((a) => (a ? [a.buffer] : []));
+      scope.postMessage({ id: data.id, decoded: { positions, normals, energies }, ms, spent }, [...arrays, ...spentBuffers]);
     } catch (err) {
-      const spent = data.frame.vertices;
-      scope.postMessage({ id: data.id, error: (err as Error).message, spent }, spent.byteLength ? [spent.buffer] : []);
+      scope.postMessage({ id: data.id, error: (err as Error).message, spent }, spentBuffers);
     }
   });
 };
