@@ -36,6 +36,7 @@
 #include <optional>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace hdeform::bench {
@@ -430,7 +431,22 @@ void BM_BetaRefactor(benchmark::State& state, std::string key) {
 //   drag   drag path (float32 factor + refinement) + normals, no measures (the "drag frame")
 //   light  exact solve + measures only
 //   alloc  `full` through the allocating update() (fresh buffers every move: the page faults)
-enum class Move { full, exact, drag, light, alloc };
+//   drag_paced  `drag`, with 128 MB written and 50 ms of sleep between moves, as a 20 Hz
+//          drag meets it in the service (the sleep costs the most: docs/benchmarks.md
+//          "The paced drag")
+enum class Move { full, exact, drag, light, alloc, drag_paced };
+
+// What a 20 Hz drag leaves between two moves: other work (encoding, the network, other
+// sessions) through the caches, and 50 ms in which this thread's cores may idle. Untimed.
+void between_paced_moves(benchmark::State& state) {
+  state.PauseTiming();
+  static std::vector<char> junk(std::size_t{128} << 20);
+  static char pass = 0;
+  std::memset(junk.data(), ++pass, junk.size());
+  benchmark::DoNotOptimize(junk.data());
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  state.ResumeTiming();
+}
 
 // `warmup` untimed moves first (the 1M steady state: first touches and the float32 copy of
 // the factor are paid before the timed moves).
@@ -439,8 +455,8 @@ void BM_Update(benchmark::State& state, std::string key, double beta, Move mode,
   c.cs->prepare(Beta{beta});
   UpdateOptions opt;
   if (mode == Move::light) opt.energies = opt.normals = false;
-  if (mode == Move::exact || mode == Move::drag) opt.energies = false;
-  if (mode == Move::drag) {
+  if (mode == Move::exact || mode == Move::drag || mode == Move::drag_paced) opt.energies = false;
+  if (mode == Move::drag || mode == Move::drag_paced) {
     opt.measures = false;
     opt.precision = FramePrecision::drag;
   }
@@ -460,6 +476,7 @@ void BM_Update(benchmark::State& state, std::string key, double beta, Move mode,
       c.cs->update(std::span(&t, 1), Beta{beta}, opt, ws, f);
       benchmark::DoNotOptimize(f.positions.data());
     }
+    if (mode == Move::drag_paced) between_paced_moves(state);
   }
   size_counters(state, c);
 }
@@ -779,7 +796,8 @@ void register_size(int n) {
   reg("BetaRefactor" + N, slow, BM_BetaRefactor, key);
   for (double beta : kBetas) {
     for (auto [mode, tag] : {std::pair{Move::full, "full"}, {Move::exact, "exact"},
-                             {Move::drag, "drag"}, {Move::light, "light"}, {Move::alloc, "alloc"}})
+                             {Move::drag, "drag"}, {Move::light, "light"}, {Move::alloc, "alloc"},
+                             {Move::drag_paced, "drag_paced"}})
       reg("Update" + N + "/" + beta_tag(beta) + "/" + tag, fast, BM_Update, key, beta, mode, 0);
   }
   if (big)  // issue 10's 1M drag frame target is a steady state: 2 moves first, then 5 timed
