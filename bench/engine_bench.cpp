@@ -455,8 +455,9 @@ void BM_Update(benchmark::State& state, std::string key, double beta, Move mode,
   c.cs->prepare(Beta{beta});
   UpdateOptions opt;
   if (mode == Move::light) opt.energies = opt.normals = false;
-  if (mode == Move::exact || mode == Move::drag || mode == Move::drag_paced) opt.energies = false;
-  if (mode == Move::drag || mode == Move::drag_paced) {
+  const bool drag = mode == Move::drag || mode == Move::drag_paced;
+  if (mode == Move::exact || drag) opt.energies = false;
+  if (drag) {
     opt.measures = false;
     opt.precision = FramePrecision::drag;
   }
