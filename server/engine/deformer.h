@@ -50,15 +50,17 @@ class PreparedMesh {
   const std::vector<InteriorEdge>& edges() const { return edges_; }
   const VertexTriangles& vertex_triangles() const { return vertex_triangles_; }
   const SparseMatrix& L() const { return L_; }                   // Gᵀ A G
-  // Gᵀ D₃ᵀ B₃ D₃ G: only β > 0 needs it, so it is built on the first call (thread-safe; a
-  // call that builds it costs O(m) on all OpenMP threads) and kept.
-  const SparseMatrix& Reg() const;
+  // Gᵀ D₃ᵀ B₃ D₃ G, assembled on each call (O(m), all OpenMP threads; the same bits every
+  // time). Not kept: only a constraint set's first β > 0 (its wide blocks) and a local β
+  // field need it, and at 1M it would hold ≈ 0.23 GB for as long as the mesh lives.
+  SparseMatrix Reg() const;
   // Nested dissection of L's pattern (β = 0) and of L ∪ Reg's (β > 0), each computed on
   // its first call (thread-safe; METIS, serial) and kept: every constraint set on this mesh
   // orders its K_FF by it (vertex_ordering.h). ms: the time the call spent computing it (0
-  // when it was already there).
+  // when it was already there). reg: Reg() if the caller has it at hand (else wide_order
+  // assembles it when it needs it).
   const std::vector<int>& order(double* ms = nullptr) const;
-  const std::vector<int>& wide_order(double* ms = nullptr) const;
+  const std::vector<int>& wide_order(double* ms = nullptr, const SparseMatrix* reg = nullptr) const;
   // Whether order() is computed (its next call returns at once).
   bool has_order() const { return order_ready_.load(std::memory_order_acquire); }
   SparseMatrix GtA() const;                                      // Gᵀ A (n × 3m)
@@ -76,8 +78,8 @@ class PreparedMesh {
   std::size_t memory_bytes() const;
   // Where create() spent its time (ms, wall; docs/benchmarks.md "Session open and memory"):
   // validation, per-triangle geometry (areas, normals, gradients), the vertex→triangle
-  // table and interior edges, L, the connected components; and Reg's build (0 until the
-  // first Reg() call, which is not part of create()).
+  // table and interior edges, L, the connected components; and Reg's last build (0 until
+  // the first Reg() call, which is not part of create()).
   struct BuildTimings {
     double validate_ms = 0, geometry_ms = 0, edges_ms = 0, laplacian_ms = 0,
            regularizer_ms = 0, components_ms = 0;
@@ -89,10 +91,7 @@ class PreparedMesh {
   BuildTimings timings_;
   TriMesh mesh_;
   SparseMatrix L_;
-  mutable std::once_flag reg_once_;  // Reg_ and reg_ms_ are written once, under it
-  mutable SparseMatrix Reg_;
-  mutable double reg_ms_ = 0;
-  mutable std::atomic<bool> reg_ready_{false};
+  mutable std::atomic<double> reg_ms_{0};  // the last Reg() call's time
   mutable std::once_flag order_once_, wide_order_once_;
   mutable std::vector<int> order_, wide_order_;  // written once, under their once_flag
   mutable std::atomic<bool> order_ready_{false}, wide_order_ready_{false};
