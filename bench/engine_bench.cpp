@@ -12,7 +12,7 @@
 #include "deformer.h"
 #include "measures.h"
 #include "mesh_io.h"
-#include "openmp_wait.h"
+#include "process_environment.h"
 #include "procedural.h"
 #include "selection.h"
 #include "solver.h"
@@ -879,7 +879,7 @@ void register_botsch_sorkine(const std::string& model) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  hdeform::ensure_openmp_waits_passively(argv);  // before any OpenMP loop
+  hdeform::ensure_process_environment(argv);  // before any allocation or OpenMP loop
   if (!bench::initialize(argc, argv, g_smoke)) return 1;
 
   bench::register_solve_benchmarks(g_smoke);  // Bandwidth/read, Solve/N/… (solve_bench.cpp)

@@ -35,7 +35,7 @@
 #include "frame_decode.h"
 #include "frame_delta.h"
 #include "frame_encoding.h"
-#include "openmp_wait.h"
+#include "process_environment.h"
 #include "hdeform/v1/deform.grpc.pb.h"
 #include "procedural.h"
 #include "server.h"
@@ -616,7 +616,7 @@ std::string loadavg() {
 }  // namespace
 
 int main(int argc, char** argv) {
-  hdeform::ensure_openmp_waits_passively(argv);  // as hdeform-server does
+  hdeform::ensure_process_environment(argv);  // as hdeform-server does
   if (!bench::initialize(argc, argv, g_smoke)) return 1;
   spdlog::set_level(spdlog::level::warn);
   register_all();

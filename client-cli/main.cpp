@@ -7,6 +7,10 @@
 #include "commands.h"
 #include "common.h"
 
+#ifdef HDEFORM_CLI_IN_PROCESS
+#include "engine/process_environment.h"
+#endif
+
 #include <CLI/CLI.hpp>
 #include <grpc/support/log.h>
 #include <spdlog/sinks/stdout_sinks.h>
@@ -26,6 +30,9 @@ void grpc_log(gpr_log_func_args* args) {
 }  // namespace
 
 int main(int argc, char** argv) {
+#ifdef HDEFORM_CLI_IN_PROCESS
+  hdeform::ensure_process_environment(argv);  // the in-process service's, as hdeform-server's
+#endif
   using namespace hdeform::cli;
   gpr_set_log_function(grpc_log);
 

@@ -1,7 +1,7 @@
 // hdeform-server: the gRPC service on TCP (and optionally the gRPC-Web/HTTP gateway with
 // the web viewer). Every flag also reads an HDEFORM_* environment variable.
 #include "service/server.h"
-#include "openmp_wait.h"
+#include "process_environment.h"
 
 #ifdef HDEFORM_HAVE_GATEWAY
 #include "gateway/http_gateway.h"
@@ -62,7 +62,7 @@ std::string default_state_dir() {
 }  // namespace
 
 int main(int argc, char** argv) {
-  hdeform::ensure_openmp_waits_passively(argv);  // before any OpenMP loop
+  hdeform::ensure_process_environment(argv);  // before any allocation or OpenMP loop
   CLI::App app{"hdeform-server: interactive harmonic surface deformation over gRPC"};
   int port = 50051;
   std::string bind = "127.0.0.1";

@@ -27,7 +27,7 @@ void run_guarded(const WorkerPool::Task& task) {
 }  // namespace
 
 // The engine's OpenMP loops run inside each worker. When OpenMP waits passively (the
-// server sets that up: openmp_wait.h), every worker's team gets all the cores: a lone move
+// server sets that up: process_environment.h), every worker's team gets all the cores: a lone move
 // then uses both (100K drag frame 13.6 vs 17.7 ms with one thread per worker, docs/benchmarks.md
 // "Threads"), and two concurrent moves share them with sleeping, not spinning, threads.
 // With spinning waits, oversubscribed teams only fight each other: then the workers split
