@@ -72,15 +72,17 @@ std::vector<int> vertex_components(int n, const Triangles& F, int& count) {
   return comp;
 }
 
-// values(out) = a·values(x) + b·values(y) for matrices of identical structure.
-// On the OpenMP team: every β change combines K_FF's and K_FC's values (`K_FF_ms`).
+// x's structure with values a·values(x) + b·y, y being the values of a matrix of x's
+// structure. On the OpenMP team: every β change combines K_FF's and K_FC's (`K_FF_ms`).
 template <typename Sparse>
-Sparse combine(double a, const Sparse& x, double b, const Sparse& y) {
+Sparse combine(double a, const Sparse& x, double b, const std::vector<double>& y) {
+  const Eigen::Index nnz = x.nonZeros();
+  if (static_cast<std::size_t>(nnz) != y.size())
+    throw std::logic_error("combine: the two parts' structures differ");
   Sparse out = x;
   double* o = out.valuePtr();
   const double* xv = x.valuePtr();
-  const double* yv = y.valuePtr();
-  const Eigen::Index nnz = x.nonZeros();
+  const double* yv = y.data();
 #pragma omp parallel for schedule(static)
   for (Eigen::Index k = 0; k < nnz; ++k) o[k] = a * xv[k] + b * yv[k];
   return out;
@@ -255,9 +257,11 @@ struct BetaSystem {
 };
 
 struct ConstraintSet::WideBlocks {
-  // Same structure: K_β = (1−β)·area + β·reg (FF and FC; GtW_F is left empty, see
-  // build_system_locked).
-  Blocks area, reg;
+  // K_β = (1−β)·area + β·reg, FF and FC, on area's structure (split_union gives both parts
+  // one structure, so reg keeps only its values: one index structure fewer, ≈ 50 MB at 1M).
+  // area.GtW_F is left empty, see build_system_locked.
+  Blocks area;
+  std::vector<double> reg_FF, reg_FC;
 };
 
 ConstraintSet::ConstraintSet(std::shared_ptr<const PreparedMesh> mesh, Constraints constraints)
@@ -401,8 +405,13 @@ std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_
       const SparseMatrix Reg = mesh_->Reg();
       // Same structure for both parts: each is the other plus explicit zeros.
       auto w = std::make_shared<WideBlocks>();
-      split_union(mesh_->L(), Reg, nullptr, nullptr,
-                  BlockLayout{region_of_, block_index_, nF, nC}, w->area, w->reg);
+      {
+        Blocks reg;
+        split_union(mesh_->L(), Reg, nullptr, nullptr,
+                    BlockLayout{region_of_, block_index_, nF, nC}, w->area, reg);
+        w->reg_FF.assign(reg.FF.valuePtr(), reg.FF.valuePtr() + reg.FF.nonZeros());
+        w->reg_FC.assign(reg.FC.valuePtr(), reg.FC.valuePtr() + reg.FC.nonZeros());
+      }
       {
         std::lock_guard lock(mutex_);  // memory_bytes() reads wide_ under mutex_ alone
         wide_ = std::move(w);
@@ -413,14 +422,14 @@ std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_
     }
     timings.blocks_ms = ms(t0) - timings.ordering_ms;
     t0 = Clock::now();
-    sys->K_FF = combine(1.0 - raw_beta, wide_->area.FF, raw_beta, wide_->reg.FF);
+    sys->K_FF = combine(1.0 - raw_beta, wide_->area.FF, raw_beta, wide_->reg_FF);
     timings.K_FF_ms = ms(t0);
     // The factorization (CHOLMOD) and the right-hand side's blocks need nothing from each
     // other: the blocks are built on the other core meanwhile.
     run_beside([&] { sys->factor = factor_wide(sys->K_FF, timings); },
                [&] {
                  const auto t1 = Clock::now();
-                 sys->K_FC = combine(1.0 - raw_beta, wide_->area.FC, raw_beta, wide_->reg.FC);
+                 sys->K_FC = combine(1.0 - raw_beta, wide_->area.FC, raw_beta, wide_->reg_FC);
                  // (GᵀW_β)_F straight from the gradients for this β: its two parts are not
                  // kept (they would be 2 × 0.45 GB at 1M) and no n × 3m Gᵀ A or
                  // Gᵀ D₃ᵀ B₃ D₃ is formed.
@@ -766,7 +775,8 @@ std::size_t ConstraintSet::memory_bytes() const {
   for (const auto& [key, fs] : by_field_)
     bytes += fs.system->memory_bytes() + static_cast<std::size_t>(fs.beta.size()) * sizeof(double);
   if (wide_)
-    bytes += 2 * (sparse_bytes(wide_->area.FF) + sparse_bytes(wide_->area.FC));
+    bytes += sparse_bytes(wide_->area.FF) + sparse_bytes(wide_->area.FC) +
+             (wide_->reg_FF.size() + wide_->reg_FC.size()) * sizeof(double);
   return bytes;
 }
 
