@@ -173,8 +173,8 @@ std::shared_ptr<const PreparedMesh> PreparedMesh::create(TriMesh mesh) {
 SparseMatrix PreparedMesh::Reg() const {
   const auto t0 = std::chrono::steady_clock::now();
   SparseMatrix reg = assemble_regularizer(mesh_.F, grads_, edges_, vertex_triangles_);
-  reg_ms_.store(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count(),
-                std::memory_order_relaxed);
+  const std::chrono::duration<double, std::milli> took = std::chrono::steady_clock::now() - t0;
+  reg_ms_.store(took.count(), std::memory_order_relaxed);
   return reg;
 }
 
@@ -206,7 +206,9 @@ const std::vector<int>& PreparedMesh::order(double* ms) const {
 
 const std::vector<int>& PreparedMesh::wide_order(double* ms, const SparseMatrix* reg) const {
   return lazy_order(wide_order_once_, wide_order_, wide_order_ready_,
-                    [&] { return reg ? nested_dissection(L_, *reg) : nested_dissection(L_, Reg()); },
+                    [&] {
+                      return reg ? nested_dissection(L_, *reg) : nested_dissection(L_, Reg());
+                    },
                     ms);
 }
 
