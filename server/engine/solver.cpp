@@ -72,6 +72,19 @@ Eigen::MatrixXd CholmodLLT::solve_concurrently(const Eigen::MatrixXd& B) const {
   return X;
 }
 
+void CholmodLLT::factorize_supernodal(const SparseMatrix& A, const SupernodalFactorPlan& plan,
+                                      int threads) {
+  this->m_info = Eigen::NumericalIssue;
+  this->m_factorizationIsOk = false;
+  if (!m_cholmodFactor || !m_cholmodFactor->is_super) return;
+  // The symbolic factor gets its values array (L.xsize doubles; a numeric one keeps its own).
+  if (!cholmod_change_factor(CHOLMOD_REAL, 1, 1, 1, 1, m_cholmodFactor, &m_cholmod)) return;
+  cholmod_sparse a = Eigen::viewAsCholmod(A.selfadjointView<Eigen::Lower>());
+  if (supernodal_factorize(*m_cholmodFactor, a, plan, threads) >= 0) return;
+  this->m_info = Eigen::Success;
+  this->m_factorizationIsOk = true;
+}
+
 std::size_t CholmodLLT::factor_nnz() const {
   if (!m_cholmodFactor) return 0;
   if (m_cholmodFactor->is_super) return static_cast<std::size_t>(m_cholmodFactor->xsize);
@@ -99,11 +112,11 @@ Factorization::Factorization(const SparseMatrix& K_FF, bool keep_analysis,
   check("analysis");
   // Before the numeric factorization fills in values.
   if (keep_analysis) analysis_.adopt_analysis(llt_);
+  if (llt_.factor()->is_super)
+    plan_ = std::make_shared<const SupernodalFactorPlan>(*llt_.factor());
+  plan_owner_ = plan_ != nullptr;
   timings_.analysis_ms = ms_since(t0);
-  const auto t1 = std::chrono::steady_clock::now();
-  llt_.factorize(K_FF);
-  check("factorization");
-  timings_.factor_ms = ms_since(t1);
+  factorize(K_FF);
   finish();
 }
 
@@ -115,12 +128,20 @@ Factorization::Factorization(const Factorization& analysis, const SparseMatrix& 
   if (!analysis.analysis_.factor())
     throw std::logic_error("Factorization: the analysis was built without keep_analysis");
   llt_.adopt_analysis(analysis.analysis_);  // analysis_ is immutable: no lock needed
+  plan_ = analysis.plan_;
   timings_.analysis_ms = ms_since(t0);       // the copy of the symbolic factor
-  const auto t1 = std::chrono::steady_clock::now();
-  llt_.factorize(K_FF);
-  check("factorization");
-  timings_.factor_ms = ms_since(t1);
+  factorize(K_FF);
   finish();
+}
+
+void Factorization::factorize(const SparseMatrix& K_FF) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (plan_)
+    llt_.factorize_supernodal(K_FF, *plan_);
+  else
+    llt_.factorize(K_FF);  // CHOLMOD chose a simplicial factor (tiny systems)
+  check("factorization");
+  timings_.factor_ms = ms_since(t0);
 }
 
 void Factorization::finish() {
@@ -184,7 +205,8 @@ std::size_t Factorization::memory_bytes() const {
   const std::size_t floats =
       float_ready_.load(std::memory_order_acquire) ? float_values_.size() * sizeof(float) : 0;
   return llt_.factor_nnz() * (sizeof(double) + sizeof(int)) + analysis_.factor_nnz() * sizeof(int) +
-         schedule_.memory_bytes() + floats + sizeof(*this);
+         schedule_.memory_bytes() + floats + sizeof(*this) +
+         (plan_owner_ ? plan_->memory_bytes() : 0);
 }
 
 }  // namespace hdeform

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "operators.h"
+#include "supernodal_factorize.h"
 #include "supernodal_solve.h"
 
 #include <Eigen/CholmodSupport>
@@ -28,6 +29,11 @@ class CholmodLLT : public Eigen::CholmodBase<SparseMatrix, Eigen::Lower, Cholmod
   // Symbolic analysis with a given fill-reducing permutation (perm[k] = the row eliminated
   // k-th; CHOLMOD still postorders it) instead of a METIS call: vertex_ordering.h.
   void analyze_given(const SparseMatrix& A, const std::vector<int>& perm);
+  // Numeric factorization of A (same pattern as the analysis) by supernodal_factorize on
+  // `threads` threads instead of cholmod_factorize; info() reports NumericalIssue when A is
+  // not positive definite.
+  void factorize_supernodal(const SparseMatrix& A, const SupernodalFactorPlan& plan,
+                            int threads = 2);
   // Nonzeros stored in the factor L.
   std::size_t factor_nnz() const;
   // X = A⁻¹ B with a CHOLMOD workspace of the caller's own: the factor is only read, so
@@ -88,11 +94,16 @@ class Factorization {
 
  private:
   void check(const char* what) const;
+  void factorize(const SparseMatrix& K_FF);
   void finish();  // after the numeric factorization: the solve schedule
   const float* values_float() const;
   CholmodLLT llt_;
   CholmodLLT analysis_;  // the symbolic analysis alone, kept to seed later β; never modified
   int size_ = 0;
+  // The factorization's tree split, built from the symbolic analysis and shared with every
+  // Factorization seeded by this one (same analysis).
+  std::shared_ptr<const SupernodalFactorPlan> plan_;
+  bool plan_owner_ = false;  // memory_bytes() counts the plan once, in its builder
   SupernodalSchedule schedule_;
   Timings timings_;
   mutable std::once_flag float_once_;

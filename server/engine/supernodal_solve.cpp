@@ -1,5 +1,8 @@
 #include "supernodal_solve.h"
 
+#include "supernodal_tree.h"
+#include "two_threads.h"
+
 #include <cblas.h>
 
 #include <algorithm>
@@ -249,112 +252,28 @@ SupernodalSchedule::SupernodalSchedule(const cholmod_factor& L, std::size_t min_
   const int* pi = static_cast<const int*>(L.pi);
   const int* px = static_cast<const int*>(L.px);
   const int* Ls = static_cast<const int*>(L.s);
-
-  std::vector<int> super_of(static_cast<std::size_t>(n));
-  for (int s = 0; s < nsuper; ++s)
-    for (int k = super[s]; k < super[s + 1]; ++k) super_of[k] = s;
-  // Children lists (parent > child always: a row below s's columns) and subtree work.
-  std::vector<int> head(nsuper, -1), next(nsuper, -1), roots;
-  std::vector<double> work(nsuper), subtree(nsuper);
-  for (int s = 0; s < nsuper; ++s) {
-    work[s] = static_cast<double>(px[s + 1] - px[s]);
-    subtree[s] += work[s];
-    const int nc = super[s + 1] - super[s];
-    if (pi[s + 1] - pi[s] > nc) {
-      const int parent = super_of[Ls[pi[s] + nc]];
-      next[s] = head[parent];
-      head[parent] = s;
-      subtree[parent] += subtree[s];
-    } else {
-      roots.push_back(s);
-    }
-  }
-  double total = 0;
-  for (int r : roots) total += subtree[r];
-
-  // Greedy: repeatedly move the heaviest candidate subtree's root to the top and its
-  // children to the candidates; after each step, pack the candidates into at most
-  // kMaxParts parts (largest first into the lightest), and keep the step whose two-thread
-  // critical path (parts list-scheduled heaviest first, as claimed at run time, then the
-  // top) is shortest.
-  std::vector<int> cand = roots;
-  std::vector<std::vector<int>> best;
-  std::vector<double> best_work;
-  double top_work = 0, best_cost = total, best_top = 0;
-  // Later steps cost at least top + (total − top) / 2: stop once that cannot win.
-  for (int step = 0; step < 256 && !cand.empty() && (total + top_work) / 2 < best_cost; ++step) {
-    std::sort(cand.begin(), cand.end(), [&](int a, int b) {
-      return subtree[a] != subtree[b] ? subtree[a] > subtree[b] : a < b;
-    });
-    const int K = std::min<int>(kMaxParts, static_cast<int>(cand.size()));
-    if (K >= 2) {
-      std::vector<std::vector<int>> bins(K);
-      std::vector<double> w(K, 0.0);
-      for (int c : cand) {
-        const int b = static_cast<int>(std::min_element(w.begin(), w.end()) - w.begin());
-        w[b] += subtree[c];
-        bins[b].push_back(c);
-      }
-      std::vector<int> order(K);
-      std::iota(order.begin(), order.end(), 0);
-      std::sort(order.begin(), order.end(), [&](int a, int b) { return w[a] > w[b]; });
-      double t[2] = {0, 0};
-      for (int b : order) t[t[1] < t[0] ? 1 : 0] += w[b];
-      const double cost = std::max(t[0], t[1]) + top_work;
-      if (cost < best_cost) {
-        best_cost = cost;
-        best.clear();
-        best_work.clear();
-        for (int b : order) {
-          best.push_back(std::move(bins[b]));
-          best_work.push_back(w[b]);
-        }
-        best_top = top_work;
-      }
-    }
-    const int h = cand.front();
-    if (head[h] < 0) break;  // the heaviest is a leaf: no finer split
-    cand.erase(cand.begin());
-    top_work += work[h];
-    for (int c = head[h]; c >= 0; c = next[c]) cand.push_back(c);
-  }
-  if (best.empty() || best_cost > 0.8 * total) return;
-
-  const int K = static_cast<int>(best.size());
-  parts_.resize(K);
-  std::vector<char> in_part(nsuper, 0);
-  std::vector<int> stack;
-  for (int p = 0; p < K; ++p) {
-    for (int r : best[p]) {
-      stack.push_back(r);
-      while (!stack.empty()) {
-        const int s = stack.back();
-        stack.pop_back();
-        parts_[p].push_back(s);
-        in_part[s] = 1;
-        for (int c = head[s]; c >= 0; c = next[c]) stack.push_back(c);
-      }
-    }
-    std::sort(parts_[p].begin(), parts_[p].end());
-  }
+  // A solve reads every factor entry once per sweep: a supernode's work is its entries.
+  std::vector<double> work(static_cast<std::size_t>(nsuper));
+  for (int s = 0; s < nsuper; ++s) work[s] = static_cast<double>(px[s + 1] - px[s]);
+  TreeSplit split = split_supernodal_tree(L, work, kMaxParts);
+  if (!split.split()) return;
+  parts_ = std::move(split.parts);
+  top_ = std::move(split.top);
+  const int K = static_cast<int>(parts_.size());
   std::vector<int> top_index(static_cast<std::size_t>(n), -1);
-  for (int s = 0; s < nsuper; ++s) {
-    if (in_part[s]) continue;
-    top_.push_back(s);
+  for (int s : top_)
     for (int k = super[s]; k < super[s + 1]; ++k) {
       top_index[k] = static_cast<int>(top_cols_.size());
       top_cols_.push_back(k);
     }
-  }
   const int ntop = static_cast<int>(top_cols_.size());
   rows_.assign(Ls, Ls + L.ssize);
   for (int p = 0; p < K; ++p)
     for (int s : parts_[p])
       for (int i = pi[s] + (super[s + 1] - super[s]); i < pi[s + 1]; ++i)
         if (top_index[Ls[i]] >= 0) rows_[i] = n + p * ntop + top_index[Ls[i]];
-  work_ = best_work;
-  work_.push_back(best_top);
-  critical_ = best_cost;
+  work_ = std::move(split.work);
+  critical_ = split.critical;
 }
 
 std::size_t SupernodalSchedule::memory_bytes() const {
@@ -364,91 +283,6 @@ std::size_t SupernodalSchedule::memory_bytes() const {
 }
 
 namespace {
-
-// Waits until `a` differs from `old`: a short spin (the other thread is usually about to
-// arrive), then a futex sleep (C++20 atomic wait), so a preempted partner costs no CPU.
-template <class A, class V>
-void await_change(const A& a, V old) {
-  for (int i = 0; i < 4000; ++i) {
-    if (a.load(std::memory_order_acquire) != old) return;
-#if defined(__x86_64__) || defined(__i386__)
-    __builtin_ia32_pause();
-#endif
-  }
-  while (a.load(std::memory_order_acquire) == old) a.wait(old, std::memory_order_acquire);
-}
-
-// Two-party barrier (one call's two threads).
-class Barrier2 {
- public:
-  void arrive_and_wait() {
-    const unsigned g = gen_.load(std::memory_order_acquire);
-    if (count_.fetch_add(1, std::memory_order_acq_rel) == 1) {
-      count_.store(0, std::memory_order_relaxed);  // before the release: no one re-arrives yet
-      gen_.fetch_add(1, std::memory_order_acq_rel);
-      gen_.notify_one();
-      return;
-    }
-    await_change(gen_, g);
-  }
-
- private:
-  std::atomic<int> count_{0};
-  std::atomic<unsigned> gen_{0};
-};
-
-// The process's one helper thread for two-thread solves, started on first use. A call
-// that finds it busy (another thread's solve) runs alone: same bits, and never more than
-// two solve threads on the machine's two cores. Not OpenMP: its barriers spin for
-// milliseconds by default (measured: a 2-thread solve 20 % slower than 1 thread when the
-// other core is busy) and are invisible to TSan.
-class Helper {
- public:
-  static Helper& instance() {
-    static Helper h;
-    return h;
-  }
-  // Runs fn(ctx, 1) on the helper and fn(ctx, 0) on the caller; false (nothing run) if the
-  // helper is busy.
-  bool run(void (*fn)(void*, int), void* ctx) {
-    std::unique_lock<std::mutex> lock(busy_, std::try_to_lock);
-    if (!lock.owns_lock()) return false;
-    if (!thread_.joinable()) thread_ = std::thread([this] { loop(); });
-    fn_ = fn;
-    ctx_ = ctx;
-    const unsigned g = go_.fetch_add(1, std::memory_order_acq_rel) + 1;
-    go_.notify_one();
-    fn(ctx, 0);
-    await_change(done_, g - 1);
-    return true;
-  }
-  ~Helper() {
-    if (!thread_.joinable()) return;
-    stop_ = true;
-    go_.fetch_add(1, std::memory_order_acq_rel);
-    go_.notify_one();
-    thread_.join();
-  }
-
- private:
-  void loop() {
-    unsigned seen = 0;
-    for (;;) {
-      await_change(go_, seen);
-      seen = go_.load(std::memory_order_acquire);
-      if (stop_) return;
-      fn_(ctx_, 1);
-      done_.store(seen, std::memory_order_release);
-      done_.notify_one();
-    }
-  }
-  std::mutex busy_;
-  std::thread thread_;
-  std::atomic<unsigned> go_{0}, done_{0};
-  void (*fn_)(void*, int) = nullptr;  // written before go_'s release, read after its acquire
-  void* ctx_ = nullptr;
-  bool stop_ = false;
-};
 
 template <class T>
 struct Sweep {

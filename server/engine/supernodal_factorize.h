@@ -1,0 +1,61 @@
+// The numeric factorization of K_FF (SPEC.md §Solve) over CHOLMOD's own supernodal symbolic
+// analysis, on two cores (issue 10, item 6: the β change is this factorization).
+//
+// Why not cholmod_factorize: CHOLMOD 3 (Debian 12) factors the supernodes one after another
+// on one core (≈ 14 GFlop/s here); a β change at 100K is 3.97 GFlop of it. The supernodal
+// elimination tree's parts (supernodal_tree.h) are independent, so here two threads factor
+// them side by side, and the top (their ancestors) follows. The arithmetic is CHOLMOD's
+// left-looking supernodal algorithm (t_cholmod_super_numeric): each supernode gathers its
+// columns of P A Pᵀ, subtracts each descendant's update (dsyrk + dgemm, scattered through a
+// relative map), then dpotrf on its diagonal block and dtrsm below it. The descendants of a
+// supernode are applied in an order fixed by the split alone, so the values do not depend on
+// the number of threads nor on which thread ran which part (they differ from CHOLMOD's in
+// the last bits: its descendant order differs).
+//
+// Preconditions: L is a supernodal factor (int indices) from CHOLMOD's analysis of A's
+// pattern with L.Perm, L.x allocated for L.xsize doubles (cholmod_change_factor to numeric
+// supernodal LLᵀ); A is square with stype ≠ 0 (its lower triangle for stype < 0, upper for
+// stype > 0, as CHOLMOD reads it), real double, int indices.
+#pragma once
+
+#include "supernodal_tree.h"
+
+#include <cholmod.h>
+
+#include <cstddef>
+#include <vector>
+
+namespace hdeform {
+
+// What a factorization of one symbolic analysis needs besides the values, built once per
+// analysis: the tree split by floating-point work, the supernode of every column, and the
+// sizes of the per-thread scratch.
+class SupernodalFactorPlan {
+ public:
+  SupernodalFactorPlan() = default;
+  // Factors with fewer than min_rows columns are factored on one thread.
+  explicit SupernodalFactorPlan(const cholmod_factor& L, std::size_t min_rows = 20000);
+  // Floating-point operations of one factorization (dsyrk/dgemm updates, dpotrf, dtrsm).
+  double flops() const { return flops_; }
+  const TreeSplit& split() const { return split_; }
+  std::size_t memory_bytes() const;
+
+ private:
+  friend int supernodal_factorize(cholmod_factor&, const cholmod_sparse&,
+                                  const SupernodalFactorPlan&, int);
+  TreeSplit split_;
+  std::vector<int> super_of_;
+  std::vector<int> part_of_;  // the part of each supernode, −1 for the top
+  std::size_t max_update_ = 0;  // largest descendant update (ndrow2 × ndrow1)
+  std::size_t max_rows_ = 0;    // most rows of a supernode
+  double flops_ = 0;
+};
+
+// Fills L.x with the supernodal Cholesky factor of P A Pᵀ (P from L.Perm). threads ∈ {1, 2}
+// (2 uses the process's helper thread when it is free; the same bits either way). Returns
+// −1 on success, else the first column (in L's order) whose pivot is not positive: A is not
+// positive definite, and L.x holds no factor. Sets L.minor as CHOLMOD does (n on success).
+int supernodal_factorize(cholmod_factor& L, const cholmod_sparse& A,
+                         const SupernodalFactorPlan& plan, int threads = 2);
+
+}  // namespace hdeform
