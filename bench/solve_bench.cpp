@@ -5,6 +5,7 @@
 // repetitions do not rebuild them.
 #include "deformer.h"
 #include "procedural.h"
+#include "serial_openmp.h"
 #include "solver.h"
 #include "supernodal_solve.h"
 
@@ -37,6 +38,7 @@ struct SolveCase {
   std::vector<int> block_index;  // free vertex → row of K_FF, −1 if constrained
   int n = 0;
   std::map<double, std::unique_ptr<Factorization>> factors;
+  std::map<double, SparseMatrix> K_FF;
 };
 
 std::map<int, SolveCase>& cases() {
@@ -61,9 +63,8 @@ SolveCase& solve_case(int nominal) {
 
 // K_FF as the engine builds it: the Laplacian's own pattern at β = 0, the union of both
 // parts' patterns (explicit zeros kept) at β > 0.
-const Factorization& factor(SolveCase& c, double beta) {
-  auto& f = c.factors[beta];
-  if (f) return *f;
+const SparseMatrix& k_ff(SolveCase& c, double beta) {
+  if (auto it = c.K_FF.find(beta); it != c.K_FF.end()) return it->second;
   const PreparedMesh& pm = *c.pm;
   const double b = pm.raw_beta(Beta{beta});
   const SparseMatrix K = b == 0.0 ? SparseMatrix(pm.L()) : SparseMatrix((1 - b) * pm.L() + b * pm.Reg());
@@ -78,8 +79,54 @@ const Factorization& factor(SolveCase& c, double beta) {
     }
   SparseMatrix K_FF(nF, nF);
   K_FF.setFromTriplets(t.begin(), t.end());
-  f = std::make_unique<Factorization>(K_FF);
+  return c.K_FF[beta] = std::move(K_FF);
+}
+
+const Factorization& factor(SolveCase& c, double beta) {
+  auto& f = c.factors[beta];
+  if (!f) f = std::make_unique<Factorization>(k_ff(c, beta));
   return *f;
+}
+
+// Factorize/N/beta:b/{cholmod, ours_1t, ours_2t}: one numeric factorization of K_FF from a
+// copy of one symbolic analysis (METIS on K_FF; the copy untimed): cholmod_factorize, or
+// supernodal_factorize on one or two threads. Counters: GFlop/s (the plan's count), the
+// split's parts and its estimated two-thread critical path (share of the flops).
+// FactorizeCutoff/N/beta:b/small:V: ours_2t with SupernodalFactorPlan::set_small_update(V).
+void BM_Factorize(benchmark::State& state, int nominal, double beta, int threads,
+                  double small_update) {
+  SolveCase& c = solve_case(nominal);
+  const SparseMatrix& K = k_ff(c, beta);
+  CholmodLLT sym;
+  sym.analyzePattern(K);
+  SupernodalFactorPlan plan(*sym.factor());
+  if (small_update >= 0) plan.set_small_update(small_update);
+  double sec = 0;
+  for (auto _ : state) {
+    state.PauseTiming();
+    auto work = std::make_unique<CholmodLLT>();
+    work->adopt_analysis(sym);
+    state.ResumeTiming();
+    const auto t0 = std::chrono::steady_clock::now();
+    if (threads == 0) {
+      SerialOpenMP serial;  // as the engine ran it (serial_openmp.h)
+      work->factorize(K);
+    } else {
+      work->factorize_supernodal(K, plan, threads);
+    }
+    sec += seconds_since(t0);
+    if (work->info() != Eigen::Success) state.SkipWithError("factorization failed");
+    state.PauseTiming();  // the factor's release is not the factorization
+    work.reset();
+    state.ResumeTiming();
+  }
+  state.counters["nF"] = static_cast<double>(K.rows());
+  state.counters["GFlops"] = plan.flops() * static_cast<double>(state.iterations()) / sec / 1e9;
+  state.counters["flop_G"] = plan.flops() / 1e9;
+  if (plan.split().split()) {
+    state.counters["parts"] = static_cast<double>(plan.split().parts.size());
+    state.counters["crit_path"] = plan.split().critical / plan.flops();
+  }
 }
 
 // Memory-bandwidth probe: one thread streaming a buffer far bigger than any cache (256 MiB),
@@ -203,6 +250,21 @@ void register_solve_benchmarks(bool smoke) {
       {"fused_f32_1t", Variant::fused, SolvePrecision::float32, 1},
       {"fused_f32_2t", Variant::fused, SolvePrecision::float32, 2},
   };
+  for (int n : kSolveSizes)
+    for (double beta : kSolveBetas)
+      for (int threads : {0, 1, 2}) {
+        const std::string name = "Factorize/" + std::to_string(n) + "/beta:" +
+                                 (beta == 0 ? std::string("0") : std::string("0.5")) + "/" +
+                                 (threads == 0 ? "cholmod" : threads == 1 ? "ours_1t" : "ours_2t");
+        policy(benchmark::RegisterBenchmark(name.c_str(), BM_Factorize, n, beta, threads, -1.0),
+               smoke);
+      }
+  for (double beta : kSolveBetas)
+    for (double v : {0.0, 4096.0, 16384.0, 65536.0, 262144.0, 1048576.0}) {
+      const std::string name = std::string("FactorizeCutoff/100000/beta:") +
+                               (beta == 0 ? "0" : "0.5") + "/small:" + std::to_string(static_cast<long>(v));
+      policy(benchmark::RegisterBenchmark(name.c_str(), BM_Factorize, 100000, beta, 2, v), smoke);
+    }
   for (int n : kSolveSizes)
     for (double beta : kSolveBetas)
       for (const V& v : variants) {

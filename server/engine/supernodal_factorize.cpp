@@ -18,6 +18,12 @@ void dpotrf_(const char* uplo, const int* n, double* a, const int* lda, int* inf
 
 namespace hdeform {
 
+namespace {
+// Column block width of the large updates and of the two-thread panel factorization.
+constexpr int kUpdateBlock = 128;
+constexpr int kPanelBlock = 128;
+}  // namespace
+
 // CHOLMOD's supernodal layout (cholmod_core.h): supernode s holds columns k1 = super[s] …
 // k2−1 = super[s+1]−1; its rows are Ls[pi[s] … pi[s+1]), ascending, the first k2−k1 of them
 // k1 … k2−1; its values the column-major nsrow × (k2−k1) block at Lx + px[s].
@@ -45,7 +51,7 @@ SupernodalFactorPlan::SupernodalFactorPlan(const cholmod_factor& L, std::size_t 
       int p2 = p1;
       while (p2 < ndrow && Ls[pi[d] + p2] < super[t + 1]) ++p2;
       const std::size_t ndrow1 = p2 - p1, ndrow2 = ndrow - p1;
-      max_update_ = std::max(max_update_, ndrow1 * ndrow2);
+      max_update_ = std::max(max_update_, std::min<std::size_t>(ndrow1, kUpdateBlock) * ndrow2);
       work[t] += ndcol * static_cast<double>(ndrow1) * (static_cast<double>(ndrow2) * 2 - ndrow1);
       p1 = p2;
     }
@@ -53,13 +59,22 @@ SupernodalFactorPlan::SupernodalFactorPlan(const cholmod_factor& L, std::size_t 
   for (double w : work) flops_ += w;
   part_of_.assign(static_cast<std::size_t>(nsuper), -1);
   if (L.n < min_rows) return;
-  split_ = split_supernodal_tree(L, work, 8);
+  auto two_lane = [&](int s, double w) { return w >= kTwoLaneFlops && super[s + 1] - super[s] >= 2; };
+  // The top's supernodes are factored one after another; a big one by both threads (its
+  // columns in two halves), so on the top it costs about half its work.
+  std::vector<double> top_work = work;
+  for (int s = 0; s < nsuper; ++s)
+    if (two_lane(s, work[static_cast<std::size_t>(s)])) top_work[static_cast<std::size_t>(s)] /= 2;
+  split_ = split_supernodal_tree(L, work, 8, 0.8, &top_work);
   for (std::size_t p = 0; p < split_.parts.size(); ++p)
     for (int s : split_.parts[p]) part_of_[static_cast<std::size_t>(s)] = static_cast<int>(p);
+  for (int s : split_.top)
+    if (two_lane(s, work[static_cast<std::size_t>(s)])) two_lane_.push_back(s);
 }
 
 std::size_t SupernodalFactorPlan::memory_bytes() const {
-  std::size_t ints = super_of_.capacity() + part_of_.capacity() + split_.top.capacity();
+  std::size_t ints = super_of_.capacity() + part_of_.capacity() + split_.top.capacity() +
+                    two_lane_.capacity();
   for (const auto& p : split_.parts) ints += p.capacity();
   return ints * sizeof(int) + split_.work.capacity() * sizeof(double) + sizeof(*this);
 }
@@ -119,6 +134,7 @@ struct Factor {
   // Per part: the supernodes whose next target is in the top, in the order they got there.
   std::vector<std::vector<int>> pending;
   std::atomic<int> failed{-1};
+  std::atomic<bool> pattern_mismatch{false};
 };
 
 struct Scratch {
@@ -140,62 +156,154 @@ void link_next(Factor& F, int d, int part) {
   F.head[t] = d;
 }
 
-// Factors supernode s: its columns of P A Pᵀ, minus its descendants' updates, then dpotrf and
-// dtrsm. part: s's part (−1 for the top). False if its diagonal block is not positive definite.
-bool factor_supernode(Factor& F, int s, int part, Scratch& w) {
-  const int k1 = F.super[s], k2 = F.super[s + 1], nscol = k2 - k1;
+// Supernode s's columns [ka, kb) of P A Pᵀ into its panel x (those columns zeroed first);
+// w.map set to s's rows. False (F.failed set) if A has an entry outside L's pattern.
+bool gather_columns(Factor& F, int s, int ka, int kb, double* x, Scratch& w) {
+  const int k1 = F.super[s];
   const int* rows = F.Ls + F.pi[s];
   const int nsrow = F.pi[s + 1] - F.pi[s];
-  double* x = F.Lx + F.px[s];
   for (int i = 0; i < nsrow; ++i) w.map[static_cast<std::size_t>(rows[i])] = i;
-  std::fill(x, x + static_cast<std::ptrdiff_t>(nsrow) * nscol, 0.0);
+  std::fill(x + static_cast<std::ptrdiff_t>(ka - k1) * nsrow,
+            x + static_cast<std::ptrdiff_t>(kb - k1) * nsrow, 0.0);
   const PermutedLower& C = *F.C;
-  for (int k = k1; k < k2; ++k) {
+  for (int k = ka; k < kb; ++k) {
     double* col = x + static_cast<std::ptrdiff_t>(k - k1) * nsrow;
-    for (int q = C.p[k]; q < C.p[k + 1]; ++q) col[w.map[static_cast<std::size_t>(C.i[q])]] = C.x[q];
-  }
-  for (int d = F.head[s]; d >= 0;) {
-    const int next_d = F.next[d];
-    const int* drows = F.Ls + F.pi[d];
-    const int ndrow = F.pi[d + 1] - F.pi[d], ndcol = F.super[d + 1] - F.super[d];
-    const int p1 = F.lpos[d];
-    int p2 = p1;
-    while (p2 < ndrow && drows[p2] < k2) ++p2;
-    const int ndrow1 = p2 - p1, ndrow2 = ndrow - p1;
-    const double* L1 = F.Lx + F.px[d] + p1;  // rows p1… of d, leading dimension ndrow
-    double* c = w.c.data();
-    cblas_dsyrk(CblasColMajor, CblasLower, CblasNoTrans, ndrow1, ndcol, 1.0, L1, ndrow, 0.0, c,
-                ndrow2);
-    if (ndrow2 > ndrow1)
-      cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, ndrow2 - ndrow1, ndrow1, ndcol, 1.0,
-                  L1 + ndrow1, ndrow, L1, ndrow, 0.0, c + ndrow1, ndrow2);
-    for (int i = 0; i < ndrow2; ++i) w.rel[static_cast<std::size_t>(i)] = w.map[drows[p1 + i]];
-    for (int j = 0; j < ndrow1; ++j) {
-      double* col = x + static_cast<std::ptrdiff_t>(drows[p1 + j] - k1) * nsrow;
-      const double* cj = c + static_cast<std::ptrdiff_t>(j) * ndrow2;
-      for (int i = j; i < ndrow2; ++i) col[w.rel[static_cast<std::size_t>(i)]] -= cj[i];
+    for (int q = C.p[k]; q < C.p[k + 1]; ++q) {
+      const int m = w.map[static_cast<std::size_t>(C.i[q])];
+      // An entry outside the analysed pattern would land in another supernode's rows.
+      if (m < 0 || m >= nsrow || rows[m] != C.i[q]) {
+        F.pattern_mismatch.store(true);
+        int expected = -1;
+        F.failed.compare_exchange_strong(expected, k);
+        return false;
+      }
+      col[m] = C.x[q];
     }
-    F.lpos[d] = p2;
-    link_next(F, d, part);
-    d = next_d;
   }
-  int info = 0;
-  dpotrf_("L", &nscol, x, &nsrow, &info, 1);
-  // OpenBLAS's dpotrf takes a NaN pivot (its test is ajj <= 0): look at the diagonal too.
-  for (int j = 0; info == 0 && j < nscol; ++j)
-    if (!(x[static_cast<std::ptrdiff_t>(j) * nsrow + j] > 0)) info = j + 1;
-  if (info != 0) {
-    int expected = -1;
-    F.failed.compare_exchange_strong(expected, k1 + info - 1);
-    return false;
-  }
-  if (nsrow > nscol)
-    cblas_dtrsm(CblasColMajor, CblasRight, CblasLower, CblasTrans, CblasNonUnit, nsrow - nscol,
-                nscol, 1.0, x, nsrow, x + nscol, nsrow);
-  F.lpos[s] = nscol;
-  link_next(F, s, part);
   return true;
 }
+
+// The first position ≥ p1 in d's rows whose row is ≥ k (d's rows ascend).
+int rows_before(const Factor& F, int d, int p1, int k) {
+  const int* drows = F.Ls + F.pi[d];
+  const int ndrow = F.pi[d + 1] - F.pi[d];
+  while (p1 < ndrow && drows[p1] < k) ++p1;
+  return p1;
+}
+
+// Panel x of s −= descendant d's update to s's columns [ka, kb) (w.map set to s's rows).
+// Reads d's panel and lpos[d], writes neither.
+void apply_update(const Factor& F, int d, int s, int ka, int kb, double* x, Scratch& w) {
+  const int k1 = F.super[s];
+  const int nsrow = F.pi[s + 1] - F.pi[s];
+  const int* drows = F.Ls + F.pi[d];
+  const int ndrow = F.pi[d + 1] - F.pi[d], ndcol = F.super[d + 1] - F.super[d];
+  const int p1 = rows_before(F, d, F.lpos[d], ka);
+  const int p2 = rows_before(F, d, p1, kb);
+  const int ndrow1 = p2 - p1, ndrow2 = ndrow - p1;
+  if (ndrow1 == 0) return;
+  const double* L1 = F.Lx + F.px[d] + p1;  // rows p1… of d, leading dimension ndrow
+  for (int i = 0; i < ndrow2; ++i) w.rel[static_cast<std::size_t>(i)] = w.map[drows[p1 + i]];
+  double* c = w.c.data();
+  if (static_cast<double>(ndcol) * ndrow1 * ndrow2 <= F.plan->small_update()) {
+    // Small: in-house, one column of the update at a time, scattered as it is done. OpenBLAS
+    // takes a process-wide lock for its buffer on every call, and two threads making
+    // thousands of small calls serialised on it (bench Factorize/100000, docs/benchmarks.md).
+    for (int j = 0; j < ndrow1; ++j) {
+      std::fill(c + j, c + ndrow2, 0.0);
+      for (int k = 0; k < ndcol; ++k) {
+        const double* Lk = L1 + static_cast<std::ptrdiff_t>(k) * ndrow;
+        const double a = Lk[j];
+        for (int i = j; i < ndrow2; ++i) c[i] += Lk[i] * a;
+      }
+      double* col = x + static_cast<std::ptrdiff_t>(drows[p1 + j] - k1) * nsrow;
+      for (int i = j; i < ndrow2; ++i) col[w.rel[static_cast<std::size_t>(i)]] -= c[i];
+    }
+    return;
+  }
+  // Large: dsyrk + dgemm in blocks of kUpdateBlock target columns, so the buffer is
+  // ndrow2 × kUpdateBlock at most (the whole update would be ≈ 100 MB per thread at 1M).
+  for (int j0 = 0; j0 < ndrow1; j0 += kUpdateBlock) {
+    const int jb = std::min(kUpdateBlock, ndrow1 - j0), nr = ndrow2 - j0;
+    const double* Lj = L1 + j0;
+    cblas_dsyrk(CblasColMajor, CblasLower, CblasNoTrans, jb, ndcol, 1.0, Lj, ndrow, 0.0, c, nr);
+    if (nr > jb)
+      cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, nr - jb, jb, ndcol, 1.0, Lj + jb,
+                  ndrow, Lj, ndrow, 0.0, c + jb, nr);
+    for (int j = 0; j < jb; ++j) {
+      double* col = x + static_cast<std::ptrdiff_t>(drows[p1 + j0 + j] - k1) * nsrow;
+      const double* cj = c + static_cast<std::ptrdiff_t>(j) * nr;
+      const int* rel = w.rel.data() + j0;
+      for (int i = j; i < nr; ++i) col[rel[i]] -= cj[i];
+    }
+  }
+}
+
+// d has been applied to s: its next update starts after s's columns.
+void advance(Factor& F, int d, int s, int part) {
+  F.lpos[d] = rows_before(F, d, F.lpos[d], F.super[s + 1]);
+  link_next(F, d, part);
+}
+
+// dpotrf of the b × b block at a (leading dimension ld), the block's first column being s's
+// column k; false (F.failed set) if it is not positive definite.
+bool factor_block(Factor& F, double* a, int b, int ld, int k) {
+  int info = 0;
+  dpotrf_("L", &b, a, &ld, &info, 1);
+  // OpenBLAS's dpotrf takes a NaN pivot (its test is ajj <= 0): look at the diagonal too.
+  for (int j = 0; info == 0 && j < b; ++j)
+    if (!(a[static_cast<std::ptrdiff_t>(j) * ld + j] > 0)) info = j + 1;
+  if (info == 0) return true;
+  int expected = -1;
+  F.failed.compare_exchange_strong(expected, k + info - 1);
+  return false;
+}
+
+// Rows [r0, r1) of the panel x (leading dimension ld) times L_dd⁻ᵀ, L_dd the b × b lower
+// triangle at diag.
+void solve_rows(const double* diag, int b, double* x, int ld, int r0, int r1) {
+  if (r1 > r0)
+    cblas_dtrsm(CblasColMajor, CblasRight, CblasLower, CblasTrans, CblasNonUnit, r1 - r0, b, 1.0,
+                diag, ld, x + r0, ld);
+}
+
+// s is factored: its own first update goes to the supernode of its first row below.
+void link_factored(Factor& F, int s, int part) {
+  F.lpos[s] = F.super[s + 1] - F.super[s];
+  link_next(F, s, part);
+}
+
+// Factors supernode s on one thread. part: s's part (−1 for the top).
+bool factor_supernode(Factor& F, int s, int part, Scratch& w) {
+  const int k1 = F.super[s], k2 = F.super[s + 1], nscol = k2 - k1;
+  const int nsrow = F.pi[s + 1] - F.pi[s];
+  double* x = F.Lx + F.px[s];
+  if (!gather_columns(F, s, k1, k2, x, w)) return false;
+  for (int d = F.head[s]; d >= 0;) {
+    const int next_d = F.next[d];
+    apply_update(F, d, s, k1, k2, x, w);
+    advance(F, d, s, part);
+    d = next_d;
+  }
+  if (!factor_block(F, x, nscol, nsrow, k1)) return false;
+  solve_rows(x, nscol, x, nsrow, nscol, nsrow);
+  link_factored(F, s, part);
+  return true;
+}
+
+// The column m in (c0, c1) that splits the lower trapezoid of columns [c0, c1) of an
+// nrow-row panel into two halves of equal area (the work of an update or of a dtrsm-free
+// trailing update is proportional to it); c1 when there is one column.
+int balance_columns(int c0, int c1, int nrow) {
+  if (c1 - c0 < 2) return c1;
+  double total = 0;
+  for (int j = c0; j < c1; ++j) total += nrow - j;
+  double acc = 0;
+  int m = c0;
+  while (m < c1 - 1 && (acc += nrow - m) < total / 2) ++m;
+  return std::max(m, c0 + 1);
+}
+
 
 }  // namespace
 
@@ -238,31 +346,109 @@ int supernodal_factorize(cholmod_factor& L, const cholmod_sparse& A,
     for (int s = 0; s < nsuper; ++s)
       if (!factor_supernode(F, s, -1, w)) break;
   } else {
+    std::vector<char> two_lane(static_cast<std::size_t>(nsuper), 0);
+    for (int s : plan.two_lane_) two_lane[static_cast<std::size_t>(s)] = 1;
     std::atomic<int> next_part{0};
-    auto parts = [&](int, int) {
+    Barrier2 bar;
+    // Each thread of the team (1 or 2) runs this. Every split below (parts, the two halves of
+    // a two-lane supernode's columns and rows) is fixed by the plan, and a team of one runs
+    // both halves itself: the bits do not depend on the team nor on who ran what.
+    auto body = [&](int tid, int team) {
+      auto barrier = [&bar, team] {
+        if (team > 1) bar.arrive_and_wait();
+      };
+      // Runs half 0 and half 1 of a step: one each, or both on a team of one.
+      auto halves = [&](auto&& fn) {
+        if (team > 1) {
+          fn(tid);
+        } else {
+          fn(0);
+          fn(1);
+        }
+      };
       Scratch w = make_scratch();
       for (int p; (p = next_part.fetch_add(1)) < K;)
-        for (int s : split.parts[static_cast<std::size_t>(p)]) {
-          if (F.failed.load(std::memory_order_relaxed) >= 0) return;
-          if (!factor_supernode(F, s, p, w)) return;
+        for (int s : split.parts[static_cast<std::size_t>(p)])
+          if (F.failed.load(std::memory_order_relaxed) >= 0 || !factor_supernode(F, s, p, w))
+            break;
+      barrier();
+      if (tid == 0 && F.failed.load() < 0) {
+        // The parts' updates to the top, linked in part order: the top's descendant lists do
+        // not depend on which thread ran which part.
+        for (int p = 0; p < K; ++p)
+          for (int d : F.pending[static_cast<std::size_t>(p)]) {
+            const int t = F.super_of[F.Ls[F.pi[d] + F.lpos[d]]];
+            F.next[d] = F.head[t];
+            F.head[t] = d;
+          }
+      }
+      barrier();
+      if (F.failed.load() >= 0) return;  // read by both after the same barrier
+      for (int s : split.top) {
+        if (!two_lane[static_cast<std::size_t>(s)]) {
+          // Thread 1 waits at the next barrier; after a failure thread 0 goes there too.
+          if (tid == 0 && F.failed.load() < 0) factor_supernode(F, s, -1, w);
+          continue;
         }
+        barrier();  // the supernodes before s are factored and linked
+        if (F.failed.load() >= 0) break;  // read by both after the same barrier
+        const int k1 = F.super[s], k2 = F.super[s + 1], nscol = k2 - k1;
+        const int nsrow = F.pi[s + 1] - F.pi[s];
+        double* x = F.Lx + F.px[s];
+        // Assembly: each half gathers and updates its own columns of the panel.
+        const int kmid = k1 + (balance_columns(0, nscol, nsrow));
+        halves([&](int h) {
+          const int ka = h == 0 ? k1 : kmid, kb = h == 0 ? kmid : k2;
+          if (!gather_columns(F, s, ka, kb, x, w)) return;
+          for (int d = F.head[s]; d >= 0; d = F.next[d]) apply_update(F, d, s, ka, kb, x, w);
+        });
+        barrier();
+        if (F.failed.load() >= 0) break;  // read by both after the same barrier
+        if (tid == 0)
+          for (int d = F.head[s]; d >= 0;) {
+            const int next_d = F.next[d];
+            advance(F, d, s, -1);
+            d = next_d;
+          }
+        // Right-looking blocked Cholesky of the panel: the diagonal block on thread 0, the
+        // rows below it and the trailing columns in halves.
+        for (int c0 = 0; c0 < nscol; c0 += kPanelBlock) {
+          const int c1 = std::min(nscol, c0 + kPanelBlock), b = c1 - c0;
+          double* diag = x + static_cast<std::ptrdiff_t>(c0) * nsrow + c0;
+          if (tid == 0) factor_block(F, diag, b, nsrow, k1 + c0);
+          barrier();
+          if (F.failed.load() >= 0) break;
+          const int rmid = c1 + (nsrow - c1) / 2;
+          halves([&](int h) {
+            solve_rows(diag, b, x + static_cast<std::ptrdiff_t>(c0) * nsrow, nsrow,
+                       h == 0 ? c1 : rmid, h == 0 ? rmid : nsrow);
+          });
+          barrier();
+          if (c1 == nscol) break;
+          const int cmid = balance_columns(c1, nscol, nsrow);
+          halves([&](int h) {
+            const int ca = h == 0 ? c1 : cmid, cb = h == 0 ? cmid : nscol;
+            if (cb <= ca) return;
+            const double* Lc = x + static_cast<std::ptrdiff_t>(c0) * nsrow;  // block column
+            double* T = x + static_cast<std::ptrdiff_t>(ca) * nsrow;
+            cblas_dsyrk(CblasColMajor, CblasLower, CblasNoTrans, cb - ca, b, -1.0, Lc + ca, nsrow,
+                        1.0, T + ca, nsrow);
+            if (nsrow > cb)
+              cblas_dgemm(CblasColMajor, CblasNoTrans, CblasTrans, nsrow - cb, cb - ca, b, -1.0,
+                          Lc + cb, nsrow, Lc + ca, nsrow, 1.0, T + cb, nsrow);
+          });
+          barrier();
+        }
+        if (F.failed.load() >= 0) break;  // both saw it after the same barrier
+        if (tid == 0) link_factored(F, s, -1);
+      }
+      barrier();
     };
-    auto run2 = [](void* ctx, int tid) { (*static_cast<decltype(parts)*>(ctx))(tid, 2); };
-    if (threads < 2 || !Helper::instance().run(run2, &parts)) parts(0, 1);
-    if (F.failed.load() < 0) {
-      // The parts' updates to the top, linked in part order: the top's descendant lists do
-      // not depend on which thread ran which part.
-      for (int p = 0; p < K; ++p)
-        for (int d : F.pending[static_cast<std::size_t>(p)]) {
-          const int t = F.super_of[F.Ls[F.pi[d] + F.lpos[d]]];
-          F.next[d] = F.head[t];
-          F.head[t] = d;
-        }
-      Scratch w = make_scratch();
-      for (int s : split.top)
-        if (!factor_supernode(F, s, -1, w)) break;
-    }
+    auto run2 = [](void* ctx, int tid) { (*static_cast<decltype(body)*>(ctx))(tid, 2); };
+    if (threads < 2 || !Helper::instance().run(run2, &body)) body(0, 1);
   }
+  if (F.pattern_mismatch.load())
+    throw std::logic_error("supernodal_factorize: the matrix has entries outside the analysed pattern");
   const int failed = F.failed.load();
   L.minor = failed >= 0 ? static_cast<std::size_t>(failed) : L.n;
   return failed;

@@ -22,7 +22,9 @@ std::vector<int> supernode_parents(const cholmod_factor& L) {
 }
 
 TreeSplit split_supernodal_tree(const cholmod_factor& L, const std::vector<double>& work,
-                                int max_parts, double max_critical) {
+                                int max_parts, double max_critical,
+                                const std::vector<double>* top_work) {
+  const std::vector<double>& on_top = top_work ? *top_work : work;
   TreeSplit out;
   const int nsuper = static_cast<int>(L.nsuper);
   if (nsuper < 2 || max_parts < 2) return out;
@@ -46,9 +48,10 @@ TreeSplit split_supernodal_tree(const cholmod_factor& L, const std::vector<doubl
   std::vector<int> cand = roots;
   std::vector<std::vector<int>> best;
   std::vector<double> best_work;
-  double top_work = 0, best_cost = total, best_top = 0;
-  // Later steps cost at least top + (total − top) / 2: stop once that cannot win.
-  for (int step = 0; step < 256 && !cand.empty() && (total + top_work) / 2 < best_cost; ++step) {
+  double top_sum = 0, moved = 0, best_cost = total, best_top = 0;
+  // Later steps cost at least top + (total − moved) / 2: stop once that cannot win.
+  for (int step = 0; step < 256 && !cand.empty() && top_sum + (total - moved) / 2 < best_cost;
+       ++step) {
     std::sort(cand.begin(), cand.end(), [&](int a, int b) {
       return subtree[a] != subtree[b] ? subtree[a] > subtree[b] : a < b;
     });
@@ -66,7 +69,7 @@ TreeSplit split_supernodal_tree(const cholmod_factor& L, const std::vector<doubl
       std::sort(order.begin(), order.end(), [&](int a, int b) { return w[a] > w[b]; });
       double t[2] = {0, 0};
       for (int b : order) t[t[1] < t[0] ? 1 : 0] += w[b];
-      const double cost = std::max(t[0], t[1]) + top_work;
+      const double cost = std::max(t[0], t[1]) + top_sum;
       if (cost < best_cost) {
         best_cost = cost;
         best.clear();
@@ -75,13 +78,14 @@ TreeSplit split_supernodal_tree(const cholmod_factor& L, const std::vector<doubl
           best.push_back(std::move(bins[b]));
           best_work.push_back(w[b]);
         }
-        best_top = top_work;
+        best_top = top_sum;
       }
     }
     const int h = cand.front();
     if (head[h] < 0) break;  // the heaviest is a leaf: no finer split
     cand.erase(cand.begin());
-    top_work += work[h];
+    top_sum += on_top[h];
+    moved += work[h];
     for (int c = head[h]; c >= 0; c = next[c]) cand.push_back(c);
   }
   if (best.empty() || best_cost > max_critical * total) return out;

@@ -16,7 +16,7 @@ namespace hdeform {
 struct TreeSplit {
   std::vector<std::vector<int>> parts;  // supernodes of each part, ascending; heaviest first
   std::vector<int> top;                 // the other supernodes, ascending
-  std::vector<double> work;             // each part's work, then the top's
+  std::vector<double> work;             // each part's work, then the top's (its top_work)
   double critical = 0;                  // work on the two-thread critical path
   bool split() const { return !parts.empty(); }
 };
@@ -28,9 +28,12 @@ std::vector<int> supernode_parents(const cholmod_factor& L);
 // candidates, step after step; each step's candidates are packed into ≤ max_parts parts
 // (largest first into the lightest), and the step whose two-thread critical path (parts
 // list-scheduled heaviest first, as claimed at run time, then the top) is shortest wins.
-// work[s] ≥ 0 is supernode s's own cost in any unit. Returns an empty split (no parts) when
-// there is nothing to split or the best critical path exceeds max_critical × total work.
+// work[s] ≥ 0 is supernode s's own cost in any unit; top_work[s] (default: work) its cost
+// when it is in the top (less when the top runs it on both threads). Returns an empty split
+// (no parts) when there is nothing to split or the best critical path exceeds
+// max_critical × total work.
 TreeSplit split_supernodal_tree(const cholmod_factor& L, const std::vector<double>& work,
-                                int max_parts, double max_critical = 0.8);
+                                int max_parts, double max_critical = 0.8,
+                                const std::vector<double>* top_work = nullptr);
 
 }  // namespace hdeform

@@ -122,11 +122,12 @@ TEST(SupernodalFactorize, DefaultPlanSplitsLargeFactors) {
     const SupernodalFactorPlan plan(*llt.factor());
     const TreeSplit& s = plan.split();
     ASSERT_TRUE(s.split());
-    double total = 0;
+    double total = 0;  // the top's two-lane supernodes count half
     for (double w : s.work) total += w;
-    std::printf("  beta %g: %.3g flop, %zu parts, top %.3f, two-thread critical path %.3f\n",
-                beta, plan.flops(), s.parts.size(), s.work.back() / total, s.critical / total);
-    EXPECT_NEAR(total, plan.flops(), 1e-9 * total);
+    std::printf("  beta %g: %.3g flop, %zu parts, top %.3f, two-thread critical path %.3f of "
+                "the flops\n", beta, plan.flops(), s.parts.size(), s.work.back() / total,
+                s.critical / plan.flops());
+    EXPECT_LE(total, plan.flops());
     EXPECT_LT(s.critical, 0.8 * total);
   }
 }
@@ -155,6 +156,26 @@ TEST(SupernodalFactorize, RefusesIndefiniteMatrices) {
       EXPECT_EQ(p.ours.factor()->minor, static_cast<std::size_t>(col));
     }
     EXPECT_THROW(Factorization{bad}, InvalidInput) << variant;
+  }
+}
+
+}  // namespace
+}  // namespace hdeform
+
+namespace hdeform {
+namespace {
+
+// A matrix with entries outside the analysed pattern (β > 0's wide K_FF on β = 0's analysis)
+// is a programming error: refused, not scattered into another supernode's rows.
+TEST(SupernodalFactorize, RefusesAMatrixOutsideThePattern) {
+  const test::Benchmark b = test::load_benchmark("bar");
+  const SparseMatrix narrow = test::k_ff(*b.mesh, b.constraints, 0.0);
+  const SparseMatrix wide = test::k_ff(*b.mesh, b.constraints, 0.5);
+  for (std::size_t min_rows : {std::size_t{0}, std::numeric_limits<std::size_t>::max()}) {
+    CholmodLLT llt;
+    llt.analyzePattern(narrow);
+    const SupernodalFactorPlan plan(*llt.factor(), min_rows);
+    EXPECT_THROW(llt.factorize_supernodal(wide, plan, 2), std::logic_error);
   }
 }
 
