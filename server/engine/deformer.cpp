@@ -89,9 +89,9 @@ Sparse combine(double a, const Sparse& x, double b, const std::vector<double>& y
 }
 
 // Runs `side` on a thread of its own while `main` runs on the caller, each on one OpenMP
-// thread (two cores, two threads); rethrows main's exception, else side's. Not OpenMP
-// sections: CHOLMOD's numeric factorization must not be nested in a parallel region
-// (nested, LLVM's libomp leaked 176 bytes per region: scripts/sanitize.sh).
+// thread; rethrows main's exception, else side's. Not OpenMP sections: CHOLMOD's calls
+// (METIS, analysis) must not be nested in a parallel region (nested, LLVM's libomp leaked
+// 176 bytes per region: scripts/sanitize.sh).
 template <class Main, class Side>
 void run_beside(Main&& main, Side&& side) {
   auto beside = std::async(std::launch::async, [&side] {
@@ -426,7 +426,7 @@ std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_
     t0 = Clock::now();
     sys->K_FF = combine(1.0 - raw_beta, wide_->area.FF, raw_beta, wide_->reg_FF);
     timings.K_FF_ms = ms(t0);
-    // The factorization (CHOLMOD) and the right-hand side's blocks need nothing from each
+    // The factorization (two threads) and the right-hand side's blocks need nothing from each
     // other: the blocks are built on the other core meanwhile.
     run_beside([&] { sys->factor = factor_wide(sys->K_FF, timings); },
                [&] {
