@@ -334,15 +334,18 @@ int supernodal_factorize(cholmod_factor& L, const cholmod_sparse& A,
   const int K = static_cast<int>(split.parts.size());
   F.pending.resize(static_cast<std::size_t>(K));
 
-  auto make_scratch = [&] {
-    Scratch w;
-    w.map.resize(static_cast<std::size_t>(n));
-    w.rel.resize(plan.max_rows_);
-    w.c.resize(plan.max_update_);
-    return w;
-  };
+  // Everything the threads use is allocated here: an exception (bad_alloc) must never leave
+  // the helper thread's function.
+  Scratch scratch[2];
+  for (int t = 0; t < (K == 0 ? 1 : 2); ++t) {
+    scratch[t].map.resize(static_cast<std::size_t>(n));
+    scratch[t].rel.resize(plan.max_rows_);
+    scratch[t].c.resize(plan.max_update_);
+  }
+  for (int p = 0; p < K; ++p)
+    F.pending[static_cast<std::size_t>(p)].reserve(split.parts[static_cast<std::size_t>(p)].size());
   if (K == 0) {
-    Scratch w = make_scratch();
+    Scratch& w = scratch[0];
     for (int s = 0; s < nsuper; ++s)
       if (!factor_supernode(F, s, -1, w)) break;
   } else {
@@ -366,7 +369,7 @@ int supernodal_factorize(cholmod_factor& L, const cholmod_sparse& A,
           fn(1);
         }
       };
-      Scratch w = make_scratch();
+      Scratch& w = scratch[tid];
       for (int p; (p = next_part.fetch_add(1)) < K;)
         for (int s : split.parts[static_cast<std::size_t>(p)])
           if (F.failed.load(std::memory_order_relaxed) >= 0 || !factor_supernode(F, s, p, w))
