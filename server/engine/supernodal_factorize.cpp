@@ -311,11 +311,14 @@ int supernodal_factorize(cholmod_factor& L, const cholmod_sparse& A,
                          const SupernodalFactorPlan& plan, int threads) {
   if (!L.is_super || L.itype != CHOLMOD_INT || !L.x || !L.Perm || A.stype == 0 ||
       A.nrow != L.n || A.ncol != L.n || A.itype != CHOLMOD_INT || A.xtype != CHOLMOD_REAL ||
-      plan.super_of_.size() != L.n)
+      plan.super_of_.size() != L.n || plan.part_of_.size() != L.nsuper)
     throw std::logic_error("supernodal_factorize: preconditions not met");
   const int n = static_cast<int>(L.n);
   const int nsuper = static_cast<int>(L.nsuper);
-  if (n == 0) return -1;
+  if (n == 0) {
+    L.minor = L.n;
+    return -1;
+  }
   const PermutedLower C = permuted_lower(A, static_cast<const int*>(L.Perm));
   Factor F;
   F.super = static_cast<const int*>(L.super);
@@ -374,8 +377,12 @@ int supernodal_factorize(cholmod_factor& L, const cholmod_sparse& A,
         for (int s : split.parts[static_cast<std::size_t>(p)])
           if (F.failed.load(std::memory_order_relaxed) >= 0 || !factor_supernode(F, s, p, w))
             break;
+      // From here on both threads pass the same barriers whatever happens: after a failure
+      // (set by either thread at any time) they skip the work, never a barrier, so a
+      // failure seen by one thread and not yet by the other cannot part them.
+      auto ok = [&F] { return F.failed.load() < 0; };
       barrier();
-      if (tid == 0 && F.failed.load() < 0) {
+      if (tid == 0 && ok()) {
         // The parts' updates to the top, linked in part order: the top's descendant lists do
         // not depend on which thread ran which part.
         for (int p = 0; p < K; ++p)
@@ -386,28 +393,24 @@ int supernodal_factorize(cholmod_factor& L, const cholmod_sparse& A,
           }
       }
       barrier();
-      if (F.failed.load() >= 0) return;  // read by both after the same barrier
       for (int s : split.top) {
         if (!two_lane[static_cast<std::size_t>(s)]) {
-          // Thread 1 waits at the next barrier; after a failure thread 0 goes there too.
-          if (tid == 0 && F.failed.load() < 0) factor_supernode(F, s, -1, w);
+          if (tid == 0 && ok()) factor_supernode(F, s, -1, w);  // thread 1: at the next barrier
           continue;
         }
         barrier();  // the supernodes before s are factored and linked
-        if (F.failed.load() >= 0) break;  // read by both after the same barrier
         const int k1 = F.super[s], k2 = F.super[s + 1], nscol = k2 - k1;
         const int nsrow = F.pi[s + 1] - F.pi[s];
         double* x = F.Lx + F.px[s];
         // Assembly: each half gathers and updates its own columns of the panel.
-        const int kmid = k1 + (balance_columns(0, nscol, nsrow));
+        const int kmid = k1 + balance_columns(0, nscol, nsrow);
         halves([&](int h) {
           const int ka = h == 0 ? k1 : kmid, kb = h == 0 ? kmid : k2;
-          if (!gather_columns(F, s, ka, kb, x, w)) return;
+          if (!ok() || !gather_columns(F, s, ka, kb, x, w)) return;
           for (int d = F.head[s]; d >= 0; d = F.next[d]) apply_update(F, d, s, ka, kb, x, w);
         });
         barrier();
-        if (F.failed.load() >= 0) break;  // read by both after the same barrier
-        if (tid == 0)
+        if (tid == 0 && ok())
           for (int d = F.head[s]; d >= 0;) {
             const int next_d = F.next[d];
             advance(F, d, s, -1);
@@ -418,20 +421,20 @@ int supernodal_factorize(cholmod_factor& L, const cholmod_sparse& A,
         for (int c0 = 0; c0 < nscol; c0 += kPanelBlock) {
           const int c1 = std::min(nscol, c0 + kPanelBlock), b = c1 - c0;
           double* diag = x + static_cast<std::ptrdiff_t>(c0) * nsrow + c0;
-          if (tid == 0) factor_block(F, diag, b, nsrow, k1 + c0);
+          if (tid == 0 && ok()) factor_block(F, diag, b, nsrow, k1 + c0);
           barrier();
-          if (F.failed.load() >= 0) break;
           const int rmid = c1 + (nsrow - c1) / 2;
           halves([&](int h) {
+            if (!ok()) return;
             solve_rows(diag, b, x + static_cast<std::ptrdiff_t>(c0) * nsrow, nsrow,
                        h == 0 ? c1 : rmid, h == 0 ? rmid : nsrow);
           });
           barrier();
-          if (c1 == nscol) break;
+          if (c1 == nscol) break;  // the same for both: the plan's shape, not a failure
           const int cmid = balance_columns(c1, nscol, nsrow);
           halves([&](int h) {
             const int ca = h == 0 ? c1 : cmid, cb = h == 0 ? cmid : nscol;
-            if (cb <= ca) return;
+            if (cb <= ca || !ok()) return;
             const double* Lc = x + static_cast<std::ptrdiff_t>(c0) * nsrow;  // block column
             double* T = x + static_cast<std::ptrdiff_t>(ca) * nsrow;
             cblas_dsyrk(CblasColMajor, CblasLower, CblasNoTrans, cb - ca, b, -1.0, Lc + ca, nsrow,
@@ -442,8 +445,7 @@ int supernodal_factorize(cholmod_factor& L, const cholmod_sparse& A,
           });
           barrier();
         }
-        if (F.failed.load() >= 0) break;  // both saw it after the same barrier
-        if (tid == 0) link_factored(F, s, -1);
+        if (tid == 0 && ok()) link_factored(F, s, -1);
       }
       barrier();
     };

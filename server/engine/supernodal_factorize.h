@@ -44,6 +44,8 @@ class SupernodalFactorPlan {
   // Floating-point operations of one factorization (dsyrk/dgemm updates, dpotrf, dtrsm).
   double flops() const { return flops_; }
   const TreeSplit& split() const { return split_; }
+  // The top's supernodes factored by both threads, ascending.
+  const std::vector<int>& two_lane() const { return two_lane_; }
   // Descendant updates of at most this many multiply-adds (ndcol × ndrow1 × ndrow2) run in
   // the kernel's own loop instead of dsyrk + dgemm (bench FactorizeCutoff measures it).
   static constexpr double kSmallUpdate = 16384;
@@ -65,7 +67,8 @@ class SupernodalFactorPlan {
 };
 
 // Fills L.x with the supernodal Cholesky factor of P A Pᵀ (P from L.Perm). threads ∈ {1, 2}
-// (2 uses the process's helper thread when it is free; the same bits either way). Returns
+// (2 uses the process's helper thread when it is free; the same bits either way, for one
+// OpenBLAS thread setting: the service runs OpenBLAS on one thread, worker_pool.cpp). Returns
 // −1 on success, else a column (in L's order) whose pivot is not positive (the first one on
 // one thread): A is not positive definite, and L.x holds no factor. Sets L.minor as CHOLMOD
 // does (n on success). Throws std::logic_error if A has an entry outside L's pattern.

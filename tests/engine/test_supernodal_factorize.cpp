@@ -9,10 +9,14 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <limits>
+#include <string>
+#include <utility>
+#include <vector>
 
 namespace hdeform {
 namespace {
@@ -176,6 +180,57 @@ TEST(SupernodalFactorize, RefusesAMatrixOutsideThePattern) {
     llt.analyzePattern(narrow);
     const SupernodalFactorPlan plan(*llt.factor(), min_rows);
     EXPECT_THROW(llt.factorize_supernodal(wide, plan, 2), std::logic_error);
+  }
+}
+
+}  // namespace
+}  // namespace hdeform
+
+namespace hdeform {
+namespace {
+
+// A pivot that fails inside a part, in a small top supernode and in a two-lane one (the two
+// threads then skip work, never a barrier): refused every time, on one thread and two, and
+// the call returns (a deadlock here hangs the test).
+TEST(SupernodalFactorize, FailuresAnywhereInTheTreeReturn) {
+  procedural::CapsuleCase cc = procedural::capsule_case(40000);
+  const auto pm = PreparedMesh::create(std::move(cc.mesh));
+  Constraints c;
+  c.fixed = cc.base;
+  c.handles = {cc.cap};
+  for (double beta : {0.0, 0.5}) {
+    const SparseMatrix K = test::k_ff(*pm, c, beta);
+    CholmodLLT sym;
+    sym.analyzePattern(K);
+    const cholmod_factor& L = *sym.factor();
+    const SupernodalFactorPlan plan(L);
+    ASSERT_TRUE(plan.split().split());
+    ASSERT_FALSE(plan.two_lane().empty());
+    const int* super = static_cast<const int*>(L.super);
+    const int* perm = static_cast<const int*>(L.Perm);
+    std::vector<std::pair<const char*, int>> where = {
+        {"part", plan.split().parts.front().front()},
+        {"first two-lane", plan.two_lane().front()},
+        {"last two-lane", plan.two_lane().back()}};
+    for (int s : plan.split().top)
+      if (!std::binary_search(plan.two_lane().begin(), plan.two_lane().end(), s)) {
+        where.push_back({"small top", s});
+        break;
+      }
+    for (const auto& [what, s] : where) {
+      SCOPED_TRACE(std::string(what) + ", beta " + std::to_string(beta));
+      SparseMatrix bad = K;
+      const int j = perm[super[s]];  // the supernode's first column, in K's numbering
+      bad.coeffRef(j, j) = -1.0;
+      for (int threads : {1, 2, 2, 2, 2}) {
+        CholmodLLT llt;
+        llt.adopt_analysis(sym);
+        llt.factorize_supernodal(bad, plan, threads);
+        EXPECT_EQ(llt.info(), Eigen::NumericalIssue);
+        EXPECT_GE(llt.factor()->minor, static_cast<std::size_t>(super[s]));
+        EXPECT_LT(llt.factor()->minor, L.n);
+      }
+    }
   }
 }
 
