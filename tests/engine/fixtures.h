@@ -3,6 +3,7 @@
 
 #include "deformer.h"
 #include "mesh_io.h"
+#include "procedural.h"
 #include "selection.h"
 
 #include <fstream>
@@ -36,6 +37,18 @@ inline Benchmark load_benchmark(const std::string& name) {
   b.constraints.fixed = select_label(labels, 0);
   b.constraints.handles = {select_label(labels, 2)};
   b.T = parse_def(slurp(base + ".def"), name + ".def");
+  return b;
+}
+
+// The bench's procedural capsule of about n vertices: its base fixed, its cap the handle
+// (T is the identity).
+inline Benchmark capsule_benchmark(int n) {
+  procedural::CapsuleCase cc = procedural::capsule_case(n);
+  Benchmark b;
+  b.mesh = PreparedMesh::create(std::move(cc.mesh));
+  b.constraints.fixed = std::move(cc.base);
+  b.constraints.handles = {std::move(cc.cap)};
+  b.T = Eigen::Matrix4d::Identity();
   return b;
 }
 

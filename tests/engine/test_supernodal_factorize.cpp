@@ -3,7 +3,6 @@
 // at β = 0 and β > 0; one thread and two give the same bits; a matrix that is not positive
 // definite is refused, by the kernel and by Factorization.
 #include "fixtures.h"
-#include "procedural.h"
 #include "solver.h"
 #include "supernodal_factorize.h"
 
@@ -102,22 +101,16 @@ TEST(SupernodalFactorize, MatchesCholmodOnBundledModels) {
 TEST(SupernodalFactorize, MatchesCholmodOnProceduralCapsules) {
   for (int n : {3000, 40000}) {
     SCOPED_TRACE(n);
-    procedural::CapsuleCase cc = procedural::capsule_case(n);
-    const auto pm = PreparedMesh::create(std::move(cc.mesh));
-    Constraints c;
-    c.fixed = cc.base;
-    c.handles = {cc.cap};
-    check_model(*pm, c);
+    const test::Benchmark b = test::capsule_benchmark(n);
+    check_model(*b.mesh, b.constraints);
   }
 }
 
 // The default plan splits a large factor; print where the work goes (the bench measures it).
 TEST(SupernodalFactorize, DefaultPlanSplitsLargeFactors) {
-  procedural::CapsuleCase cc = procedural::capsule_case(40000);
-  const auto pm = PreparedMesh::create(std::move(cc.mesh));
-  Constraints c;
-  c.fixed = cc.base;
-  c.handles = {cc.cap};
+  const test::Benchmark b = test::capsule_benchmark(40000);
+  const PreparedMesh* pm = b.mesh.get();
+  const Constraints& c = b.constraints;
   for (double beta : {0.0, 0.5}) {
     const Factorization f(k_ff(*pm, c, beta));
     ASSERT_GE(f.size(), 20000);
@@ -193,11 +186,9 @@ namespace {
 // threads then skip work, never a barrier): refused every time, on one thread and two, and
 // the call returns (a deadlock here hangs the test).
 TEST(SupernodalFactorize, FailuresAnywhereInTheTreeReturn) {
-  procedural::CapsuleCase cc = procedural::capsule_case(40000);
-  const auto pm = PreparedMesh::create(std::move(cc.mesh));
-  Constraints c;
-  c.fixed = cc.base;
-  c.handles = {cc.cap};
+  const test::Benchmark b = test::capsule_benchmark(40000);
+  const PreparedMesh* pm = b.mesh.get();
+  const Constraints& c = b.constraints;
   for (double beta : {0.0, 0.5}) {
     const SparseMatrix K = test::k_ff(*pm, c, beta);
     CholmodLLT sym;

@@ -2,7 +2,6 @@
 // cholmod_solve: the bundled meshes and a procedural capsule at β = 0 and β > 0, through
 // both kinds of factorization Factorization builds (own analysis; shared wide analysis).
 #include "fixtures.h"
-#include "procedural.h"
 #include "solver.h"
 #include "supernodal_solve.h"
 
@@ -91,13 +90,9 @@ TEST(SupernodalSolve, MatchesCholmodOnBundledModels) {
 }
 
 TEST(SupernodalSolve, MatchesCholmodOnProceduralCapsule) {
-  procedural::CapsuleCase cc = procedural::capsule_case(3000);
-  const auto pm = PreparedMesh::create(std::move(cc.mesh));
-  Constraints c;
-  c.fixed = cc.base;
-  c.handles = {cc.cap};
+  const test::Benchmark b = test::capsule_benchmark(3000);
   SupernodalWorkspace ws;
-  check_model(*pm, c, ws);
+  check_model(*b.mesh, b.constraints, ws);
 }
 
 // Workspace reuse: a large factor, then a smaller one, then the large one again, with the
@@ -268,12 +263,8 @@ struct BigCase {
 
 const BigCase& big_case() {
   static const BigCase bc = [] {
-    procedural::CapsuleCase cc = procedural::capsule_case(40000);
-    BigCase b;
-    b.pm = PreparedMesh::create(std::move(cc.mesh));
-    b.c.fixed = cc.base;
-    b.c.handles = {cc.cap};
-    return b;
+    test::Benchmark t = test::capsule_benchmark(40000);
+    return BigCase{std::move(t.mesh), std::move(t.constraints)};
   }();
   return bc;
 }
