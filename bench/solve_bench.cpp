@@ -1,5 +1,5 @@
 // The K_FF solve benchmarks of engine_bench (docs/benchmarks.md): Bandwidth/read and
-// Solve/N/beta:b/{cholmod, fused_1t, fused_2t, fused_f32_1t, fused_f32_2t}, registered
+// Solve/N/beta:b/{cholmod, fused_1t, fused_2t, fused_f32_1t, fused_f32_2t, fused_generic_*}, registered
 // by engine_bench's main through register_solve_benchmarks(). Own fixtures (capsule,
 // K_FF and its Factorization per β), kept for the whole run so that interleaved
 // repetitions do not rebuild them.
@@ -8,6 +8,7 @@
 #include "serial_openmp.h"
 #include "solver.h"
 #include "supernodal_solve.h"
+#include "supernodal_sweep.h"
 
 #include <benchmark/benchmark.h>
 
@@ -182,13 +183,21 @@ void BM_Bandwidth(benchmark::State& state) {
 
 enum class Variant { cholmod, fused };
 
+// The sweep kernels' build chosen for this CPU (supernodal_sweep.h), restored after each
+// Solve benchmark that set another.
+const SweepIsa best_isa = sweep_isa();
+
 // Solve/N/beta:b/...: K_FF X = B, three random right-hand sides, on the same factor.
 // cholmod = Factorization::solve_cholmod (cholmod_solve, result copied to an Eigen matrix);
 // fused_* = Factorization::solve3 into a preallocated X (thread_local workspace, warmed
 // untimed, as is the float copy). Counters: factor value MB as read, the single-thread
 // read floor (ms) and x_floor = time per solve / floor.
 void BM_Solve(benchmark::State& state, int nominal, double beta, Variant variant,
-              SolvePrecision precision, int threads) {
+              SolvePrecision precision, int threads, SweepIsa isa) {
+  if (!set_sweep_isa(isa)) {
+    state.SkipWithError("this CPU lacks the sweep kernels' instruction set");
+    return;
+  }
   SolveCase& c = solve_case(nominal);
   const Factorization& f = factor(c, beta);
   std::srand(7);
@@ -225,6 +234,7 @@ void BM_Solve(benchmark::State& state, int nominal, double beta, Variant variant
     state.counters["top"] = s.work(s.parts()) / total;
     state.counters["crit_path"] = s.critical_path() / total;
   }
+  set_sweep_isa(best_isa);
 }
 
 benchmark::internal::Benchmark* policy(benchmark::internal::Benchmark* b, bool smoke) {
@@ -242,6 +252,7 @@ void register_solve_benchmarks(bool smoke) {
     Variant variant;
     SolvePrecision precision;
     int threads;
+    SweepIsa isa = best_isa;
   };
   const V variants[] = {
       {"cholmod", Variant::cholmod, SolvePrecision::float64, 1},
@@ -249,6 +260,10 @@ void register_solve_benchmarks(bool smoke) {
       {"fused_2t", Variant::fused, SolvePrecision::float64, 2},
       {"fused_f32_1t", Variant::fused, SolvePrecision::float32, 1},
       {"fused_f32_2t", Variant::fused, SolvePrecision::float32, 2},
+      // the baseline build of the sweep kernels, side by side with the AVX2 one
+      {"fused_generic_1t", Variant::fused, SolvePrecision::float64, 1, SweepIsa::generic},
+      {"fused_generic_2t", Variant::fused, SolvePrecision::float64, 2, SweepIsa::generic},
+      {"fused_f32_generic_2t", Variant::fused, SolvePrecision::float32, 2, SweepIsa::generic},
   };
   for (int n : kSolveSizes)
     for (double beta : kSolveBetas)
@@ -271,7 +286,7 @@ void register_solve_benchmarks(bool smoke) {
         const std::string name = "Solve/" + std::to_string(n) + "/beta:" +
                                  (beta == 0 ? std::string("0") : std::string("0.5")) + "/" + v.name;
         policy(benchmark::RegisterBenchmark(name.c_str(), BM_Solve, n, beta, v.variant,
-                                            v.precision, v.threads),
+                                            v.precision, v.threads, v.isa),
                smoke);
       }
 }

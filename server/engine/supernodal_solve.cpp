@@ -1,5 +1,6 @@
 #include "supernodal_solve.h"
 
+#include "supernodal_sweep.h"
 #include "supernodal_tree.h"
 #include "two_threads.h"
 
@@ -15,104 +16,16 @@ namespace hdeform {
 
 namespace {
 
-// CHOLMOD's supernodal layout (cholmod_core.h): supernode s holds columns
-// k1 = super[s] … k2 = super[s+1]−1; its row indices are Ls[pi[s] … pi[s+1]), the first
-// k2−k1 of them k1 … k2−1 (the dense diagonal block), the rest the off-diagonal rows; its
-// values are the column-major nsrow × ncols block at Lx + px[s] (leading dimension nsrow).
-template <class T>
+// One supernode for the BLAS path (layout: supernodal_sweep_impl.h).
 struct Super {
   int k1, nc, nsrow;
   const int* rows;
-  const T* x;  // column j at x + j·nsrow
+  const double* x;  // column j at x + j·nsrow
 };
 
-template <class T>
-inline Super<T> super_at(const int* super, const int* pi, const int* px, const int* Ls,
-                         const T* Lx, int s) {
-  Super<T> S;
-  S.k1 = super[s];
-  S.nc = super[s + 1] - S.k1;
-  S.nsrow = pi[s + 1] - pi[s];
-  S.rows = Ls + pi[s];
-  S.x = Lx + px[s];
-  return S;
-}
-
-// Columns are processed in panels of W (≤ 4): the rows below a panel are read once per
-// panel, each y row loaded/stored once for W factor columns (not once per column), while
-// the W column streams of the factor are read contiguously.
-
-// Forward: solve the panel's W×W lower triangle, then y[rows[i]] −= L(i, panel) · x_panel
-// for every row below it in the supernode (the diagonal block's rows and the off-diagonal
-// ones alike: both are addressed through rows[]).
-template <int W, class T>
-inline void forward_panel(const Super<T>& S, int j0, double* y) {
-  const T* c[W];
-  for (int t = 0; t < W; ++t) c[t] = S.x + static_cast<std::ptrdiff_t>(j0 + t) * S.nsrow;
-  double x0[W], x1[W], x2[W];
-  double* yd = y + 3 * static_cast<std::ptrdiff_t>(S.k1 + j0);
-  for (int t = 0; t < W; ++t) {
-    const double d = c[t][j0 + t];
-    x0[t] = yd[3 * t] / d;
-    x1[t] = yd[3 * t + 1] / d;
-    x2[t] = yd[3 * t + 2] / d;
-    yd[3 * t] = x0[t];
-    yd[3 * t + 1] = x1[t];
-    yd[3 * t + 2] = x2[t];
-    for (int u = t + 1; u < W; ++u) {
-      const double l = c[t][j0 + u];
-      yd[3 * u] -= l * x0[t];
-      yd[3 * u + 1] -= l * x1[t];
-      yd[3 * u + 2] -= l * x2[t];
-    }
-  }
-  for (int i = j0 + W; i < S.nsrow; ++i) {
-    double a0 = 0, a1 = 0, a2 = 0;
-    for (int t = 0; t < W; ++t) {
-      const double l = c[t][i];
-      a0 += l * x0[t];
-      a1 += l * x1[t];
-      a2 += l * x2[t];
-    }
-    double* yr = y + 3 * static_cast<std::ptrdiff_t>(S.rows[i]);
-    yr[0] -= a0;
-    yr[1] -= a1;
-    yr[2] -= a2;
-  }
-}
-
-// Backward (Lᵀ): x_j = (y_j − Σ_{i>j} L(i,j) x_{rows[i]}) / L(j,j). The rows below the
-// panel are already final (later panels and later supernodes go first): dot products
-// down the W contiguous factor columns, then the panel's own triangle from the bottom up.
-template <int W, class T>
-inline void backward_panel(const Super<T>& S, int j0, double* y) {
-  const T* c[W];
-  for (int t = 0; t < W; ++t) c[t] = S.x + static_cast<std::ptrdiff_t>(j0 + t) * S.nsrow;
-  double a0[W] = {}, a1[W] = {}, a2[W] = {};
-  for (int i = j0 + W; i < S.nsrow; ++i) {
-    const double* xr = y + 3 * static_cast<std::ptrdiff_t>(S.rows[i]);
-    const double v0 = xr[0], v1 = xr[1], v2 = xr[2];
-    for (int t = 0; t < W; ++t) {
-      const double l = c[t][i];
-      a0[t] += l * v0;
-      a1[t] += l * v1;
-      a2[t] += l * v2;
-    }
-  }
-  double* yd = y + 3 * static_cast<std::ptrdiff_t>(S.k1 + j0);
-  for (int t = W - 1; t >= 0; --t) {
-    double v0 = yd[3 * t] - a0[t], v1 = yd[3 * t + 1] - a1[t], v2 = yd[3 * t + 2] - a2[t];
-    for (int u = t + 1; u < W; ++u) {
-      const double l = c[t][j0 + u];
-      v0 -= l * yd[3 * u];
-      v1 -= l * yd[3 * u + 1];
-      v2 -= l * yd[3 * u + 2];
-    }
-    const double d = c[t][j0 + t];
-    yd[3 * t] = v0 / d;
-    yd[3 * t + 1] = v1 / d;
-    yd[3 * t + 2] = v2 / d;
-  }
+Super super_at(const SweepArgs<double>& a, int s) {
+  return {a.super[s], a.super[s + 1] - a.super[s], a.pi[s + 1] - a.pi[s], a.rows + a.pi[s],
+          a.Lx + a.px[s]};
 }
 
 // Measured alternatives (bench Solve/10000/*, same machine, interleaved, CI load present):
@@ -128,36 +41,9 @@ inline void backward_panel(const Super<T>& S, int j0, double* y) {
 // (C = 128 the only one below, within that run's noise). The path stays, tested, for a
 // re-measurement on a quiet machine (the fused_blas:C benchmarks are no longer in
 // bench/solve_bench.cpp; the scheduled solve does not use BLAS).
-constexpr int kPanel = 4;
-
-template <class T>
-void forward(const Super<T>& S, double* y) {
-  int j = 0;
-  for (; j + kPanel <= S.nc; j += kPanel) forward_panel<kPanel>(S, j, y);
-  switch (S.nc - j) {
-    case 3: forward_panel<3>(S, j, y); break;
-    case 2: forward_panel<2>(S, j, y); break;
-    case 1: forward_panel<1>(S, j, y); break;
-    default: break;
-  }
-}
-
-template <class T>
-void backward(const Super<T>& S, double* y) {
-  // The panels of forward() in reverse: the ragged one (at the end) first.
-  const int full = S.nc / kPanel * kPanel;
-  switch (S.nc - full) {
-    case 3: backward_panel<3>(S, full, y); break;
-    case 2: backward_panel<2>(S, full, y); break;
-    case 1: backward_panel<1>(S, full, y); break;
-    default: break;
-  }
-  for (int j = full - kPanel; j >= 0; j -= kPanel) backward_panel<kPanel>(S, j, y);
-}
-
 // BLAS path for one supernode. The nc rows of y at k1 are a column-major 3 × nc matrix
 // (ld 3) = X_dᵀ, so the triangular solves are right-sided on Xᵀ.
-void forward_blas(const Super<double>& S, double* y, double* w) {
+void forward_blas(const Super& S, double* y, double* w) {
   double* yd = y + 3 * static_cast<std::ptrdiff_t>(S.k1);
   const int noff = S.nsrow - S.nc;
   cblas_dtrsm(CblasColMajor, CblasRight, CblasLower, CblasTrans, CblasNonUnit, 3, S.nc, 1.0,
@@ -173,7 +59,7 @@ void forward_blas(const Super<double>& S, double* y, double* w) {
   }
 }
 
-void backward_blas(const Super<double>& S, double* y, double* w) {
+void backward_blas(const Super& S, double* y, double* w) {
   double* yd = y + 3 * static_cast<std::ptrdiff_t>(S.k1);
   const int noff = S.nsrow - S.nc;
   if (noff > 0) {
@@ -207,11 +93,10 @@ void supernodal_solve3(const cholmod_factor& L, const double* B, std::ptrdiff_t 
   double* y = ws.data();
   double* w = ws.below();
   const int* perm = static_cast<const int*>(L.Perm);
-  const int* super = static_cast<const int*>(L.super);
-  const int* pi = static_cast<const int*>(L.pi);
-  const int* px = static_cast<const int*>(L.px);
-  const int* Ls = static_cast<const int*>(L.s);
-  const double* Lx = static_cast<const double*>(L.x);
+  const SweepArgs<double> args{static_cast<const int*>(L.super), static_cast<const int*>(L.pi),
+                               static_cast<const int*>(L.px), static_cast<const int*>(L.s),
+                               static_cast<const double*>(L.x), y};
+  const SweepKernels<double>& kern = sweep_kernels<double>();
   const int nsuper = static_cast<int>(L.nsuper);
 
   // y = P b, interleaved: y[3k + c] = B(Perm[k], c).
@@ -221,19 +106,22 @@ void supernodal_solve3(const cholmod_factor& L, const double* B, std::ptrdiff_t 
     y[3 * k + 1] = B[r + ldb];
     y[3 * k + 2] = B[r + 2 * ldb];
   }
-  for (int s = 0; s < nsuper; ++s) {
-    const Super<double> S = super_at(super, pi, px, Ls, Lx, s);
-    if (cut > 0 && S.nc >= cut)
-      forward_blas(S, y, w);
-    else
-      forward(S, y);
-  }
-  for (int s = nsuper - 1; s >= 0; --s) {
-    const Super<double> S = super_at(super, pi, px, Ls, Lx, s);
-    if (cut > 0 && S.nc >= cut)
-      backward_blas(S, y, w);
-    else
-      backward(S, y);
+  if (cut <= 0) {
+    kern.forward(args, nullptr, nsuper);
+    kern.backward(args, nullptr, nsuper);
+  } else {
+    for (int s = 0; s < nsuper; ++s) {
+      if (const Super S = super_at(args, s); S.nc >= cut)
+        forward_blas(S, y, w);
+      else
+        kern.forward(args, &s, 1);
+    }
+    for (int s = nsuper - 1; s >= 0; --s) {
+      if (const Super S = super_at(args, s); S.nc >= cut)
+        backward_blas(S, y, w);
+      else
+        kern.backward(args, &s, 1);
+    }
   }
   // x = Pᵀ y (reads y only: X may alias B).
   for (std::ptrdiff_t k = 0; k < n; ++k) {
@@ -286,22 +174,16 @@ namespace {
 
 template <class T>
 struct Sweep {
-  const int *super, *pi, *px, *rows;
-  const T* Lx;
-  double* y;
+  SweepArgs<T> args;
+  const SweepKernels<T>& kern;
   void forward_list(const std::vector<int>& list) const {
-    for (int s : list) forward(super_at(super, pi, px, rows, Lx, s), y);
+    kern.forward(args, list.data(), static_cast<int>(list.size()));
   }
   void backward_list(const std::vector<int>& list) const {
-    for (auto it = list.rbegin(); it != list.rend(); ++it)
-      backward(super_at(super, pi, px, rows, Lx, *it), y);
+    kern.backward(args, list.data(), static_cast<int>(list.size()));
   }
-  void forward_all(int nsuper) const {
-    for (int s = 0; s < nsuper; ++s) forward(super_at(super, pi, px, rows, Lx, s), y);
-  }
-  void backward_all(int nsuper) const {
-    for (int s = nsuper - 1; s >= 0; --s) backward(super_at(super, pi, px, rows, Lx, s), y);
-  }
+  void forward_all(int nsuper) const { kern.forward(args, nullptr, nsuper); }
+  void backward_all(int nsuper) const { kern.backward(args, nullptr, nsuper); }
 };
 
 }  // namespace
@@ -319,9 +201,10 @@ void supernodal_solve3(const cholmod_factor& L, const T* Lx, const SupernodalSch
   double* y = ws.data();
   const int* perm = static_cast<const int*>(L.Perm);
   const int nsuper = static_cast<int>(L.nsuper);
-  const Sweep<T> sw{static_cast<const int*>(L.super), static_cast<const int*>(L.pi),
-                    static_cast<const int*>(L.px),
-                    split ? sched.rows_.data() : static_cast<const int*>(L.s), Lx, y};
+  const Sweep<T> sw{{static_cast<const int*>(L.super), static_cast<const int*>(L.pi),
+                     static_cast<const int*>(L.px),
+                     split ? sched.rows_.data() : static_cast<const int*>(L.s), Lx, y},
+                    sweep_kernels<T>()};
   const int* top_cols = sched.top_cols_.data();
   // Work is claimed, not assigned: parts and blocks of rows go to whichever thread asks.
   constexpr std::ptrdiff_t kBlock = 8192;

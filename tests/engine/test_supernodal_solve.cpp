@@ -4,6 +4,7 @@
 #include "fixtures.h"
 #include "solver.h"
 #include "supernodal_solve.h"
+#include "supernodal_sweep.h"
 
 #include <gtest/gtest.h>
 
@@ -355,6 +356,53 @@ TEST(SupernodalSolve, Solve3SmallUnsplit) {
   EXPECT_LT(rel_max_diff(solve3(f, B, SolvePrecision::float32, 2), X), 1e-3);
   EXPECT_EQ(f.memory_bytes(), before + f.factor()->xsize * sizeof(float));
 }
+
+// ---------------------------------------------------------------------------------------
+// Each build of the sweep kernels this CPU runs (supernodal_sweep.h) passes the checks
+// above; the tests above used the default one, the best supported.
+
+TEST(SupernodalSweep, DefaultIsTheBestSupported) {
+  EXPECT_EQ(sweep_isa(), sweep_isa_supported(SweepIsa::avx2) ? SweepIsa::avx2 : SweepIsa::generic);
+  EXPECT_TRUE(sweep_isa_supported(SweepIsa::generic));
+}
+
+class EachSweepIsa : public ::testing::TestWithParam<SweepIsa> {
+ protected:
+  void SetUp() override {
+    if (!set_sweep_isa(GetParam())) GTEST_SKIP() << "this CPU does not run these kernels";
+  }
+  void TearDown() override { set_sweep_isa(best_); }
+  const SweepIsa best_ = sweep_isa();
+};
+
+TEST_P(EachSweepIsa, MatchesCholmod) {
+  SupernodalWorkspace ws;
+  const test::Benchmark cactus = test::load_benchmark("cactus");
+  check_model(*cactus.mesh, cactus.constraints, ws);
+}
+
+TEST_P(EachSweepIsa, ScheduledBeta0) { check_scheduled(0.0); }
+TEST_P(EachSweepIsa, ScheduledBetaPositive) { check_scheduled(0.3); }
+
+// The builds differ in rounding only (FMA, the order of the four-row sums).
+TEST_P(EachSweepIsa, AgreesWithTheOtherBuild) {
+  const BigCase& bc = big_case();
+  const Factorization f(k_ff(*bc.pm, bc.c, 0.3));
+  std::srand(21);
+  const Eigen::MatrixXd B = Eigen::MatrixXd::Random(f.size(), 3);
+  const Eigen::MatrixXd X = solve3(f, B, SolvePrecision::float64, 2);
+  const SweepIsa other = GetParam() == SweepIsa::avx2 ? SweepIsa::generic : SweepIsa::avx2;
+  if (!set_sweep_isa(other)) GTEST_SKIP() << "only one build runs here";
+  const Eigen::MatrixXd Y = solve3(f, B, SolvePrecision::float64, 2);
+  EXPECT_LT(rel_max_diff(X, Y), 1e-12);
+  EXPECT_FALSE(same_bits(X, Y)) << "the two builds ran the same code";
+}
+
+INSTANTIATE_TEST_SUITE_P(Isa, EachSweepIsa,
+                         ::testing::Values(SweepIsa::generic, SweepIsa::avx2),
+                         [](const ::testing::TestParamInfo<SweepIsa>& info) {
+                           return std::string(sweep_isa_name(info.param));
+                         });
 
 }  // namespace
 }  // namespace hdeform
