@@ -199,10 +199,23 @@ inline void backward_panel(const Super<T>& S, int j0, double* y) {
 
 constexpr int kPanel = 4;
 
+#ifdef HDEFORM_SWEEP_VECTOR
+// Forward panels of 8 with vectors: half the scattered y updates per factor entry, the 24
+// broadcast x values partly from memory. Measured against 4 (Solve/100000/*, two runs
+// alternated, quiet, 2026-12-04): β = 0.5 two threads 8.50 / 8.41 ms vs 9.92 / 9.28 ms,
+// β = 0 within noise (4.54 / 4.77 vs 4.89 / 4.20 ms). Backward stays at 4: its 3·W vector
+// accumulators must fit the 16 registers.
+constexpr int kForwardPanel = 8;
+#else
+constexpr int kForwardPanel = kPanel;
+#endif
+
 template <class T>
 void forward(const Super<T>& S, double* y) {
   int j = 0;
-  for (; j + kPanel <= S.nc; j += kPanel) forward_panel<kPanel>(S, j, y);
+  for (; j + kForwardPanel <= S.nc; j += kForwardPanel) forward_panel<kForwardPanel>(S, j, y);
+  if constexpr (kForwardPanel > kPanel)
+    for (; j + kPanel <= S.nc; j += kPanel) forward_panel<kPanel>(S, j, y);
   switch (S.nc - j) {
     case 3: forward_panel<3>(S, j, y); break;
     case 2: forward_panel<2>(S, j, y); break;
