@@ -10,12 +10,10 @@
 // Extra flag (ours): --hdeform_smoke  one repetition everywhere (ctest bench-smoke).
 #include "bench_common.h"
 #include "deformer.h"
-#include "guidance.h"
 #include "measures.h"
 #include "mesh_io.h"
 #include "process_environment.h"
 #include "procedural.h"
-#include "rotation_rhs.h"
 #include "selection.h"
 #include "solver.h"
 #include "sparse_times3.h"
@@ -512,9 +510,6 @@ enum class Phase {
   rhs_fused,        // (GᵀW)_F g − K_FC x_C with sparse_times3 (what update() runs)
   residual,         // b − K_FF x with Eigen (three passes over K_FF, one per column)
   residual_fused,   // the same with symmetric_residual3 (what the drag refinement runs)
-  // A drag frame's guidance + right-hand side, one handle without stretch:
-  guidance_rhs,     // guidance_field (no R_l) + rhs_fused: g formed (frames with measures)
-  rotation_rhs,     // guidance_angles + rotation_rhs − K_FC x_C: g never formed (drag frames)
   GX                // the G·X' product inside measure() on its own
 };
 
@@ -572,8 +567,6 @@ void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta
   Eigen::MatrixX3d Y;
   Vertices face_w, N_reused;
   Eigen::MatrixXd fused = rhs;  // the kernels' output (sized: no allocation while timed)
-  const HandleRotation rot = handle_rotation(t);
-  std::vector<double> cs;
   Eigen::MatrixXd x_F = rhs;    // any n_F × 3 positions will do for a residual
   for (Eigen::Index i = 0; i < x_F.rows(); ++i) x_F.row(i) *= 1e-3 * static_cast<double>(i % 97);
   for (auto _ : state) {
@@ -613,18 +606,6 @@ void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta
         fused.noalias() -= s.K_FC * x_C;
         benchmark::DoNotOptimize(fused.data());
         break;
-      case Phase::guidance_rhs:
-        c.cs->guidance(std::span(&t, 1), g, nullptr, scratch);
-        sparse_times3(s.GtW_F, g, fused);
-        fused.noalias() -= s.K_FC * x_C;
-        benchmark::DoNotOptimize(fused.data());
-        break;
-      case Phase::rotation_rhs:
-        guidance_angles(c.pm->mesh().F, c.cs->harmonic_basis(), rot, cs, scratch);
-        rotation_rhs(s.GtW_F, c.pm->normals(), rot.axis, cs.data(), fused);
-        fused.noalias() -= s.K_FC * x_C;
-        benchmark::DoNotOptimize(fused.data());
-        break;
       case Phase::residual:
         fused.noalias() = rhs;
         fused.noalias() -= s.K_FF.transpose() * x_F;
@@ -659,9 +640,6 @@ void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta
   // The kernels against Eigen's products: 0 (bit-identical sums, sparse_times3.h).
   if (phase == Phase::rhs_fused)
     state.counters["diff_vs_eigen"] = (fused - rhs).cwiseAbs().maxCoeff();
-  if (phase == Phase::rotation_rhs)  // against g formed: rounding only
-    state.counters["rel_diff_vs_g"] =
-        (fused - rhs).cwiseAbs().maxCoeff() / rhs.cwiseAbs().maxCoeff();
   if (phase == Phase::residual_fused) {
     const Eigen::MatrixXd eigen = rhs - s.K_FF.transpose() * x_F;
     state.counters["diff_vs_eigen"] = (fused - eigen).cwiseAbs().maxCoeff();
@@ -859,10 +837,6 @@ void register_size(int n) {
     reg("Phase" + N + "/residual/" + beta_tag(beta), fast, BM_Phase, key, Phase::residual, beta);
     reg("Phase" + N + "/residual_fused/" + beta_tag(beta), fast, BM_Phase, key,
         Phase::residual_fused, beta);
-    reg("Phase" + N + "/guidance_rhs/" + beta_tag(beta), fast, BM_Phase, key, Phase::guidance_rhs,
-        beta);
-    reg("Phase" + N + "/rotation_rhs/" + beta_tag(beta), fast, BM_Phase, key, Phase::rotation_rhs,
-        beta);
     reg("Phase" + N + "/solve/" + beta_tag(beta), fast, BM_Phase, key, Phase::solve, beta);
   }
   for (double beta : kBetas) {

@@ -4,59 +4,6 @@
 
 namespace hdeform {
 
-namespace {
-
-// e^{i φ_v θ/6} for a vertex of basis value φ_v (third = θ/6).
-inline std::complex<double> vertex_turn(double phi, double third) {
-  return {std::cos(phi * third), std::sin(phi * third)};
-}
-
-// e^{i h_l θ/2}: the product of the three vertices' turns. Written out: std::complex's
-// operator* calls __muldc3 (Annex G's inf/NaN cases).
-inline std::complex<double> triangle_turn(const std::complex<double>* turn, const Triangles& F,
-                                          Eigen::Index l) {
-  const std::complex<double> a = turn[F(l, 0)], b = turn[F(l, 1)], c = turn[F(l, 2)];
-  const double re = a.real() * b.real() - a.imag() * b.imag();
-  const double im = a.real() * b.imag() + a.imag() * b.real();
-  return {re * c.real() - im * c.imag(), re * c.imag() + im * c.real()};
-}
-
-}  // namespace
-
-HandleRotation handle_rotation(const HandleTransform& t) {
-  Eigen::Quaterniond q = t.rotation.normalized();
-  if (q.w() < 0) q.coeffs() *= -1.0;
-  HandleRotation rot;
-  const double s = q.vec().norm();
-  if (s > 0) {
-    rot.half_angle = std::atan2(s, q.w());
-    rot.axis = q.vec() / s;
-  }
-  return rot;
-}
-
-void guidance_angles(const Triangles& F, const Eigen::MatrixXd& Phi, const HandleRotation& rot,
-                     std::vector<double>& cs, GuidanceScratch& scratch) {
-  const Eigen::Index m = F.rows(), n = Phi.rows();
-  const double third = rot.half_angle / 3.0;
-  scratch.turn.resize(static_cast<std::size_t>(n));
-  cs.resize(2 * static_cast<std::size_t>(m));
-  std::complex<double>* turn = scratch.turn.data();
-  double* out = cs.data();
-#pragma omp parallel
-  {
-#pragma omp for schedule(static)
-    for (Eigen::Index v = 0; v < n; ++v) turn[v] = vertex_turn(Phi(v, 0), third);
-#pragma omp for schedule(static)
-    for (Eigen::Index l = 0; l < m; ++l) {
-      // R_l as a quaternion is (w, s k) = e^{i α/2}: cos α = w² − s², sin α = 2 w s.
-      const std::complex<double> h = triangle_turn(turn, F, l);
-      out[2 * l] = h.real() * h.real() - h.imag() * h.imag();
-      out[2 * l + 1] = 2 * h.real() * h.imag();
-    }
-  }
-}
-
 void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::MatrixXd& Phi,
                     std::span<const HandleTransform> transforms, GuidanceField& g,
                     std::vector<Eigen::Quaterniond>* R_l, GuidanceScratch& scratch) {
@@ -80,9 +27,11 @@ void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::Ma
   bool stretched = false;
   std::complex<double>* turn = nullptr;
   if (k == 1) {
-    const HandleRotation rot = handle_rotation(transforms[0]);
-    half_angle = rot.half_angle;
-    axis = rot.axis;
+    const double s = q[0].vec().norm();
+    if (s > 0) {
+      half_angle = std::atan2(s, q[0].w());
+      axis = q[0].vec() / s;
+    }
     stretched = !transforms[0].stretch.isIdentity(0.0);
     scratch.turn.resize(static_cast<std::size_t>(n));
     turn = scratch.turn.data();
@@ -93,16 +42,19 @@ void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::Ma
   {
     if (turn) {
 #pragma omp for schedule(static)
-      for (Eigen::Index v = 0; v < n; ++v) turn[v] = vertex_turn(Phi(v, 0), third);
+      for (Eigen::Index v = 0; v < n; ++v) turn[v] = {std::cos(Phi(v, 0) * third), std::sin(Phi(v, 0) * third)};
     }
 #pragma omp for schedule(static)
     for (Eigen::Index l = 0; l < m; ++l) {
       Eigen::Quaterniond R;
       Eigen::Matrix3d S;
       if (k == 1) {
-        const std::complex<double> h = triangle_turn(turn, F, l);  // e^{i h_l θ/2}
-        R.w() = h.real();
-        R.vec() = h.imag() * axis;
+        // Written out: std::complex's operator* calls __muldc3 (Annex G's inf/NaN cases).
+        const std::complex<double> a = turn[F(l, 0)], b = turn[F(l, 1)], c = turn[F(l, 2)];
+        const double re = a.real() * b.real() - a.imag() * b.imag();
+        const double im = a.real() * b.imag() + a.imag() * b.real();
+        R.w() = re * c.real() - im * c.imag();
+        R.vec() = (re * c.imag() + im * c.real()) * axis;
         if (stretched) {
           const double h = (Phi(F(l, 0), 0) + Phi(F(l, 1), 0) + Phi(F(l, 2), 0)) / 3.0;
           S = (1.0 - h) * I + h * transforms[0].stretch;

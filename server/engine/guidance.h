@@ -28,18 +28,4 @@ void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::Ma
                     std::span<const HandleTransform> transforms, GuidanceField& g,
                     std::vector<Eigen::Quaterniond>* R_l, GuidanceScratch& scratch);
 
-// One handle's rotation as unit axis k and half angle θ/2 ∈ [0, π] (q flipped to w ≥ 0;
-// the identity: θ = 0, k = x).
-struct HandleRotation {
-  double half_angle = 0;
-  Eigen::Vector3d axis = Eigen::Vector3d::UnitX();
-};
-HandleRotation handle_rotation(const HandleTransform& t);
-
-// The one-handle R_l of guidance_field without forming g: per triangle (cos α_l, sin α_l),
-// α_l = h_l θ the angle of R_l = slerp(I, R₁, h_l) about rot.axis, into cs (2m values).
-// Same arithmetic as guidance_field's R_l (one sincos per vertex). Both cores (OpenMP).
-void guidance_angles(const Triangles& F, const Eigen::MatrixXd& Phi, const HandleRotation& rot,
-                     std::vector<double>& cs, GuidanceScratch& scratch);
-
 }  // namespace hdeform
