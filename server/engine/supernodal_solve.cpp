@@ -28,11 +28,6 @@ Super super_at(const SweepArgs<double>& a, int s) {
           a.Lx + a.px[s]};
 }
 
-// Measured alternatives (bench Solve/10000/*, same machine, interleaved, CI load present):
-// padding the rows to four doubles as GCC 4-wide vectors (with an AVX2+FMA clone) and
-// panels of 8 were both slower than this scalar three-wide code with panels of 4 (β = 0.5:
-// 5.0–5.3 ms vs 3.0–4.1 ms; β = 0: 1.4–1.7 vs 1.1–1.3 ms): the sweep is bound by the
-// scattered y updates and the factor stream, and padding grows the work array by a third.
 // BLAS cutoff (SupernodalWorkspace::blas_min_cols, default 0 = never): sending supernodes
 // with ≥ C columns through OpenBLAS dtrsm + dgemm did not win at any C measured
 // (Solve/N/beta:b/fused_blas:C, one interleaved run per size, 5 repetitions, medians, CI
@@ -41,6 +36,7 @@ Super super_at(const SweepArgs<double>& a, int s) {
 // (C = 128 the only one below, within that run's noise). The path stays, tested, for a
 // re-measurement on a quiet machine (the fused_blas:C benchmarks are no longer in
 // bench/solve_bench.cpp; the scheduled solve does not use BLAS).
+//
 // BLAS path for one supernode. The nc rows of y at k1 are a column-major 3 × nc matrix
 // (ld 3) = X_dᵀ, so the triangular solves are right-sided on Xᵀ.
 void forward_blas(const Super& S, double* y, double* w) {

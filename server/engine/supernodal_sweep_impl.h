@@ -57,11 +57,18 @@ inline void sub_row(double* yr, __m128d xy, double z) {
 }
 #endif
 
-// Columns are processed in panels of W (≤ 4): the rows below a panel are read once per
-// panel, each y row loaded/stored once for W factor columns (not once per column), while
-// the W column streams of the factor are read contiguously. With AVX2 + FMA, four rows at a
-// time: the factor entries as 4-wide vectors, the three right-hand sides as three
-// accumulators, transposed to rows only where y is read or written.
+// Columns are processed in panels of W: the rows below a panel are read once per panel,
+// each y row loaded/stored once for W factor columns (not once per column), while the W
+// column streams of the factor are read contiguously. With AVX2 + FMA, four rows at a time:
+// the factor entries as 4-wide vectors, the three right-hand sides as three accumulators,
+// transposed to rows only where y is read or written (y keeps its three values per row).
+//
+// Measured alternatives. Earlier (Solve/10000/*, CI load present): padding y's rows to four
+// doubles as GCC vectors, with an AVX2 clone, was slower than the scalar code (the work
+// array grows by a third). The explicit AVX2 code here against the baseline build of the
+// same file (Solve/100000/*/fused_* vs fused_generic_*, 2026-12-04, interleaved, quiet):
+// two threads, double 4.39 vs 5.71 ms (β = 0) and 8.68 vs 12.4 ms (β = 0.5); float32
+// 2.27 vs 3.81 and 5.42 vs 9.71 ms (docs/benchmarks.md, "AVX2 sweep kernels").
 
 // Forward: solve the panel's W×W lower triangle, then y[rows[i]] −= L(i, panel) · x_panel
 // for every row below it in the supernode (the diagonal block's rows and the off-diagonal
