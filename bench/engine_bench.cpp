@@ -9,6 +9,7 @@
 //
 // Extra flag (ours): --hdeform_smoke  one repetition everywhere (ctest bench-smoke).
 #include "bench_common.h"
+#include "cpu_features.h"
 #include "deformer.h"
 #include "measures.h"
 #include "mesh_io.h"
@@ -505,6 +506,7 @@ enum class Phase {
   guidance, rhs, solve, measures, measures_ef2, normals, normals_gather,
   // Candidate improvements, measured on the same data (not used by the engine):
   guidance_no_R,          // the engine's guidance without R_l (drag frames: no measures)
+  guidance_no_R_generic,  // the same with the baseline build of the kernels (cpu_features.h)
   guidance_per_triangle,  // one sincos per triangle (the engine before 2026-12-03)
   // Eigen's products against the engine's sparse_times3.h kernels, on the same data:
   rhs_fused,        // (GᵀW)_F g − K_FC x_C with sparse_times3 (what update() runs)
@@ -569,6 +571,8 @@ void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta
   Eigen::MatrixXd fused = rhs;  // the kernels' output (sized: no allocation while timed)
   Eigen::MatrixXd x_F = rhs;    // any n_F × 3 positions will do for a residual
   for (Eigen::Index i = 0; i < x_F.rows(); ++i) x_F.row(i) *= 1e-3 * static_cast<double>(i % 97);
+  const Isa isa = kernel_isa();
+  if (phase == Phase::guidance_no_R_generic) set_kernel_isa(Isa::generic);
   for (auto _ : state) {
     switch (phase) {
       case Phase::guidance:
@@ -576,6 +580,7 @@ void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta
         benchmark::DoNotOptimize(g.data());
         break;
       case Phase::guidance_no_R:
+      case Phase::guidance_no_R_generic:
         c.cs->guidance(std::span(&t, 1), g, nullptr, scratch);
         benchmark::DoNotOptimize(g.data());
         break;
@@ -631,6 +636,7 @@ void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta
       }
     }
   }
+  set_kernel_isa(isa);
   size_counters(state, c);
   if (phase == Phase::guidance) {  // the same field as one sincos per triangle, to rounding
     guidance_per_triangle(c.pm->mesh().F, c.pm->normals(), c.cs->harmonic_basis(), t, g_row, R_l);
@@ -828,6 +834,8 @@ void register_size(int n) {
   reg("Phase" + N + "/normals_gather", fast, BM_Phase, key, Phase::normals_gather, 0.0);
   reg("Phase" + N + "/GX", fast, BM_Phase, key, Phase::GX, 0.0);
   reg("Phase" + N + "/guidance_no_R", fast, BM_Phase, key, Phase::guidance_no_R, 0.0);
+  reg("Phase" + N + "/guidance_no_R_generic", fast, BM_Phase, key, Phase::guidance_no_R_generic,
+      0.0);
   reg("Phase" + N + "/guidance_per_triangle", fast, BM_Phase, key, Phase::guidance_per_triangle,
       0.0);
   for (double beta : kBetas) {

@@ -8,7 +8,7 @@
 #include "serial_openmp.h"
 #include "solver.h"
 #include "supernodal_solve.h"
-#include "supernodal_sweep.h"
+#include "cpu_features.h"
 
 #include <benchmark/benchmark.h>
 
@@ -183,9 +183,9 @@ void BM_Bandwidth(benchmark::State& state) {
 
 enum class Variant { cholmod, fused };
 
-// The sweep kernels' build chosen for this CPU (supernodal_sweep.h), restored after each
+// The kernels' build chosen for this CPU (cpu_features.h), restored after each
 // Solve benchmark that set another.
-const SweepIsa best_isa = sweep_isa();
+const Isa best_isa = kernel_isa();
 
 // Solve/N/beta:b/...: K_FF X = B, three random right-hand sides, on the same factor.
 // cholmod = Factorization::solve_cholmod (cholmod_solve, result copied to an Eigen matrix);
@@ -193,8 +193,8 @@ const SweepIsa best_isa = sweep_isa();
 // untimed, as is the float copy). Counters: factor value MB as read, the single-thread
 // read floor (ms) and x_floor = time per solve / floor.
 void BM_Solve(benchmark::State& state, int nominal, double beta, Variant variant,
-              SolvePrecision precision, int threads, SweepIsa isa) {
-  if (!set_sweep_isa(isa)) {
+              SolvePrecision precision, int threads, Isa isa) {
+  if (!set_kernel_isa(isa)) {
     state.SkipWithError("this CPU lacks the sweep kernels' instruction set");
     return;
   }
@@ -234,7 +234,7 @@ void BM_Solve(benchmark::State& state, int nominal, double beta, Variant variant
     state.counters["top"] = s.work(s.parts()) / total;
     state.counters["crit_path"] = s.critical_path() / total;
   }
-  set_sweep_isa(best_isa);
+  set_kernel_isa(best_isa);
 }
 
 benchmark::internal::Benchmark* policy(benchmark::internal::Benchmark* b, bool smoke) {
@@ -252,7 +252,7 @@ void register_solve_benchmarks(bool smoke) {
     Variant variant;
     SolvePrecision precision;
     int threads;
-    SweepIsa isa = best_isa;
+    Isa isa = best_isa;
   };
   const V variants[] = {
       {"cholmod", Variant::cholmod, SolvePrecision::float64, 1},
@@ -261,9 +261,9 @@ void register_solve_benchmarks(bool smoke) {
       {"fused_f32_1t", Variant::fused, SolvePrecision::float32, 1},
       {"fused_f32_2t", Variant::fused, SolvePrecision::float32, 2},
       // the baseline build of the sweep kernels, side by side with the AVX2 one
-      {"fused_generic_1t", Variant::fused, SolvePrecision::float64, 1, SweepIsa::generic},
-      {"fused_generic_2t", Variant::fused, SolvePrecision::float64, 2, SweepIsa::generic},
-      {"fused_f32_generic_2t", Variant::fused, SolvePrecision::float32, 2, SweepIsa::generic},
+      {"fused_generic_1t", Variant::fused, SolvePrecision::float64, 1, Isa::generic},
+      {"fused_generic_2t", Variant::fused, SolvePrecision::float64, 2, Isa::generic},
+      {"fused_f32_generic_2t", Variant::fused, SolvePrecision::float32, 2, Isa::generic},
   };
   for (int n : kSolveSizes)
     for (double beta : kSolveBetas)

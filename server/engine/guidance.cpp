@@ -1,5 +1,11 @@
 #include "guidance.h"
 
+#include "cpu_features.h"
+#include "guidance_rotation.h"
+
+#include <omp.h>
+
+#include <algorithm>
 #include <cmath>
 
 namespace hdeform {
@@ -38,54 +44,71 @@ void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::Ma
   }
   const double third = half_angle / 3.0;
 
+  // g_l and R_l of triangle l, the scalar way (any number of handles, stretch or not).
+  auto triangle = [&](Eigen::Index l) {
+    Eigen::Quaterniond R;
+    Eigen::Matrix3d S;
+    if (k == 1) {
+      // Written out: std::complex's operator* calls __muldc3 (Annex G's inf/NaN cases).
+      const std::complex<double> a = turn[F(l, 0)], b = turn[F(l, 1)], c = turn[F(l, 2)];
+      const double re = a.real() * b.real() - a.imag() * b.imag();
+      const double im = a.real() * b.imag() + a.imag() * b.real();
+      R.w() = re * c.real() - im * c.imag();
+      R.vec() = (re * c.imag() + im * c.real()) * axis;
+      if (stretched) {
+        const double h = (Phi(F(l, 0), 0) + Phi(F(l, 1), 0) + Phi(F(l, 2), 0)) / 3.0;
+        S = (1.0 - h) * I + h * transforms[0].stretch;
+      } else {
+        S = I;
+      }
+    } else {
+      Eigen::Vector4d qc = Eigen::Vector4d::Zero();  // (x, y, z, w) as Eigen stores it
+      S.setZero();
+      double rest = 1.0;  // weight of the identity on F₀: 1 − Σ_j h_lj
+      for (int j = 0; j < k; ++j) {
+        const double h = (Phi(F(l, 0), j) + Phi(F(l, 1), j) + Phi(F(l, 2), j)) / 3.0;
+        qc += h * q[j].coeffs();
+        S += h * transforms[j].stretch;
+        rest -= h;
+      }
+      qc[3] += rest;
+      S += rest * I;
+      R.coeffs() = qc.normalized();
+    }
+    if (R_l) (*R_l)[l] = R;
+    const Eigen::Matrix3d M = stretched || k != 1 ? Eigen::Matrix3d(R.toRotationMatrix() * S)
+                                                  : R.toRotationMatrix();
+    const Eigen::Vector3d nl = normals.row(l).transpose();
+    const Eigen::Vector3d Mn = M * nl;
+    // g_l = Y_l Mᵀ with Y_l = I − n nᵀ (the rest gradient block, SPEC's check), written out
+    // into g's row-major storage: Phase/100000/guidance 2.58 -> 2.42 ms against Eigen's
+    // `g.middleRows<3>(3l) = Mᵀ − n (M n)ᵀ` (same run, interleaved).
+    double* gl = g.data() + 9 * l;  // g is row-major: block l is 9 contiguous doubles
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) gl[3 * r + c] = M(c, r) - nl[r] * Mn[c];
+  };
+  // One handle without stretch: four triangles at a time where the CPU has AVX2 + FMA
+  // (guidance_rotation.h); each thread then does the few left of its own chunk.
+  const bool vector_rotation = k == 1 && !stretched && kernel_isa() == Isa::avx2;
+  static_assert(sizeof(Eigen::Quaterniond) == 4 * sizeof(double), "R_l as x, y, z, w rows");
+  double* quats = R_l && m > 0 ? R_l->data()->coeffs().data() : nullptr;
+
 #pragma omp parallel
   {
     if (turn) {
 #pragma omp for schedule(static)
       for (Eigen::Index v = 0; v < n; ++v) turn[v] = {std::cos(Phi(v, 0) * third), std::sin(Phi(v, 0) * third)};
     }
+    if (vector_rotation) {
+      const Eigen::Index threads = omp_get_num_threads(), t = omp_get_thread_num();
+      const Eigen::Index chunk = ((m + threads - 1) / threads + 3) & ~Eigen::Index{3};
+      const Eigen::Index begin = std::min(m, t * chunk), end = std::min(m, begin + chunk);
+      Eigen::Index l = detail::guidance_rotation_avx2(F.data(), normals.data(), turn,
+                                                      axis.data(), begin, end, g.data(), quats);
+      for (; l < end; ++l) triangle(l);
+    } else {
 #pragma omp for schedule(static)
-    for (Eigen::Index l = 0; l < m; ++l) {
-      Eigen::Quaterniond R;
-      Eigen::Matrix3d S;
-      if (k == 1) {
-        // Written out: std::complex's operator* calls __muldc3 (Annex G's inf/NaN cases).
-        const std::complex<double> a = turn[F(l, 0)], b = turn[F(l, 1)], c = turn[F(l, 2)];
-        const double re = a.real() * b.real() - a.imag() * b.imag();
-        const double im = a.real() * b.imag() + a.imag() * b.real();
-        R.w() = re * c.real() - im * c.imag();
-        R.vec() = (re * c.imag() + im * c.real()) * axis;
-        if (stretched) {
-          const double h = (Phi(F(l, 0), 0) + Phi(F(l, 1), 0) + Phi(F(l, 2), 0)) / 3.0;
-          S = (1.0 - h) * I + h * transforms[0].stretch;
-        } else {
-          S = I;
-        }
-      } else {
-        Eigen::Vector4d qc = Eigen::Vector4d::Zero();  // (x, y, z, w) as Eigen stores it
-        S.setZero();
-        double rest = 1.0;  // weight of the identity on F₀: 1 − Σ_j h_lj
-        for (int j = 0; j < k; ++j) {
-          const double h = (Phi(F(l, 0), j) + Phi(F(l, 1), j) + Phi(F(l, 2), j)) / 3.0;
-          qc += h * q[j].coeffs();
-          S += h * transforms[j].stretch;
-          rest -= h;
-        }
-        qc[3] += rest;
-        S += rest * I;
-        R.coeffs() = qc.normalized();
-      }
-      if (R_l) (*R_l)[l] = R;
-      const Eigen::Matrix3d M = stretched || k != 1 ? Eigen::Matrix3d(R.toRotationMatrix() * S)
-                                                    : R.toRotationMatrix();
-      const Eigen::Vector3d nl = normals.row(l).transpose();
-      const Eigen::Vector3d Mn = M * nl;
-      // g_l = Y_l Mᵀ with Y_l = I − n nᵀ (the rest gradient block, SPEC's check), written out
-      // into g's row-major storage: Phase/100000/guidance 2.58 -> 2.42 ms against Eigen's
-      // `g.middleRows<3>(3l) = Mᵀ − n (M n)ᵀ` (same run, interleaved).
-      double* gl = g.data() + 9 * l;  // g is row-major: block l is 9 contiguous doubles
-      for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) gl[3 * r + c] = M(c, r) - nl[r] * Mn[c];
+      for (Eigen::Index l = 0; l < m; ++l) triangle(l);
     }
   }
 }

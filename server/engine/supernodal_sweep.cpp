@@ -2,11 +2,11 @@
 #define HDEFORM_SWEEP_ISA sweep_generic
 #include "supernodal_sweep_impl.h"
 
-#include <atomic>
+#include "cpu_features.h"
 
 namespace hdeform {
 
-#ifdef HDEFORM_HAVE_SWEEP_AVX2
+#ifdef HDEFORM_HAVE_AVX2_KERNELS
 namespace sweep_avx2 {
 template <class T>
 SweepKernels<T> kernels();  // supernodal_sweep_avx2.cpp
@@ -15,59 +15,22 @@ SweepKernels<T> kernels();  // supernodal_sweep_avx2.cpp
 
 namespace {
 
-bool cpu_has_avx2_fma() {
-#if defined(__x86_64__) || defined(__i386__)
-  return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-#else
-  return false;
-#endif
-}
-
-std::atomic<SweepIsa>& current_isa() {
-  static std::atomic<SweepIsa> isa{sweep_isa_supported(SweepIsa::avx2) ? SweepIsa::avx2
-                                                                       : SweepIsa::generic};
-  return isa;
-}
-
 template <class T>
 struct Builds {
   SweepKernels<T> generic = sweep_generic::kernels<T>();
-#ifdef HDEFORM_HAVE_SWEEP_AVX2
+#ifdef HDEFORM_HAVE_AVX2_KERNELS
   SweepKernels<T> avx2 = sweep_avx2::kernels<T>();
 #else
-  SweepKernels<T> avx2 = generic;  // never chosen: sweep_isa_supported says no
+  SweepKernels<T> avx2 = generic;  // never chosen: isa_supported says no
 #endif
 };
 
 }  // namespace
 
-bool sweep_isa_supported(SweepIsa isa) {
-  switch (isa) {
-    case SweepIsa::generic: return true;
-    case SweepIsa::avx2:
-#ifdef HDEFORM_HAVE_SWEEP_AVX2
-      return cpu_has_avx2_fma();
-#else
-      return false;
-#endif
-  }
-  return false;
-}
-
-SweepIsa sweep_isa() { return current_isa().load(std::memory_order_relaxed); }
-
-bool set_sweep_isa(SweepIsa isa) {
-  if (!sweep_isa_supported(isa)) return false;
-  current_isa().store(isa, std::memory_order_relaxed);
-  return true;
-}
-
-const char* sweep_isa_name(SweepIsa isa) { return isa == SweepIsa::avx2 ? "avx2" : "generic"; }
-
 template <class T>
 const SweepKernels<T>& sweep_kernels() {
   static const Builds<T> builds;
-  return sweep_isa() == SweepIsa::avx2 ? builds.avx2 : builds.generic;
+  return kernel_isa() == Isa::avx2 ? builds.avx2 : builds.generic;
 }
 
 template const SweepKernels<double>& sweep_kernels<double>();

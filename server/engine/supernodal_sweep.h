@@ -25,19 +25,7 @@ struct SweepKernels {
   void (*backward)(const SweepArgs<T>&, const int* list, int count);
 };
 
-enum class SweepIsa { generic, avx2 };
-
-// True if this build has the kernels for `isa` and this CPU runs them.
-bool sweep_isa_supported(SweepIsa isa);
-// The instruction set the solves use: the best supported one unless set_sweep_isa chose
-// another (tests and benches compare them; results differ in rounding only).
-SweepIsa sweep_isa();
-// Returns false (and changes nothing) if `isa` is not supported. Process-wide; not meant to
-// be called while solves run.
-bool set_sweep_isa(SweepIsa isa);
-const char* sweep_isa_name(SweepIsa isa);
-
 template <class T>
-const SweepKernels<T>& sweep_kernels();  // of sweep_isa()
+const SweepKernels<T>& sweep_kernels();  // the build of kernel_isa() (cpu_features.h)
 
 }  // namespace hdeform

@@ -1,6 +1,7 @@
 // guidance.h against SPEC.md §Harmonic guidance field written out the plain way (Eigen's
 // slerp per triangle, the quaternion average, g_l = Y_l M_lᵀ), on any Φ: the engine's one
 // sincos per vertex (a product of three per-vertex turns) is the same field to rounding.
+#include "cpu_features.h"
 #include "fixtures.h"
 #include "guidance.h"
 
@@ -76,7 +77,18 @@ void expect_same_field(const PreparedMesh& pm, const Eigen::MatrixXd& Phi,
   EXPECT_EQ(g2, g) << what;
 }
 
-TEST(Guidance, OneHandleIsThePerTriangleSlerp) {
+// Each build of the kernels (cpu_features.h): one handle without stretch takes the AVX2 loop
+// (guidance_rotation.h) where the CPU has it, the scalar loop otherwise.
+class Guidance : public ::testing::TestWithParam<Isa> {
+ protected:
+  void SetUp() override {
+    if (!set_kernel_isa(GetParam())) GTEST_SKIP() << "this CPU does not run these kernels";
+  }
+  void TearDown() override { set_kernel_isa(best_); }
+  const Isa best_ = kernel_isa();
+};
+
+TEST_P(Guidance, OneHandleIsThePerTriangleSlerp) {
   const test::Benchmark b = test::load_benchmark("cactus");
   const ConstraintSet cs(b.mesh, b.constraints);
   const HandleTransform def = HandleTransform::from_matrix(b.T, cs.centroid(0));
@@ -92,7 +104,7 @@ TEST(Guidance, OneHandleIsThePerTriangleSlerp) {
   }
 }
 
-TEST(Guidance, SeveralHandlesAverageTheQuaternions) {
+TEST_P(Guidance, SeveralHandlesAverageTheQuaternions) {
   const test::Benchmark b = test::load_benchmark("cactus");
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> u(0, 0.5);
@@ -105,7 +117,7 @@ TEST(Guidance, SeveralHandlesAverageTheQuaternions) {
 }
 
 // Threads only split the loops: 1 and 2 OpenMP threads give the same bits.
-TEST(Guidance, SameBitsOnOneAndTwoThreads) {
+TEST_P(Guidance, SameBitsOnOneAndTwoThreads) {
   const test::Benchmark b = test::load_benchmark("cactus");
   const ConstraintSet cs(b.mesh, b.constraints);
   const HandleTransform t = rotation(75, {0, 1, 1}, Eigen::Matrix3d::Identity());
@@ -121,6 +133,41 @@ TEST(Guidance, SameBitsOnOneAndTwoThreads) {
   omp_set_num_threads(before);
   EXPECT_EQ(g1, g2);
 }
+
+// Meshes whose triangle count is not a multiple of four (the vector loop's tails), and the
+// two builds against each other: rounding only (FMA).
+TEST_P(Guidance, BuildsAgreeOnEveryTriangle) {
+  const test::Benchmark b = test::capsule_benchmark(3000);
+  const ConstraintSet cs(b.mesh, b.constraints);
+  const HandleTransform t = rotation(140, {2, -1, 1}, Eigen::Matrix3d::Identity());
+  for (Eigen::Index m : {Eigen::Index{1}, Eigen::Index{6}, Eigen::Index{7}, Eigen::Index{b.mesh->m()}}) {
+    SCOPED_TRACE(m);
+    const Triangles F = b.mesh->mesh().F.topRows(m);
+    const Vertices N = b.mesh->normals().topRows(m);
+    GuidanceScratch scratch;
+    GuidanceField g, g_other;
+    std::vector<Eigen::Quaterniond> R, R_other;
+    guidance_field(F, N, cs.harmonic_basis(), std::span(&t, 1), g, &R, scratch);
+    std::vector<Eigen::Quaterniond> R_ref;
+    const GuidanceField expected = reference(F, N, cs.harmonic_basis(), std::span(&t, 1), R_ref);
+    EXPECT_LT((g - expected).cwiseAbs().maxCoeff(), 1e-13);
+    const Isa other = GetParam() == Isa::avx2 ? Isa::generic : Isa::avx2;
+    if (!set_kernel_isa(other)) continue;
+    guidance_field(F, N, cs.harmonic_basis(), std::span(&t, 1), g_other, &R_other, scratch);
+    set_kernel_isa(GetParam());
+    EXPECT_LT((g - g_other).cwiseAbs().maxCoeff(), 1e-15);
+    if (m == b.mesh->m()) {
+      EXPECT_NE(g, g_other) << "both builds ran the same code";
+    }
+    for (std::size_t l = 0; l < R.size(); ++l)
+      ASSERT_LT(rotation_gap(R[l], R_other[l]), 1e-15) << l;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Isa, Guidance, ::testing::Values(Isa::generic, Isa::avx2),
+                         [](const ::testing::TestParamInfo<Isa>& info) {
+                           return std::string(isa_name(info.param));
+                         });
 
 }  // namespace
 }  // namespace hdeform

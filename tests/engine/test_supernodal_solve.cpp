@@ -4,7 +4,7 @@
 #include "fixtures.h"
 #include "solver.h"
 #include "supernodal_solve.h"
-#include "supernodal_sweep.h"
+#include "cpu_features.h"
 
 #include <gtest/gtest.h>
 
@@ -362,46 +362,46 @@ TEST(SupernodalSolve, Solve3SmallUnsplit) {
 // above; the tests above used the default one, the best supported.
 
 TEST(SupernodalSweep, DefaultIsTheBestSupported) {
-  EXPECT_EQ(sweep_isa(), sweep_isa_supported(SweepIsa::avx2) ? SweepIsa::avx2 : SweepIsa::generic);
-  EXPECT_TRUE(sweep_isa_supported(SweepIsa::generic));
+  EXPECT_EQ(kernel_isa(), isa_supported(Isa::avx2) ? Isa::avx2 : Isa::generic);
+  EXPECT_TRUE(isa_supported(Isa::generic));
 }
 
-class EachSweepIsa : public ::testing::TestWithParam<SweepIsa> {
+class SolveOnEachIsa : public ::testing::TestWithParam<Isa> {
  protected:
   void SetUp() override {
-    if (!set_sweep_isa(GetParam())) GTEST_SKIP() << "this CPU does not run these kernels";
+    if (!set_kernel_isa(GetParam())) GTEST_SKIP() << "this CPU does not run these kernels";
   }
-  void TearDown() override { set_sweep_isa(best_); }
-  const SweepIsa best_ = sweep_isa();
+  void TearDown() override { set_kernel_isa(best_); }
+  const Isa best_ = kernel_isa();
 };
 
-TEST_P(EachSweepIsa, MatchesCholmod) {
+TEST_P(SolveOnEachIsa, MatchesCholmod) {
   SupernodalWorkspace ws;
   const test::Benchmark cactus = test::load_benchmark("cactus");
   check_model(*cactus.mesh, cactus.constraints, ws);
 }
 
-TEST_P(EachSweepIsa, ScheduledBeta0) { check_scheduled(0.0); }
-TEST_P(EachSweepIsa, ScheduledBetaPositive) { check_scheduled(0.3); }
+TEST_P(SolveOnEachIsa, ScheduledBeta0) { check_scheduled(0.0); }
+TEST_P(SolveOnEachIsa, ScheduledBetaPositive) { check_scheduled(0.3); }
 
 // The builds differ in rounding only (FMA, the order of the four-row sums).
-TEST_P(EachSweepIsa, AgreesWithTheOtherBuild) {
+TEST_P(SolveOnEachIsa, AgreesWithTheOtherBuild) {
   const BigCase& bc = big_case();
   const Factorization f(k_ff(*bc.pm, bc.c, 0.3));
   std::srand(21);
   const Eigen::MatrixXd B = Eigen::MatrixXd::Random(f.size(), 3);
   const Eigen::MatrixXd X = solve3(f, B, SolvePrecision::float64, 2);
-  const SweepIsa other = GetParam() == SweepIsa::avx2 ? SweepIsa::generic : SweepIsa::avx2;
-  if (!set_sweep_isa(other)) GTEST_SKIP() << "only one build runs here";
+  const Isa other = GetParam() == Isa::avx2 ? Isa::generic : Isa::avx2;
+  if (!set_kernel_isa(other)) GTEST_SKIP() << "only one build runs here";
   const Eigen::MatrixXd Y = solve3(f, B, SolvePrecision::float64, 2);
   EXPECT_LT(rel_max_diff(X, Y), 1e-12);
   EXPECT_FALSE(same_bits(X, Y)) << "the two builds ran the same code";
 }
 
-INSTANTIATE_TEST_SUITE_P(Isa, EachSweepIsa,
-                         ::testing::Values(SweepIsa::generic, SweepIsa::avx2),
-                         [](const ::testing::TestParamInfo<SweepIsa>& info) {
-                           return std::string(sweep_isa_name(info.param));
+INSTANTIATE_TEST_SUITE_P(Isa, SolveOnEachIsa,
+                         ::testing::Values(Isa::generic, Isa::avx2),
+                         [](const ::testing::TestParamInfo<Isa>& info) {
+                           return std::string(isa_name(info.param));
                          });
 
 }  // namespace

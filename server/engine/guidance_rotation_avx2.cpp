@@ -1,0 +1,113 @@
+// guidance_rotation.h, compiled with -mavx2 -mfma. Lanes are triangles: the turns and
+// normals are gathered into four-triangle vectors, R_l and g_l computed as nine vectors each,
+// and g_l transposed back to nine contiguous doubles per triangle (two 4 × 4 transposes and
+// one column). Same formulas as guidance.cpp's loop (Eigen's quaternion → matrix).
+#include "guidance_rotation.h"
+
+#include <immintrin.h>
+
+#if !defined(__AVX2__) || !defined(__FMA__)
+#error "guidance_rotation_avx2.cpp must be compiled with -mavx2 -mfma"
+#endif
+
+namespace hdeform::detail {
+
+namespace {
+
+// Rows r0..r3 (four lanes each) → lane t's four values at out[t] (4 × 4 transpose).
+inline void transpose_store(__m256d r0, __m256d r1, __m256d r2, __m256d r3, double* o0,
+                            double* o1, double* o2, double* o3) {
+  const __m256d a = _mm256_unpacklo_pd(r0, r1);  // r0[0] r1[0] r0[2] r1[2]
+  const __m256d b = _mm256_unpackhi_pd(r0, r1);  // r0[1] r1[1] r0[3] r1[3]
+  const __m256d c = _mm256_unpacklo_pd(r2, r3);
+  const __m256d d = _mm256_unpackhi_pd(r2, r3);
+  _mm256_storeu_pd(o0, _mm256_permute2f128_pd(a, c, 0x20));
+  _mm256_storeu_pd(o1, _mm256_permute2f128_pd(b, d, 0x20));
+  _mm256_storeu_pd(o2, _mm256_permute2f128_pd(a, c, 0x31));
+  _mm256_storeu_pd(o3, _mm256_permute2f128_pd(b, d, 0x31));
+}
+
+// Gathers with a defined pass-through (the plain intrinsics start from an undefined vector,
+// which GCC 12's -Wmaybe-uninitialized reports).
+inline __m128i gather_int(const int* base, __m128i idx) {
+  return _mm_mask_i32gather_epi32(_mm_setzero_si128(), base, idx, _mm_set1_epi32(-1), 4);
+}
+inline __m256d gather(const double* base, __m128i idx) {
+  return _mm256_mask_i32gather_pd(_mm256_setzero_pd(), base, idx,
+                                  _mm256_castsi256_pd(_mm256_set1_epi64x(-1)), 8);
+}
+
+}  // namespace
+
+std::ptrdiff_t guidance_rotation_avx2(const int* F, const double* normals,
+                                      const std::complex<double>* turn, const double axis[3],
+                                      std::ptrdiff_t l0, std::ptrdiff_t l1, double* g,
+                                      double* R_xyzw) {
+  const double* T = reinterpret_cast<const double*>(turn);  // re, im interleaved
+  const __m256d k0 = _mm256_set1_pd(axis[0]), k1 = _mm256_set1_pd(axis[1]),
+                k2 = _mm256_set1_pd(axis[2]);
+  const __m256d one = _mm256_set1_pd(1.0);
+  const __m128i stride = _mm_setr_epi32(0, 3, 6, 9);
+  std::ptrdiff_t l = l0;
+  for (; l + 4 <= l1; l += 4) {
+    const int* f = F + 3 * l;
+    // e^{i h θ/2} = a · b · c, the turns of the three corners (complex: re at 2v, im 2v+1).
+    const __m128i va = _mm_slli_epi32(gather_int(f, stride), 1);
+    const __m128i vb = _mm_slli_epi32(gather_int(f + 1, stride), 1);
+    const __m128i vc = _mm_slli_epi32(gather_int(f + 2, stride), 1);
+    const __m256d ar = gather(T, va), ai = gather(T + 1, va);
+    const __m256d br = gather(T, vb), bi = gather(T + 1, vb);
+    const __m256d cr = gather(T, vc), ci = gather(T + 1, vc);
+    const __m256d re = _mm256_sub_pd(_mm256_mul_pd(ar, br), _mm256_mul_pd(ai, bi));
+    const __m256d im = _mm256_add_pd(_mm256_mul_pd(ar, bi), _mm256_mul_pd(ai, br));
+    const __m256d w = _mm256_sub_pd(_mm256_mul_pd(re, cr), _mm256_mul_pd(im, ci));
+    const __m256d s = _mm256_add_pd(_mm256_mul_pd(re, ci), _mm256_mul_pd(im, cr));
+    const __m256d x = _mm256_mul_pd(s, k0), y = _mm256_mul_pd(s, k1), z = _mm256_mul_pd(s, k2);
+    if (R_xyzw) transpose_store(x, y, z, w, R_xyzw + 4 * l, R_xyzw + 4 * l + 4,
+                                R_xyzw + 4 * l + 8, R_xyzw + 4 * l + 12);
+    // Eigen's QuaternionBase::toRotationMatrix.
+    const __m256d tx = _mm256_add_pd(x, x), ty = _mm256_add_pd(y, y), tz = _mm256_add_pd(z, z);
+    const __m256d twx = _mm256_mul_pd(tx, w), twy = _mm256_mul_pd(ty, w),
+                  twz = _mm256_mul_pd(tz, w);
+    const __m256d txx = _mm256_mul_pd(tx, x), txy = _mm256_mul_pd(ty, x),
+                  txz = _mm256_mul_pd(tz, x);
+    const __m256d tyy = _mm256_mul_pd(ty, y), tyz = _mm256_mul_pd(tz, y),
+                  tzz = _mm256_mul_pd(tz, z);
+    const __m256d R00 = _mm256_sub_pd(one, _mm256_add_pd(tyy, tzz));
+    const __m256d R01 = _mm256_sub_pd(txy, twz);
+    const __m256d R02 = _mm256_add_pd(txz, twy);
+    const __m256d R10 = _mm256_add_pd(txy, twz);
+    const __m256d R11 = _mm256_sub_pd(one, _mm256_add_pd(txx, tzz));
+    const __m256d R12 = _mm256_sub_pd(tyz, twx);
+    const __m256d R20 = _mm256_sub_pd(txz, twy);
+    const __m256d R21 = _mm256_add_pd(tyz, twx);
+    const __m256d R22 = _mm256_sub_pd(one, _mm256_add_pd(txx, tyy));
+    // The rest normals of the four triangles (12 contiguous doubles) as three vectors.
+    const double* N = normals + 3 * l;
+    const __m256d n0 = _mm256_setr_pd(N[0], N[3], N[6], N[9]);
+    const __m256d n1 = _mm256_setr_pd(N[1], N[4], N[7], N[10]);
+    const __m256d n2 = _mm256_setr_pd(N[2], N[5], N[8], N[11]);
+    const __m256d m0 = _mm256_fmadd_pd(R02, n2, _mm256_fmadd_pd(R01, n1, _mm256_mul_pd(R00, n0)));
+    const __m256d m1 = _mm256_fmadd_pd(R12, n2, _mm256_fmadd_pd(R11, n1, _mm256_mul_pd(R10, n0)));
+    const __m256d m2 = _mm256_fmadd_pd(R22, n2, _mm256_fmadd_pd(R21, n1, _mm256_mul_pd(R20, n0)));
+    // g_l[r][c] = R(c, r) − n_r (R n)_c
+    const __m256d g0 = _mm256_fnmadd_pd(n0, m0, R00), g1 = _mm256_fnmadd_pd(n0, m1, R10),
+                  g2 = _mm256_fnmadd_pd(n0, m2, R20);
+    const __m256d g3 = _mm256_fnmadd_pd(n1, m0, R01), g4 = _mm256_fnmadd_pd(n1, m1, R11),
+                  g5 = _mm256_fnmadd_pd(n1, m2, R21);
+    const __m256d g6 = _mm256_fnmadd_pd(n2, m0, R02), g7 = _mm256_fnmadd_pd(n2, m1, R12),
+                  g8 = _mm256_fnmadd_pd(n2, m2, R22);
+    double* o = g + 9 * l;
+    transpose_store(g0, g1, g2, g3, o, o + 9, o + 18, o + 27);
+    transpose_store(g4, g5, g6, g7, o + 4, o + 13, o + 22, o + 31);
+    alignas(32) double last[4];
+    _mm256_store_pd(last, g8);
+    o[8] = last[0];
+    o[17] = last[1];
+    o[26] = last[2];
+    o[35] = last[3];
+  }
+  return l;
+}
+
+}  // namespace hdeform::detail
