@@ -89,13 +89,19 @@ void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::Ma
   };
   // One handle without stretch: four triangles at a time where the CPU has AVX2 + FMA
   // (guidance_rotation.h); each thread then does the few left of its own chunk.
-  const bool vector_rotation = k == 1 && !stretched && kernel_isa() == Isa::avx2;
+  const bool vector_isa = kernel_isa() == Isa::avx2;
+  const bool vector_rotation = k == 1 && !stretched && vector_isa;
   static_assert(sizeof(Eigen::Quaterniond) == 4 * sizeof(double), "R_l as x, y, z, w rows");
   double* quats = R_l && m > 0 ? R_l->data()->coeffs().data() : nullptr;
 
 #pragma omp parallel
   {
-    if (turn) {
+    if (turn && vector_isa) {  // by polynomials, four vertices per vector
+      constexpr Eigen::Index kBlock = 1024;
+#pragma omp for schedule(static)
+      for (Eigen::Index v = 0; v < n; v += kBlock)
+        detail::vertex_turns_avx2(Phi.data(), v, std::min(n, v + kBlock), third, turn);
+    } else if (turn) {
 #pragma omp for schedule(static)
       for (Eigen::Index v = 0; v < n; ++v) turn[v] = {std::cos(Phi(v, 0) * third), std::sin(Phi(v, 0) * third)};
     }

@@ -19,4 +19,11 @@ std::ptrdiff_t guidance_rotation_avx2(const int* F, const double* normals,
                                       std::ptrdiff_t l0, std::ptrdiff_t l1, double* g,
                                       double* R_xyzw);
 
+// turn[v] = (cos(φ_v · third), sin(φ_v · third)) for v0 ≤ v < v1, φ = phi[v]. Arguments
+// within ±kTurnPolyMax by polynomials (Taylor to x¹⁹ / x¹⁸: truncation below 1e-17,
+// a few ulp of rounding), the rest by std::cos / std::sin.
+inline constexpr double kTurnPolyMax = 1.1;  // > π/3: |φ θ/6| with φ ∈ [0, 1], θ ≤ 2π
+void vertex_turns_avx2(const double* phi, std::ptrdiff_t v0, std::ptrdiff_t v1, double third,
+                       std::complex<double>* turn);
+
 }  // namespace hdeform::detail

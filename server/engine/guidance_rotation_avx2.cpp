@@ -6,6 +6,8 @@
 
 #include <immintrin.h>
 
+#include <cmath>
+
 #if !defined(__AVX2__) || !defined(__FMA__)
 #error "guidance_rotation_avx2.cpp must be compiled with -mavx2 -mfma"
 #endif
@@ -108,6 +110,48 @@ std::ptrdiff_t guidance_rotation_avx2(const int* F, const double* normals,
     o[35] = last[3];
   }
   return l;
+}
+
+void vertex_turns_avx2(const double* phi, std::ptrdiff_t v0, std::ptrdiff_t v1, double third,
+                       std::complex<double>* turn) {
+  // sin x = x Σ (−1)^k x^2k / (2k+1)!, cos x = Σ (−1)^k x^2k / (2k)!, k = 0 … 9, in Horner
+  // form; the next terms are below 3e-18 for |x| ≤ 1.1.
+  constexpr int kTerms = 10;
+  double sc[kTerms], cc[kTerms];
+  double f = 1;  // k!
+  for (int k = 0; k < 2 * kTerms; ++k) {
+    if (k > 0) f *= k;
+    const double sign = (k / 2) % 2 ? -1.0 : 1.0;
+    if (k % 2 == 0)
+      cc[k / 2] = sign / f;
+    else
+      sc[k / 2] = sign / f;
+  }
+  const __m256d th = _mm256_set1_pd(third), lim = _mm256_set1_pd(kTurnPolyMax);
+  const __m256d abs_mask = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffff));
+  double* out = reinterpret_cast<double*>(turn);
+  std::ptrdiff_t v = v0;
+  for (; v + 4 <= v1; v += 4) {
+    const __m256d x = _mm256_mul_pd(_mm256_loadu_pd(phi + v), th);
+    // Outside the polynomials' range (or NaN): the four lanes the library way.
+    if (_mm256_movemask_pd(_mm256_cmp_pd(_mm256_and_pd(x, abs_mask), lim, _CMP_LE_OQ)) != 0xf) {
+      for (int t = 0; t < 4; ++t) turn[v + t] = {std::cos(phi[v + t] * third), std::sin(phi[v + t] * third)};
+      continue;
+    }
+    const __m256d u = _mm256_mul_pd(x, x);
+    __m256d s = _mm256_set1_pd(sc[kTerms - 1]), c = _mm256_set1_pd(cc[kTerms - 1]);
+    for (int k = kTerms - 2; k >= 0; --k) {
+      s = _mm256_fmadd_pd(s, u, _mm256_set1_pd(sc[k]));
+      c = _mm256_fmadd_pd(c, u, _mm256_set1_pd(cc[k]));
+    }
+    s = _mm256_mul_pd(s, x);
+    // (c, s) pairs of four vertices: 8 contiguous doubles.
+    const __m256d lo = _mm256_unpacklo_pd(c, s);  // c0 s0 c2 s2
+    const __m256d hi = _mm256_unpackhi_pd(c, s);  // c1 s1 c3 s3
+    _mm256_storeu_pd(out + 2 * v, _mm256_permute2f128_pd(lo, hi, 0x20));
+    _mm256_storeu_pd(out + 2 * v + 4, _mm256_permute2f128_pd(lo, hi, 0x31));
+  }
+  for (; v < v1; ++v) turn[v] = {std::cos(phi[v] * third), std::sin(phi[v] * third)};
 }
 
 }  // namespace hdeform::detail
