@@ -39,6 +39,23 @@ inline __m256d gather(const double* base, __m128i idx) {
                                   _mm256_castsi256_pd(_mm256_set1_epi64x(-1)), 8);
 }
 
+// sin x = x Σ (−1)^k x^2k / (2k+1)!, cos x = Σ (−1)^k x^2k / (2k)!, k = 0 … 9, in Horner
+// form; the next terms are below 3e-18 for |x| ≤ kTurnPolyMax.
+constexpr int kTerms = 10;
+struct Taylor {
+  double sin[kTerms], cos[kTerms];
+};
+constexpr Taylor kTaylor = [] {
+  Taylor t{};
+  double f = 1;  // k!
+  for (int k = 0; k < 2 * kTerms; ++k) {
+    if (k > 0) f *= k;
+    const double sign = (k / 2) % 2 ? -1.0 : 1.0;
+    (k % 2 ? t.sin : t.cos)[k / 2] = sign / f;
+  }
+  return t;
+}();
+
 }  // namespace
 
 std::ptrdiff_t guidance_rotation_avx2(const int* F, const double* normals,
@@ -114,19 +131,7 @@ std::ptrdiff_t guidance_rotation_avx2(const int* F, const double* normals,
 
 void vertex_turns_avx2(const double* phi, std::ptrdiff_t v0, std::ptrdiff_t v1, double third,
                        std::complex<double>* turn) {
-  // sin x = x Σ (−1)^k x^2k / (2k+1)!, cos x = Σ (−1)^k x^2k / (2k)!, k = 0 … 9, in Horner
-  // form; the next terms are below 3e-18 for |x| ≤ 1.1.
-  constexpr int kTerms = 10;
-  double sc[kTerms], cc[kTerms];
-  double f = 1;  // k!
-  for (int k = 0; k < 2 * kTerms; ++k) {
-    if (k > 0) f *= k;
-    const double sign = (k / 2) % 2 ? -1.0 : 1.0;
-    if (k % 2 == 0)
-      cc[k / 2] = sign / f;
-    else
-      sc[k / 2] = sign / f;
-  }
+  const auto& [sc, cc] = kTaylor;
   const __m256d th = _mm256_set1_pd(third), lim = _mm256_set1_pd(kTurnPolyMax);
   const __m256d abs_mask = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffff));
   double* out = reinterpret_cast<double*>(turn);

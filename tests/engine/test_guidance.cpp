@@ -1,7 +1,7 @@
 // guidance.h against SPEC.md §Harmonic guidance field written out the plain way (Eigen's
 // slerp per triangle, the quaternion average, g_l = Y_l M_lᵀ), on any Φ: the engine's one
 // sincos per vertex (a product of three per-vertex turns) is the same field to rounding.
-#include "cpu_features.h"
+#include "each_isa.h"
 #include "fixtures.h"
 #include "guidance.h"
 #include "guidance_rotation.h"
@@ -82,14 +82,7 @@ void expect_same_field(const PreparedMesh& pm, const Eigen::MatrixXd& Phi,
 
 // Each build of the kernels (cpu_features.h): one handle without stretch takes the AVX2 loop
 // (guidance_rotation.h) where the CPU has it, the scalar loop otherwise.
-class Guidance : public ::testing::TestWithParam<Isa> {
- protected:
-  void SetUp() override {
-    if (!set_kernel_isa(GetParam())) GTEST_SKIP() << "this CPU does not run these kernels";
-  }
-  void TearDown() override { set_kernel_isa(best_); }
-  const Isa best_ = kernel_isa();
-};
+class Guidance : public test::OnEachIsa {};
 
 TEST_P(Guidance, OneHandleIsThePerTriangleSlerp) {
   const test::Benchmark b = test::load_benchmark("cactus");
@@ -189,10 +182,7 @@ TEST(GuidanceTurns, PolynomialsMatchTheLibrary) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Isa, Guidance, ::testing::Values(Isa::generic, Isa::avx2),
-                         [](const ::testing::TestParamInfo<Isa>& info) {
-                           return std::string(isa_name(info.param));
-                         });
+INSTANTIATE_TEST_SUITE_P(Isa, Guidance, test::kEachIsa, test::isa_param_name);
 
 }  // namespace
 }  // namespace hdeform

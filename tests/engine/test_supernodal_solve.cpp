@@ -4,7 +4,7 @@
 #include "fixtures.h"
 #include "solver.h"
 #include "supernodal_solve.h"
-#include "cpu_features.h"
+#include "each_isa.h"
 
 #include <gtest/gtest.h>
 
@@ -366,14 +366,7 @@ TEST(SupernodalSweep, DefaultIsTheBestSupported) {
   EXPECT_TRUE(isa_supported(Isa::generic));
 }
 
-class SolveOnEachIsa : public ::testing::TestWithParam<Isa> {
- protected:
-  void SetUp() override {
-    if (!set_kernel_isa(GetParam())) GTEST_SKIP() << "this CPU does not run these kernels";
-  }
-  void TearDown() override { set_kernel_isa(best_); }
-  const Isa best_ = kernel_isa();
-};
+class SolveOnEachIsa : public test::OnEachIsa {};
 
 TEST_P(SolveOnEachIsa, MatchesCholmod) {
   SupernodalWorkspace ws;
@@ -398,11 +391,7 @@ TEST_P(SolveOnEachIsa, AgreesWithTheOtherBuild) {
   EXPECT_FALSE(same_bits(X, Y)) << "the two builds ran the same code";
 }
 
-INSTANTIATE_TEST_SUITE_P(Isa, SolveOnEachIsa,
-                         ::testing::Values(Isa::generic, Isa::avx2),
-                         [](const ::testing::TestParamInfo<Isa>& info) {
-                           return std::string(isa_name(info.param));
-                         });
+INSTANTIATE_TEST_SUITE_P(Isa, SolveOnEachIsa, test::kEachIsa, test::isa_param_name);
 
 }  // namespace
 }  // namespace hdeform
