@@ -555,9 +555,10 @@ void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta
   System& s = system(c, beta);
   const HandleTransform t = move(c, 0);
   GuidanceField g;
-  std::vector<Eigen::Quaterniond> R_l;
+  std::vector<Eigen::Quaterniond> R_l;  // guidance_per_triangle's
+  Vertices Rn;
   GuidanceScratch scratch;
-  c.cs->guidance(std::span(&t, 1), g, &R_l, scratch);
+  c.cs->guidance(std::span(&t, 1), g, &Rn, scratch);
   const Frame frame = c.cs->update(std::span(&t, 1), Beta{beta}, {false, false});
   Eigen::MatrixX3d x_C(static_cast<Eigen::Index>(c.constrained.size()), 3);
   for (std::size_t r = 0; r < c.constrained.size(); ++r)
@@ -576,7 +577,7 @@ void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta
   for (auto _ : state) {
     switch (phase) {
       case Phase::guidance:
-        c.cs->guidance(std::span(&t, 1), g, &R_l, scratch);
+        c.cs->guidance(std::span(&t, 1), g, &Rn, scratch);
         benchmark::DoNotOptimize(g.data());
         break;
       case Phase::guidance_no_R:
@@ -596,7 +597,7 @@ void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta
       }
       case Phase::measures:
       case Phase::measures_ef2: {
-        Measures m = measure(*c.pm, frame.positions, g, R_l,
+        Measures m = measure(*c.pm, frame.positions, g, Rn,
                              phase == Phase::measures_ef2 ? &ef2 : nullptr);
         benchmark::DoNotOptimize(m);
         break;
@@ -640,7 +641,7 @@ void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta
   size_counters(state, c);
   if (phase == Phase::guidance) {  // the same field as one sincos per triangle, to rounding
     guidance_per_triangle(c.pm->mesh().F, c.pm->normals(), c.cs->harmonic_basis(), t, g_row, R_l);
-    c.cs->guidance(std::span(&t, 1), g, &R_l, scratch);
+    c.cs->guidance(std::span(&t, 1), g, &Rn, scratch);
     state.counters["diff_vs_per_triangle"] = (RowMajorX3(g) - g_row).cwiseAbs().maxCoeff();
   }
   // The kernels against Eigen's products: 0 (bit-identical sums, sparse_times3.h).

@@ -552,9 +552,8 @@ std::shared_ptr<const BetaSystem> ConstraintSet::local_system(const LocalBeta& f
 void ConstraintSet::prepare(Beta beta) const { system(mesh_->raw_beta(beta)); }
 
 void ConstraintSet::guidance(std::span<const HandleTransform> transforms, GuidanceField& g,
-                             std::vector<Eigen::Quaterniond>* R_l,
-                             GuidanceScratch& scratch) const {
-  guidance_field(mesh_->mesh().F, mesh_->normals(), basis_, transforms, g, R_l, scratch);
+                             Vertices* Rn, GuidanceScratch& scratch) const {
+  guidance_field(mesh_->mesh().F, mesh_->normals(), basis_, transforms, g, Rn, scratch);
 }
 
 void ConstraintSet::check(std::span<const HandleTransform> transforms) const {
@@ -630,7 +629,7 @@ void ConstraintSet::solve(const std::shared_ptr<const BetaSystem>& system,
                           const UpdateOptions& options, UpdateWorkspace& ws, Frame& out) const {
   const BetaSystem& sys = *system;
   const bool with_measures = options.measures || options.energies;
-  guidance(transforms, ws.g, with_measures ? &ws.R_l : nullptr, ws.guidance_scratch);
+  guidance(transforms, ws.g, with_measures ? &ws.Rn : nullptr, ws.guidance_scratch);
 
   const Vertices& X = mesh_->mesh().V;
   const auto nF = static_cast<Eigen::Index>(free_.size());
@@ -694,7 +693,7 @@ void ConstraintSet::solve(const std::shared_ptr<const BetaSystem>& system,
   out.has_measures = with_measures;
   if (out.has_measures) {
     // The measures' pass also leaves the normals' face weights: one pass over the triangles.
-    out.measures = measure(*mesh_, out.positions, ws.g, ws.R_l,
+    out.measures = measure(*mesh_, out.positions, ws.g, ws.Rn,
                            options.energies ? &out.energies : nullptr,
                            options.normals ? &ws.face_w : nullptr);
   } else {
@@ -750,9 +749,9 @@ void ConstraintSet::drag_solve(const std::shared_ptr<const BetaSystem>& system,
 }
 
 std::size_t UpdateWorkspace::memory_bytes() const {
-  const auto doubles = g.size() + x_C.size() + rhs.size() + x_F.size() + residual.size() +
-                       correction.size() + face_w.size();
-  return static_cast<std::size_t>(doubles) * sizeof(double) + R_l.capacity() * sizeof(R_l[0]) +
+  const auto doubles = g.size() + Rn.size() + x_C.size() + rhs.size() + x_F.size() +
+                       residual.size() + correction.size() + face_w.size();
+  return static_cast<std::size_t>(doubles) * sizeof(double) +
          guidance_scratch.turn.capacity() * sizeof(guidance_scratch.turn[0]);
 }
 

@@ -165,7 +165,7 @@ class UpdateWorkspace {
  private:
   friend class ConstraintSet;
   GuidanceField g;
-  std::vector<Eigen::Quaterniond> R_l;  // filled only for frames with measures
+  Vertices Rn;  // R_l n_l per triangle: filled only for frames with measures
   GuidanceScratch guidance_scratch;
   std::vector<Eigen::Matrix3d> handle_M;  // per handle: M_j = R_j S_j and the pivot p_j
   std::vector<Eigen::Vector3d> handle_p;
@@ -230,10 +230,10 @@ class ConstraintSet {
                     const UpdateOptions& options, UpdateWorkspace& ws, Frame& out) const;
   static constexpr std::size_t kMaxCachedFields = 4;
 
-  // Guidance per triangle (SPEC §Harmonic guidance field): g (3m×3) and R_l.
-  // `R_l` may be null (only the measures read it); `scratch` is reused across calls.
-  void guidance(std::span<const HandleTransform> transforms, GuidanceField& g,
-                std::vector<Eigen::Quaterniond>* R_l, GuidanceScratch& scratch) const;
+  // Guidance per triangle (SPEC §Harmonic guidance field): g (3m×3) and R_l n_l (m×3).
+  // `Rn` may be null (only the measures read it); `scratch` is reused across calls.
+  void guidance(std::span<const HandleTransform> transforms, GuidanceField& g, Vertices* Rn,
+                GuidanceScratch& scratch) const;
 
   std::size_t memory_bytes() const;
   std::size_t num_cached_factorizations() const;

@@ -11,13 +11,13 @@
 namespace hdeform {
 
 void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::MatrixXd& Phi,
-                    std::span<const HandleTransform> transforms, GuidanceField& g,
-                    std::vector<Eigen::Quaterniond>* R_l, GuidanceScratch& scratch) {
+                    std::span<const HandleTransform> transforms, GuidanceField& g, Vertices* Rn,
+                    GuidanceScratch& scratch) {
   const Eigen::Index m = F.rows();
   const Eigen::Index n = Phi.rows();
   const int k = static_cast<int>(transforms.size());
   g.resize(3 * m, 3);
-  if (R_l) R_l->resize(static_cast<std::size_t>(m));
+  if (Rn) Rn->resize(m, 3);
 
   std::vector<Eigen::Quaterniond> q(static_cast<std::size_t>(k));
   for (int j = 0; j < k; ++j) {
@@ -44,7 +44,7 @@ void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::Ma
   }
   const double third = half_angle / 3.0;
 
-  // g_l and R_l of triangle l, the scalar way (any number of handles, stretch or not).
+  // g_l and R_l n_l of triangle l, the scalar way (any number of handles, stretch or not).
   auto triangle = [&](Eigen::Index l) {
     Eigen::Quaterniond R;
     Eigen::Matrix3d S;
@@ -75,11 +75,11 @@ void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::Ma
       S += rest * I;
       R.coeffs() = qc.normalized();
     }
-    if (R_l) (*R_l)[l] = R;
-    const Eigen::Matrix3d M = stretched || k != 1 ? Eigen::Matrix3d(R.toRotationMatrix() * S)
-                                                  : R.toRotationMatrix();
+    const Eigen::Matrix3d Rm = R.toRotationMatrix();
+    const Eigen::Matrix3d M = stretched || k != 1 ? Eigen::Matrix3d(Rm * S) : Rm;
     const Eigen::Vector3d nl = normals.row(l).transpose();
     const Eigen::Vector3d Mn = M * nl;
+    if (Rn) Rn->row(l) = (stretched || k != 1 ? Eigen::Vector3d(Rm * nl) : Mn).transpose();
     // g_l = Y_l Mᵀ with Y_l = I − n nᵀ (the rest gradient block, SPEC's check), written out
     // into g's row-major storage: Phase/100000/guidance 2.58 -> 2.42 ms against Eigen's
     // `g.middleRows<3>(3l) = Mᵀ − n (M n)ᵀ` (same run, interleaved).
@@ -91,8 +91,7 @@ void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::Ma
   // (guidance_rotation.h); each thread then does the few left of its own chunk.
   const bool vector_isa = kernel_isa() == Isa::avx2;
   const bool vector_rotation = k == 1 && !stretched && vector_isa;
-  static_assert(sizeof(Eigen::Quaterniond) == 4 * sizeof(double), "R_l as x, y, z, w rows");
-  double* quats = R_l && m > 0 ? R_l->data()->coeffs().data() : nullptr;
+  double* rn = Rn ? Rn->data() : nullptr;
 
 #pragma omp parallel
   {
@@ -110,7 +109,7 @@ void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::Ma
       const Eigen::Index chunk = ((m + threads - 1) / threads + 3) & ~Eigen::Index{3};
       const Eigen::Index begin = std::min(m, t * chunk), end = std::min(m, begin + chunk);
       Eigen::Index l = detail::guidance_rotation_avx2(F.data(), normals.data(), turn,
-                                                      axis.data(), begin, end, g.data(), quats);
+                                                      axis.data(), begin, end, g.data(), rn);
       for (; l < end; ++l) triangle(l);
     } else {
 #pragma omp for schedule(static)

@@ -22,10 +22,11 @@ struct GuidanceScratch {
 // One handle: R_l = slerp(I, R₁, h_l), S_l = (1 − h_l) I + h_l S₁, h_l the mean of Φ over
 // triangle l. Several: the per-vertex quaternion field (q_j flipped to w ≥ 0, identity on
 // F₀) averaged per triangle and normalized; S entries blended the same way.
-// Output: g (3m × 3), block l = rows 3l..3l+2; R_l per triangle unless `R_l` is null
-// (only the measures read it).
+// Output: g (3m × 3), block l = rows 3l..3l+2; and, unless `Rn` is null, R_l n_l per
+// triangle (m × 3, row l): the rest normal turned by the guidance rotation, the one thing of
+// R_l the measures read (their flip test, SPEC §Measures).
 void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::MatrixXd& Phi,
-                    std::span<const HandleTransform> transforms, GuidanceField& g,
-                    std::vector<Eigen::Quaterniond>* R_l, GuidanceScratch& scratch);
+                    std::span<const HandleTransform> transforms, GuidanceField& g, Vertices* Rn,
+                    GuidanceScratch& scratch);
 
 }  // namespace hdeform

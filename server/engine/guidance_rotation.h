@@ -12,12 +12,12 @@ namespace hdeform::detail {
 // For triangles l0 ≤ l < l1 in blocks of four, R_l the rotation of the unit quaternion
 // (w, s·axis) with w + i s = turn[F0] · turn[F1] · turn[F2] (F row-major m × 3):
 //   g + 9l ← (I − n nᵀ) R_lᵀ as 3 × 3 row-major (n = normals + 3l, row-major m × 3),
-//   R_xyzw + 4l ← (s·axis, w) when R_xyzw is not null (Eigen's quaternion coefficients).
+//   Rn + 3l ← R_l n as 3 doubles when Rn is not null (row-major m × 3).
 // Returns the first triangle not done (l1 − (l1 − l0) mod 4); the caller does the rest.
 std::ptrdiff_t guidance_rotation_avx2(const int* F, const double* normals,
                                       const std::complex<double>* turn, const double axis[3],
                                       std::ptrdiff_t l0, std::ptrdiff_t l1, double* g,
-                                      double* R_xyzw);
+                                      double* Rn);
 
 // turn[v] = (cos(φ_v · third), sin(φ_v · third)) for v0 ≤ v < v1, φ = phi[v]. Arguments
 // within ±kTurnPolyMax by polynomials (Taylor to x¹⁹ / x¹⁸: truncation below 1e-17,

@@ -29,6 +29,16 @@ inline void transpose_store(__m256d r0, __m256d r1, __m256d r2, __m256d r3, doub
   _mm256_storeu_pd(o3, _mm256_permute2f128_pd(b, d, 0x31));
 }
 
+// Lanes of r0, r1, r2 → 12 contiguous doubles, lane t at out[3t..3t+2] (rows of an m × 3).
+inline void store_rows3(__m256d r0, __m256d r1, __m256d r2, double* out) {
+  alignas(32) double c[3][4];
+  _mm256_store_pd(c[0], r0);
+  _mm256_store_pd(c[1], r1);
+  _mm256_store_pd(c[2], r2);
+  for (int t = 0; t < 4; ++t)
+    for (int d = 0; d < 3; ++d) out[3 * t + d] = c[d][t];
+}
+
 // Gathers with a defined pass-through (the plain intrinsics start from an undefined vector,
 // which GCC 12's -Wmaybe-uninitialized reports).
 inline __m128i gather_int(const int* base, __m128i idx) {
@@ -61,7 +71,7 @@ constexpr Taylor kTaylor = [] {
 std::ptrdiff_t guidance_rotation_avx2(const int* F, const double* normals,
                                       const std::complex<double>* turn, const double axis[3],
                                       std::ptrdiff_t l0, std::ptrdiff_t l1, double* g,
-                                      double* R_xyzw) {
+                                      double* Rn) {
   const double* T = reinterpret_cast<const double*>(turn);  // re, im interleaved
   const __m256d k0 = _mm256_set1_pd(axis[0]), k1 = _mm256_set1_pd(axis[1]),
                 k2 = _mm256_set1_pd(axis[2]);
@@ -82,8 +92,6 @@ std::ptrdiff_t guidance_rotation_avx2(const int* F, const double* normals,
     const __m256d w = _mm256_sub_pd(_mm256_mul_pd(re, cr), _mm256_mul_pd(im, ci));
     const __m256d s = _mm256_add_pd(_mm256_mul_pd(re, ci), _mm256_mul_pd(im, cr));
     const __m256d x = _mm256_mul_pd(s, k0), y = _mm256_mul_pd(s, k1), z = _mm256_mul_pd(s, k2);
-    if (R_xyzw) transpose_store(x, y, z, w, R_xyzw + 4 * l, R_xyzw + 4 * l + 4,
-                                R_xyzw + 4 * l + 8, R_xyzw + 4 * l + 12);
     // Eigen's QuaternionBase::toRotationMatrix.
     const __m256d tx = _mm256_add_pd(x, x), ty = _mm256_add_pd(y, y), tz = _mm256_add_pd(z, z);
     const __m256d twx = _mm256_mul_pd(tx, w), twy = _mm256_mul_pd(ty, w),
@@ -109,6 +117,7 @@ std::ptrdiff_t guidance_rotation_avx2(const int* F, const double* normals,
     const __m256d m0 = _mm256_fmadd_pd(R02, n2, _mm256_fmadd_pd(R01, n1, _mm256_mul_pd(R00, n0)));
     const __m256d m1 = _mm256_fmadd_pd(R12, n2, _mm256_fmadd_pd(R11, n1, _mm256_mul_pd(R10, n0)));
     const __m256d m2 = _mm256_fmadd_pd(R22, n2, _mm256_fmadd_pd(R21, n1, _mm256_mul_pd(R20, n0)));
+    if (Rn) store_rows3(m0, m1, m2, Rn + 3 * l);
     // g_l[r][c] = R(c, r) − n_r (R n)_c
     const __m256d g0 = _mm256_fnmadd_pd(n0, m0, R00), g1 = _mm256_fnmadd_pd(n0, m1, R10),
                   g2 = _mm256_fnmadd_pd(n0, m2, R20);

@@ -22,11 +22,13 @@ struct Measures {
 
 class PreparedMesh;
 
-// Measures of deformed positions X' against guidance g (3m×3, block l = g_l) with the
-// per-triangle guidance rotations R_l. `ef2` (optional) receives ‖r_l‖²_F per triangle;
-// `face_w` (optional, m×3) the deformed (x₁ − x₀) × (x₂ − x₀), the vertex normals' weights.
+// Measures of deformed positions X' against guidance g (3m×3, block l = g_l) with Rn the
+// rest normals turned by the guidance rotations (m×3, row l = R_l n_l; guidance_field
+// writes it). `ef2` (optional) receives ‖r_l‖²_F per triangle; `face_w` (optional, m×3)
+// the deformed (x₁ − x₀) × (x₂ − x₀), the vertex normals' weights. With AVX2 (cpu_features.h)
+// four triangles at a time (measure_triangles.h): the same terms, summed in another order.
 Measures measure(const PreparedMesh& pm, const Vertices& X_deformed,
-                 const GuidanceField& g, const std::vector<Eigen::Quaterniond>& R_l,
+                 const GuidanceField& g, const Vertices& Rn,
                  Eigen::VectorXf* ef2 = nullptr, Vertices* face_w = nullptr);
 
 }  // namespace hdeform
