@@ -507,6 +507,7 @@ enum class Phase {
   // Candidate improvements, measured on the same data (not used by the engine):
   guidance_no_R,          // the engine's guidance without R_l (drag frames: no measures)
   guidance_no_R_generic,  // the same with the baseline build of the kernels (cpu_features.h)
+  measures_generic,       // measures with the baseline build
   guidance_per_triangle,  // one sincos per triangle (the engine before 2026-12-03)
   // Eigen's products against the engine's sparse_times3.h kernels, on the same data:
   rhs_fused,        // (GᵀW)_F g − K_FC x_C with sparse_times3 (what update() runs)
@@ -573,7 +574,8 @@ void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta
   Eigen::MatrixXd x_F = rhs;    // any n_F × 3 positions will do for a residual
   for (Eigen::Index i = 0; i < x_F.rows(); ++i) x_F.row(i) *= 1e-3 * static_cast<double>(i % 97);
   const Isa isa = kernel_isa();
-  if (phase == Phase::guidance_no_R_generic) set_kernel_isa(Isa::generic);
+  if (phase == Phase::guidance_no_R_generic || phase == Phase::measures_generic)
+    set_kernel_isa(Isa::generic);
   for (auto _ : state) {
     switch (phase) {
       case Phase::guidance:
@@ -596,6 +598,7 @@ void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta
         break;
       }
       case Phase::measures:
+      case Phase::measures_generic:
       case Phase::measures_ef2: {
         Measures m = measure(*c.pm, frame.positions, g, Rn,
                              phase == Phase::measures_ef2 ? &ef2 : nullptr);
@@ -830,6 +833,7 @@ void register_size(int n) {
   }
   reg("Phase" + N + "/guidance", fast, BM_Phase, key, Phase::guidance, 0.0);
   reg("Phase" + N + "/measures", fast, BM_Phase, key, Phase::measures, 0.0);
+  reg("Phase" + N + "/measures_generic", fast, BM_Phase, key, Phase::measures_generic, 0.0);
   reg("Phase" + N + "/measures+ef2", fast, BM_Phase, key, Phase::measures_ef2, 0.0);
   reg("Phase" + N + "/normals", fast, BM_Phase, key, Phase::normals, 0.0);
   reg("Phase" + N + "/normals_gather", fast, BM_Phase, key, Phase::normals_gather, 0.0);

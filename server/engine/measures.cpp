@@ -13,43 +13,47 @@ namespace hdeform {
 
 namespace {
 
-// Triangle l's terms, the scalar way (the generic build and the few triangles left of a
-// thread's blocks of four).
-void measure_triangle(const PreparedMesh& pm, const Vertices& X, const GuidanceField& g,
-                      const Vertices& Rn, Eigen::Index l, Eigen::VectorXf* ef2,
-                      Vertices* face_w, detail::MeasureSums& s) {
+// Triangles l0 ≤ l < l1 the scalar way (the generic build, and the few triangles left of a
+// thread's blocks of four), added to `sums`.
+void measure_triangles(const PreparedMesh& pm, const Vertices& X, const GuidanceField& g,
+                       const Vertices& Rn, Eigen::Index l0, Eigen::Index l1,
+                       Eigen::VectorXf* ef2, Vertices* face_w, detail::MeasureSums& sums) {
   const Triangles& F = pm.mesh().F;
-  const double a = pm.areas()[l];
   const TriangleGradients& grads = pm.gradients();
-  // Y'_l = Σ_i ∇φ_i x'_iᵀ, block l of G X' without forming G X'.
-  const Eigen::Vector3d x0 = X.row(F(l, 0)).transpose();
-  const Eigen::Vector3d x1 = X.row(F(l, 1)).transpose();
-  const Eigen::Vector3d x2 = X.row(F(l, 2)).transpose();
-  const Eigen::Matrix3d Yl = grads.row(l).segment<3>(0).transpose() * x0.transpose() +
-                             grads.row(l).segment<3>(3).transpose() * x1.transpose() +
-                             grads.row(l).segment<3>(6).transpose() * x2.transpose();
-  const double r2 = (Yl - g.middleRows<3>(3 * l)).squaredNorm();
-  s.E += a * r2;
-  s.max_ef2 = std::max(s.max_ef2, r2);
-  if (ef2) (*ef2)[l] = static_cast<float>(r2);
+  detail::MeasureSums s = sums;  // a local copy the compiler keeps in registers
+  for (Eigen::Index l = l0; l < l1; ++l) {
+    const double a = pm.areas()[l];
+    // Y'_l = Σ_i ∇φ_i x'_iᵀ, block l of G X' without forming G X'.
+    const Eigen::Vector3d x0 = X.row(F(l, 0)).transpose();
+    const Eigen::Vector3d x1 = X.row(F(l, 1)).transpose();
+    const Eigen::Vector3d x2 = X.row(F(l, 2)).transpose();
+    const Eigen::Matrix3d Yl = grads.row(l).segment<3>(0).transpose() * x0.transpose() +
+                               grads.row(l).segment<3>(3).transpose() * x1.transpose() +
+                               grads.row(l).segment<3>(6).transpose() * x2.transpose();
+    const double r2 = (Yl - g.middleRows<3>(3 * l)).squaredNorm();
+    s.E += a * r2;
+    s.max_ef2 = std::max(s.max_ef2, r2);
+    if (ef2) (*ef2)[l] = static_cast<float>(r2);
 
-  const Eigen::Vector3d c = (x1 - x0).cross(x2 - x0);
-  if (face_w) face_w->row(l) = c.transpose();
-  const double a_def = 0.5 * c.norm();
-  s.area_deformed += a_def;
+    const Eigen::Vector3d c = (x1 - x0).cross(x2 - x0);
+    if (face_w) face_w->row(l) = c.transpose();
+    const double a_def = 0.5 * c.norm();
+    s.area_deformed += a_def;
 
-  // Y'_l has rank 2: σ₁² + σ₂² = ‖Y'_l‖²_F and σ₁σ₂ = a'_l / a_l (area ratio).
-  const double sum_sq = Yl.squaredNorm();
-  const double prod = a_def / a;
-  const double sum = std::sqrt(std::max(0.0, sum_sq + 2 * prod));
-  const double e_iso = sum_sq - 2 * sum + 2;                    // (σ₁−1)² + (σ₂−1)²
-  const double e_conf = 0.5 * std::max(0.0, sum_sq - 2 * prod);  // ½(σ₁−σ₂)²
-  s.iso += a * e_iso;
-  s.conf += a * e_conf;
-  s.max_iso = std::max(s.max_iso, e_iso);
-  s.max_conf = std::max(s.max_conf, e_conf);
+    // Y'_l has rank 2: σ₁² + σ₂² = ‖Y'_l‖²_F and σ₁σ₂ = a'_l / a_l (area ratio).
+    const double sum_sq = Yl.squaredNorm();
+    const double prod = a_def / a;
+    const double sum = std::sqrt(std::max(0.0, sum_sq + 2 * prod));
+    const double e_iso = sum_sq - 2 * sum + 2;                    // (σ₁−1)² + (σ₂−1)²
+    const double e_conf = 0.5 * std::max(0.0, sum_sq - 2 * prod);  // ½(σ₁−σ₂)²
+    s.iso += a * e_iso;
+    s.conf += a * e_conf;
+    s.max_iso = std::max(s.max_iso, e_iso);
+    s.max_conf = std::max(s.max_conf, e_conf);
 
-  if (c.dot(Rn.row(l).transpose()) < 0) ++s.flips;
+    if (c.dot(Rn.row(l).transpose()) < 0) ++s.flips;
+  }
+  sums = s;
 }
 
 }  // namespace
@@ -81,7 +85,7 @@ Measures measure(const PreparedMesh& pm, const Vertices& X, const GuidanceField&
                                          pm.areas().data(), Rn.data(), begin, end,
                                          ef2 ? ef2->data() : nullptr,
                                          face_w ? face_w->data() : nullptr, s);
-    for (; l < end; ++l) measure_triangle(pm, X, g, Rn, l, ef2, face_w, s);
+    measure_triangles(pm, X, g, Rn, l, end, ef2, face_w, s);
   }
   detail::MeasureSums sum;
   for (int t = 0; t < threads; ++t) {
