@@ -1,6 +1,11 @@
 #include "vertex_normals.h"
 
+#include "cpu_features.h"
+#include "vertex_normals_kernels.h"
+
 #include <Eigen/Geometry>
+
+#include <algorithm>
 
 namespace hdeform {
 
@@ -30,6 +35,26 @@ inline void gather(const VertexTriangles& vt, const Vertices& face_w, Eigen::Ind
   N.row(v) = s;
 }
 
+// Both passes in blocks: the AVX2 kernels (vertex_normals_kernels.h) or the scalar loops.
+constexpr Eigen::Index kBlock = 1024;
+
+void face_weights(const Vertices& X, const Triangles& F, Eigen::Index t0, Eigen::Index t1,
+                  Vertices& face_w, bool vector_isa) {
+  if (vector_isa) return detail::face_weights_avx2(F.data(), X.data(), t0, t1, face_w.data());
+  for (Eigen::Index t = t0; t < t1; ++t) {
+    const Eigen::RowVector3d a = X.row(F(t, 0)), b = X.row(F(t, 1)), c = X.row(F(t, 2));
+    face_w.row(t) = (b - a).cross(c - a);  // |w| = 2 · area: area weighting
+  }
+}
+
+void gather_block(const VertexTriangles& vt, const Vertices& face_w, Eigen::Index v0,
+                  Eigen::Index v1, Vertices& N, bool vector_isa) {
+  if (vector_isa)
+    return detail::gather_normals_avx2(vt.offsets.data(), vt.triangles.data(), face_w.data(),
+                                       v0, v1, N.data());
+  for (Eigen::Index v = v0; v < v1; ++v) gather(vt, face_w, v, N);
+}
+
 }  // namespace
 
 void vertex_normals(const Vertices& X, const Triangles& F, const VertexTriangles& vt,
@@ -37,23 +62,25 @@ void vertex_normals(const Vertices& X, const Triangles& F, const VertexTriangles
   const Eigen::Index m = F.rows(), n = X.rows();
   face_w.resize(m, 3);
   N.resize(n, 3);
+  const bool vector_isa = kernel_isa() == Isa::avx2;
 #pragma omp parallel
   {
 #pragma omp for schedule(static)
-    for (Eigen::Index t = 0; t < m; ++t) {
-      const Eigen::RowVector3d a = X.row(F(t, 0)), b = X.row(F(t, 1)), c = X.row(F(t, 2));
-      face_w.row(t) = (b - a).cross(c - a);  // |w| = 2 · area: area weighting
-    }
+    for (Eigen::Index t = 0; t < m; t += kBlock)
+      face_weights(X, F, t, std::min(m, t + kBlock), face_w, vector_isa);
 #pragma omp for schedule(static)
-    for (Eigen::Index v = 0; v < n; ++v) gather(vt, face_w, v, N);
+    for (Eigen::Index v = 0; v < n; v += kBlock)
+      gather_block(vt, face_w, v, std::min(n, v + kBlock), N, vector_isa);
   }
 }
 
 void vertex_normals_from_faces(const VertexTriangles& vt, const Vertices& face_w, Vertices& N) {
   const auto n = static_cast<Eigen::Index>(vt.offsets.size()) - 1;
   N.resize(n, 3);
+  const bool vector_isa = kernel_isa() == Isa::avx2;
 #pragma omp parallel for schedule(static)
-  for (Eigen::Index v = 0; v < n; ++v) gather(vt, face_w, v, N);
+  for (Eigen::Index v = 0; v < n; v += kBlock)
+    gather_block(vt, face_w, v, std::min(n, v + kBlock), N, vector_isa);
 }
 
 }  // namespace hdeform

@@ -2,6 +2,7 @@
 // (item 4): drag frames stay within kDragTolerance × bbox diagonal of the exact solve over
 // whole drags (cold start, warm start, a jump), flags say what a frame is, and a workspace
 // reused across moves allocates nothing and changes no bit of an exact frame.
+#include "each_isa.h"
 #include "fixtures.h"
 #include "procedural.h"
 
@@ -183,8 +184,11 @@ TEST(UpdateWorkspace, MovesReuseTheirBuffersAndGiveTheSameBits) {
   }
 }
 
-// The gathering, parallel vertex normals give the same bits as mesh_io's serial scatter.
-TEST(VertexNormals, GatherEqualsTheSerialScatterBitwise) {
+// The gathering, parallel vertex normals give the same bits as mesh_io's serial scatter, in
+// each build of the kernels (vertex_normals_kernels.h).
+class VertexNormals : public test::OnEachIsa {};
+
+TEST_P(VertexNormals, GatherEqualsTheSerialScatterBitwise) {
   for (const char* model : {"bar", "cactus", "cylinder", "plane"}) {
     const auto b = test::load_benchmark(model);
     const ConstraintSet cs(b.mesh, b.constraints);
@@ -209,6 +213,8 @@ TEST(VertexNormals, GatherEqualsTheSerialScatterBitwise) {
   EXPECT_TRUE(N == vertex_normals(V, F));
   EXPECT_EQ(N.row(3).norm(), 0.0);
 }
+
+INSTANTIATE_TEST_SUITE_P(Isa, VertexNormals, test::kEachIsa, test::isa_param_name);
 
 }  // namespace
 }  // namespace hdeform
