@@ -1,5 +1,7 @@
 #include "deformer.h"
 
+#include "two_threads.h"
+
 #include "guidance.h"
 #include "harmonic.h"
 #include "mesh_io.h"
@@ -8,6 +10,7 @@
 #include "solver.h"
 #include "sparse_times3.h"
 #include "system_blocks.h"
+#include "two_threads.h"
 #include "validate.h"
 #include "vertex_ordering.h"
 #include "vertex_normals.h"
@@ -113,15 +116,21 @@ double add_and_measure(const Eigen::MatrixXd& dx, Eigen::MatrixXd& x) {
   const Eigen::Index size = x.size();
   const double* d = dx.data();
   double* y = x.data();
-  double step = 0;
-  bool finite = true;
-#pragma omp parallel for schedule(static) reduction(max : step) reduction(&& : finite)
-  for (Eigen::Index k = 0; k < size; ++k) {
-    y[k] += d[k];
-    step = std::max(step, std::abs(d[k]));
-    finite = finite && !std::isnan(d[k]);
-  }
-  return finite ? step : std::numeric_limits<double>::quiet_NaN();
+  double step[2] = {0, 0};
+  bool finite[2] = {true, true};
+  two_halves(size, [&](Eigen::Index k0, Eigen::Index k1, int part) {
+    double s = 0;
+    bool f = true;
+    for (Eigen::Index k = k0; k < k1; ++k) {
+      y[k] += d[k];
+      s = std::max(s, std::abs(d[k]));
+      f = f && !std::isnan(d[k]);
+    }
+    step[part] = s;
+    finite[part] = f;
+  });
+  return finite[0] && finite[1] ? std::max(step[0], step[1])
+                                : std::numeric_limits<double>::quiet_NaN();
 }
 
 std::string fmt_result_error(int handle, const HandleTransform& t) {
@@ -645,15 +654,16 @@ void ConstraintSet::solve(const std::shared_ptr<const BetaSystem>& system,
     M[j] = transforms[j].linear();
     p[j] = transforms[j].pivot.value_or(centroids_[j]);
   }
-#pragma omp parallel for schedule(static)
-  for (Eigen::Index i = 0; i < nC; ++i) {
-    const int v = constrained_[i], j = region_of_[v] - 1;
-    const Eigen::Vector3d x = X.row(v).transpose();
-    if (j < 0)
-      ws.x_C.row(i) = x.transpose();
-    else
-      ws.x_C.row(i) = (p[j] + M[j] * (x - p[j]) + transforms[j].translation).transpose();
-  }
+  two_halves(nC, [&](Eigen::Index i0, Eigen::Index i1, int) {
+    for (Eigen::Index i = i0; i < i1; ++i) {
+      const int v = constrained_[i], j = region_of_[v] - 1;
+      const Eigen::Vector3d x = X.row(v).transpose();
+      if (j < 0)
+        ws.x_C.row(i) = x.transpose();
+      else
+        ws.x_C.row(i) = (p[j] + M[j] * (x - p[j]) + transforms[j].translation).transpose();
+    }
+  });
 
   out.positions.resize(X.rows(), 3);
   out.solves = 0;
@@ -670,22 +680,27 @@ void ConstraintSet::solve(const std::shared_ptr<const BetaSystem>& system,
     ws.warm_system = system;
   }
   // Scatter into vertex order and check the result in the same pass (both cores).
-  double reach = 0;  // max |coordinate|; NaN never compares above it: counted apart
-  bool finite = true;
-#pragma omp parallel for schedule(static) reduction(max : reach) reduction(&& : finite)
-  for (Eigen::Index i = 0; i < nF + nC; ++i) {
-    const bool is_free = i < nF;
-    const Eigen::Index r = is_free ? i : i - nF;
-    const int v = is_free ? free_[r] : constrained_[r];
-    const Eigen::MatrixXd& from = is_free ? ws.x_F : ws.x_C;
-    for (int d = 0; d < 3; ++d) {
-      const double x = from(r, d);
-      out.positions(v, d) = x;
-      finite = finite && std::isfinite(x);
-      reach = std::max(reach, std::abs(x));
+  double reach[2] = {0, 0};  // max |coordinate|; NaN never compares above it: counted apart
+  bool finite[2] = {true, true};
+  two_halves(nF + nC, [&](Eigen::Index i0, Eigen::Index i1, int part) {
+    double far = 0;
+    bool f = true;
+    for (Eigen::Index i = i0; i < i1; ++i) {
+      const bool is_free = i < nF;
+      const Eigen::Index r = is_free ? i : i - nF;
+      const int v = is_free ? free_[r] : constrained_[r];
+      const Eigen::MatrixXd& from = is_free ? ws.x_F : ws.x_C;
+      for (int d = 0; d < 3; ++d) {
+        const double x = from(r, d);
+        out.positions(v, d) = x;
+        f = f && std::isfinite(x);
+        far = std::max(far, std::abs(x));
+      }
     }
-  }
-  if (!finite || reach > kMaxCoordinate) {
+    reach[part] = far;
+    finite[part] = f;
+  });
+  if (!finite[0] || !finite[1] || std::max(reach[0], reach[1]) > kMaxCoordinate) {
     ws.warm = false;  // never start the next drag frame from a rejected solution
     throw_result_error(transforms);
   }

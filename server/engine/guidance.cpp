@@ -2,8 +2,7 @@
 
 #include "cpu_features.h"
 #include "guidance_rotation.h"
-
-#include <omp.h>
+#include "two_threads.h"
 
 #include <algorithm>
 #include <cmath>
@@ -93,29 +92,20 @@ void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::Ma
   const bool vector_rotation = k == 1 && !stretched && vector_isa;
   double* rn = Rn ? Rn->data() : nullptr;
 
-#pragma omp parallel
-  {
-    if (turn && vector_isa) {  // by polynomials, four vertices per vector
-      constexpr Eigen::Index kBlock = 1024;
-#pragma omp for schedule(static)
-      for (Eigen::Index v = 0; v < n; v += kBlock)
-        detail::vertex_turns_avx2(Phi.data(), v, std::min(n, v + kBlock), third, turn);
-    } else if (turn) {
-#pragma omp for schedule(static)
-      for (Eigen::Index v = 0; v < n; ++v) turn[v] = {std::cos(Phi(v, 0) * third), std::sin(Phi(v, 0) * third)};
-    }
-    if (vector_rotation) {
-      const Eigen::Index threads = omp_get_num_threads(), t = omp_get_thread_num();
-      const Eigen::Index chunk = ((m + threads - 1) / threads + 3) & ~Eigen::Index{3};
-      const Eigen::Index begin = std::min(m, t * chunk), end = std::min(m, begin + chunk);
-      Eigen::Index l = detail::guidance_rotation_avx2(F.data(), normals.data(), turn,
-                                                      axis.data(), begin, end, g.data(), rn);
-      for (; l < end; ++l) triangle(l);
-    } else {
-#pragma omp for schedule(static)
-      for (Eigen::Index l = 0; l < m; ++l) triangle(l);
-    }
-  }
+  // Two halves each, on the caller and the solve's helper thread (two_threads.h).
+  if (turn)
+    two_halves(n, [&](Eigen::Index v0, Eigen::Index v1, int) {
+      if (vector_isa) return detail::vertex_turns_avx2(Phi.data(), v0, v1, third, turn);
+      for (Eigen::Index v = v0; v < v1; ++v)
+        turn[v] = {std::cos(Phi(v, 0) * third), std::sin(Phi(v, 0) * third)};
+    });
+  two_halves(m, [&](Eigen::Index l0, Eigen::Index l1, int) {
+    Eigen::Index l = l0;
+    if (vector_rotation)
+      l = detail::guidance_rotation_avx2(F.data(), normals.data(), turn, axis.data(), l0, l1,
+                                         g.data(), rn);
+    for (; l < l1; ++l) triangle(l);
+  });
 }
 
 }  // namespace hdeform

@@ -1,5 +1,7 @@
 #include "sparse_times3.h"
 
+#include "two_threads.h"
+
 #include <cassert>
 
 namespace hdeform {
@@ -15,20 +17,21 @@ void sparse_times3(const SparseMatrixR& A, const GuidanceField& X, Eigen::Matrix
   double* y0 = Y.col(0).data();
   double* y1 = Y.col(1).data();
   double* y2 = Y.col(2).data();
-#pragma omp parallel for schedule(static)
-  for (Eigen::Index i = 0; i < rows; ++i) {
-    double s0 = 0, s1 = 0, s2 = 0;
-    for (auto p = outer[i]; p < outer[i + 1]; ++p) {
-      const double v = a[p];
-      const double* xj = x + 3 * static_cast<Eigen::Index>(inner[p]);
-      s0 += v * xj[0];
-      s1 += v * xj[1];
-      s2 += v * xj[2];
+  two_halves(rows, [&](Eigen::Index i0, Eigen::Index i1, int) {
+    for (Eigen::Index i = i0; i < i1; ++i) {
+      double s0 = 0, s1 = 0, s2 = 0;
+      for (auto p = outer[i]; p < outer[i + 1]; ++p) {
+        const double v = a[p];
+        const double* xj = x + 3 * static_cast<Eigen::Index>(inner[p]);
+        s0 += v * xj[0];
+        s1 += v * xj[1];
+        s2 += v * xj[2];
+      }
+      y0[i] = s0;
+      y1[i] = s1;
+      y2[i] = s2;
     }
-    y0[i] = s0;
-    y1[i] = s1;
-    y2[i] = s2;
-  }
+  });
 }
 
 void symmetric_residual3(const SparseMatrix& K, const Eigen::MatrixXd& X, const Eigen::MatrixXd& B,
@@ -43,20 +46,21 @@ void symmetric_residual3(const SparseMatrix& K, const Eigen::MatrixXd& X, const 
   const double *x0 = X.col(0).data(), *x1 = X.col(1).data(), *x2 = X.col(2).data();
   const double *b0 = B.col(0).data(), *b1 = B.col(1).data(), *b2 = B.col(2).data();
   double *y0 = Y.col(0).data(), *y1 = Y.col(1).data(), *y2 = Y.col(2).data();
-#pragma omp parallel for schedule(static)
-  for (Eigen::Index i = 0; i < n; ++i) {
-    double s0 = 0, s1 = 0, s2 = 0;
-    for (auto p = outer[i]; p < outer[i + 1]; ++p) {
-      const double v = k[p];
-      const Eigen::Index j = inner[p];
-      s0 += v * x0[j];
-      s1 += v * x1[j];
-      s2 += v * x2[j];
+  two_halves(n, [&](Eigen::Index i0, Eigen::Index i1, int) {
+    for (Eigen::Index i = i0; i < i1; ++i) {
+      double s0 = 0, s1 = 0, s2 = 0;
+      for (auto p = outer[i]; p < outer[i + 1]; ++p) {
+        const double v = k[p];
+        const Eigen::Index j = inner[p];
+        s0 += v * x0[j];
+        s1 += v * x1[j];
+        s2 += v * x2[j];
+      }
+      y0[i] = b0[i] - s0;
+      y1[i] = b1[i] - s1;
+      y2[i] = b2[i] - s2;
     }
-    y0[i] = b0[i] - s0;
-    y1[i] = b1[i] - s1;
-    y2[i] = b2[i] - s2;
-  }
+  });
 }
 
 }  // namespace hdeform

@@ -91,4 +91,26 @@ class Helper {
   bool stop_ = false;
 };
 
+// fn(begin, end, part) over [0, n) in two halves: part 0 = [0, mid) on the caller, part 1 =
+// [mid, n) on the helper (the halves of OpenMP's schedule(static) on two threads). Where the
+// helper is busy (another caller's kernel) the caller runs both, in order: same results.
+// Why not an OpenMP loop: on these VMs waking a sleeping OpenMP thread (OMP_WAIT_POLICY=
+// PASSIVE) costs ≈ 50 µs per parallel region, and a spinning one takes a core from the
+// solve's helper; the helper stays awake between a frame's back-to-back calls.
+template <class Fn>
+void two_halves(std::ptrdiff_t n, Fn&& fn) {
+  const std::ptrdiff_t mid = (n + 1) / 2;
+  auto body = [&](int part) {
+    if (part == 0)
+      fn(std::ptrdiff_t{0}, mid, 0);
+    else
+      fn(mid, n, 1);
+  };
+  auto run = [](void* ctx, int tid) { (*static_cast<decltype(body)*>(ctx))(tid); };
+  if (!Helper::instance().run(run, &body)) {
+    body(0);
+    body(1);
+  }
+}
+
 }  // namespace hdeform

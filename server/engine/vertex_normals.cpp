@@ -1,6 +1,7 @@
 #include "vertex_normals.h"
 
 #include "cpu_features.h"
+#include "two_threads.h"
 #include "vertex_normals_kernels.h"
 
 #include <Eigen/Geometry>
@@ -35,9 +36,8 @@ inline void gather(const VertexTriangles& vt, const Vertices& face_w, Eigen::Ind
   N.row(v) = s;
 }
 
-// Both passes in blocks: the AVX2 kernels (vertex_normals_kernels.h) or the scalar loops.
-constexpr Eigen::Index kBlock = 1024;
-
+// Both passes in two halves (two_threads.h), each by the AVX2 kernels
+// (vertex_normals_kernels.h) or the scalar loops.
 void face_weights(const Vertices& X, const Triangles& F, Eigen::Index t0, Eigen::Index t1,
                   Vertices& face_w, bool vector_isa) {
   if (vector_isa) return detail::face_weights_avx2(F.data(), X.data(), t0, t1, face_w.data());
@@ -63,24 +63,21 @@ void vertex_normals(const Vertices& X, const Triangles& F, const VertexTriangles
   face_w.resize(m, 3);
   N.resize(n, 3);
   const bool vector_isa = kernel_isa() == Isa::avx2;
-#pragma omp parallel
-  {
-#pragma omp for schedule(static)
-    for (Eigen::Index t = 0; t < m; t += kBlock)
-      face_weights(X, F, t, std::min(m, t + kBlock), face_w, vector_isa);
-#pragma omp for schedule(static)
-    for (Eigen::Index v = 0; v < n; v += kBlock)
-      gather_block(vt, face_w, v, std::min(n, v + kBlock), N, vector_isa);
-  }
+  two_halves(m, [&](Eigen::Index t0, Eigen::Index t1, int) {
+    face_weights(X, F, t0, t1, face_w, vector_isa);
+  });
+  two_halves(n, [&](Eigen::Index v0, Eigen::Index v1, int) {
+    gather_block(vt, face_w, v0, v1, N, vector_isa);
+  });
 }
 
 void vertex_normals_from_faces(const VertexTriangles& vt, const Vertices& face_w, Vertices& N) {
   const auto n = static_cast<Eigen::Index>(vt.offsets.size()) - 1;
   N.resize(n, 3);
   const bool vector_isa = kernel_isa() == Isa::avx2;
-#pragma omp parallel for schedule(static)
-  for (Eigen::Index v = 0; v < n; v += kBlock)
-    gather_block(vt, face_w, v, std::min(n, v + kBlock), N, vector_isa);
+  two_halves(n, [&](Eigen::Index v0, Eigen::Index v1, int) {
+    gather_block(vt, face_w, v0, v1, N, vector_isa);
+  });
 }
 
 }  // namespace hdeform
