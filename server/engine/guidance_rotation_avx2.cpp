@@ -1,5 +1,5 @@
 // guidance_rotation.h, compiled with -mavx2 -mfma. Lanes are triangles: the turns and
-// normals are gathered into four-triangle vectors, R_l and g_l computed as nine vectors each,
+// normals are loaded into four-triangle vectors, R_l and g_l computed as nine vectors each,
 // and g_l transposed back to nine contiguous doubles per triangle (two 4 × 4 transposes and
 // one column). Same formulas as guidance.cpp's loop (Eigen's quaternion → matrix).
 #include "guidance_rotation.h"
@@ -29,24 +29,30 @@ inline void transpose_store(__m256d r0, __m256d r1, __m256d r2, __m256d r3, doub
   _mm256_storeu_pd(o3, _mm256_permute2f128_pd(b, d, 0x31));
 }
 
-// Lanes of r0, r1, r2 → 12 contiguous doubles, lane t at out[3t..3t+2] (rows of an m × 3).
+// Lane j of a block's vectors is triangle kLane[j] of the four: the order in which
+// corner_turns' unpacking leaves them (no shuffle spent to restore 0 1 2 3; the loads and
+// stores of the block follow it instead).
+constexpr int kLane[4] = {0, 2, 1, 3};
+
+// The turns of corner k of the four triangles at f (F's rows) as re and im vectors, lanes in
+// kLane's order: four 16-byte loads, where gathers measured slower (Zen 4).
+inline void corner_turns(const int* f, int k, const double* T, __m256d& re, __m256d& im) {
+  auto pair = [T](int v) { return _mm_loadu_pd(T + 2 * static_cast<std::ptrdiff_t>(v)); };
+  const __m256d p01 = _mm256_insertf128_pd(_mm256_castpd128_pd256(pair(f[k])), pair(f[3 + k]), 1);
+  const __m256d p23 =
+      _mm256_insertf128_pd(_mm256_castpd128_pd256(pair(f[6 + k])), pair(f[9 + k]), 1);
+  re = _mm256_unpacklo_pd(p01, p23);  // re of triangles 0 2 1 3
+  im = _mm256_unpackhi_pd(p01, p23);
+}
+
+// Lanes of r0, r1, r2 → 12 contiguous doubles, triangle kLane[j] (lane j) at out[3 kLane[j] …].
 inline void store_rows3(__m256d r0, __m256d r1, __m256d r2, double* out) {
   alignas(32) double c[3][4];
   _mm256_store_pd(c[0], r0);
   _mm256_store_pd(c[1], r1);
   _mm256_store_pd(c[2], r2);
-  for (int t = 0; t < 4; ++t)
-    for (int d = 0; d < 3; ++d) out[3 * t + d] = c[d][t];
-}
-
-// Gathers with a defined pass-through (the plain intrinsics start from an undefined vector,
-// which GCC 12's -Wmaybe-uninitialized reports).
-inline __m128i gather_int(const int* base, __m128i idx) {
-  return _mm_mask_i32gather_epi32(_mm_setzero_si128(), base, idx, _mm_set1_epi32(-1), 4);
-}
-inline __m256d gather(const double* base, __m128i idx) {
-  return _mm256_mask_i32gather_pd(_mm256_setzero_pd(), base, idx,
-                                  _mm256_castsi256_pd(_mm256_set1_epi64x(-1)), 8);
+  for (int j = 0; j < 4; ++j)
+    for (int d = 0; d < 3; ++d) out[3 * kLane[j] + d] = c[d][j];
 }
 
 // sin x = x Σ (−1)^k x^2k / (2k+1)!, cos x = Σ (−1)^k x^2k / (2k)!, k = 0 … 9, in Horner
@@ -76,17 +82,14 @@ std::ptrdiff_t guidance_rotation_avx2(const int* F, const double* normals,
   const __m256d k0 = _mm256_set1_pd(axis[0]), k1 = _mm256_set1_pd(axis[1]),
                 k2 = _mm256_set1_pd(axis[2]);
   const __m256d one = _mm256_set1_pd(1.0);
-  const __m128i stride = _mm_setr_epi32(0, 3, 6, 9);
   std::ptrdiff_t l = l0;
   for (; l + 4 <= l1; l += 4) {
     const int* f = F + 3 * l;
     // e^{i h θ/2} = a · b · c, the turns of the three corners (complex: re at 2v, im 2v+1).
-    const __m128i va = _mm_slli_epi32(gather_int(f, stride), 1);
-    const __m128i vb = _mm_slli_epi32(gather_int(f + 1, stride), 1);
-    const __m128i vc = _mm_slli_epi32(gather_int(f + 2, stride), 1);
-    const __m256d ar = gather(T, va), ai = gather(T + 1, va);
-    const __m256d br = gather(T, vb), bi = gather(T + 1, vb);
-    const __m256d cr = gather(T, vc), ci = gather(T + 1, vc);
+    __m256d ar, ai, br, bi, cr, ci;
+    corner_turns(f, 0, T, ar, ai);
+    corner_turns(f, 1, T, br, bi);
+    corner_turns(f, 2, T, cr, ci);
     const __m256d re = _mm256_sub_pd(_mm256_mul_pd(ar, br), _mm256_mul_pd(ai, bi));
     const __m256d im = _mm256_add_pd(_mm256_mul_pd(ar, bi), _mm256_mul_pd(ai, br));
     const __m256d w = _mm256_sub_pd(_mm256_mul_pd(re, cr), _mm256_mul_pd(im, ci));
@@ -111,9 +114,9 @@ std::ptrdiff_t guidance_rotation_avx2(const int* F, const double* normals,
     const __m256d R22 = _mm256_sub_pd(one, _mm256_add_pd(txx, tyy));
     // The rest normals of the four triangles (12 contiguous doubles) as three vectors.
     const double* N = normals + 3 * l;
-    const __m256d n0 = _mm256_setr_pd(N[0], N[3], N[6], N[9]);
-    const __m256d n1 = _mm256_setr_pd(N[1], N[4], N[7], N[10]);
-    const __m256d n2 = _mm256_setr_pd(N[2], N[5], N[8], N[11]);
+    const __m256d n0 = _mm256_setr_pd(N[0], N[6], N[3], N[9]);  // kLane's order
+    const __m256d n1 = _mm256_setr_pd(N[1], N[7], N[4], N[10]);
+    const __m256d n2 = _mm256_setr_pd(N[2], N[8], N[5], N[11]);
     const __m256d m0 = _mm256_fmadd_pd(R02, n2, _mm256_fmadd_pd(R01, n1, _mm256_mul_pd(R00, n0)));
     const __m256d m1 = _mm256_fmadd_pd(R12, n2, _mm256_fmadd_pd(R11, n1, _mm256_mul_pd(R10, n0)));
     const __m256d m2 = _mm256_fmadd_pd(R22, n2, _mm256_fmadd_pd(R21, n1, _mm256_mul_pd(R20, n0)));
@@ -126,13 +129,13 @@ std::ptrdiff_t guidance_rotation_avx2(const int* F, const double* normals,
     const __m256d g6 = _mm256_fnmadd_pd(n2, m0, R02), g7 = _mm256_fnmadd_pd(n2, m1, R12),
                   g8 = _mm256_fnmadd_pd(n2, m2, R22);
     double* o = g + 9 * l;
-    transpose_store(g0, g1, g2, g3, o, o + 9, o + 18, o + 27);
-    transpose_store(g4, g5, g6, g7, o + 4, o + 13, o + 22, o + 31);
+    transpose_store(g0, g1, g2, g3, o, o + 18, o + 9, o + 27);  // lanes: triangles 0 2 1 3
+    transpose_store(g4, g5, g6, g7, o + 4, o + 22, o + 13, o + 31);
     alignas(32) double last[4];
     _mm256_store_pd(last, g8);
     o[8] = last[0];
-    o[17] = last[1];
-    o[26] = last[2];
+    o[26] = last[1];
+    o[17] = last[2];
     o[35] = last[3];
   }
   return l;
