@@ -1,6 +1,6 @@
 // Sparse × (n × 3) products of the move's hot path (SPEC.md §Solve: the right-hand side
 // (Gᵀ W_β)_F g − K_FC x_C and the drag refinement's residual b − K_FF x), one pass over the
-// matrix for all three columns, rows split over the OpenMP team.
+// matrix for all three columns, rows split in two halves (two_threads.h two_halves).
 //
 // Why not Eigen's product: with a row-major g it runs on one thread, and with a column-major
 // x it reads the matrix once per column (three passes). Bench: Phase/100000/rhs vs
