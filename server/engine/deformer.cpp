@@ -111,20 +111,24 @@ void run_beside(Main&& main, Side&& side) {
   beside.get();
 }
 
-// x += dx, returning max |dx| (NaN if dx has one): one pass on the OpenMP team.
-double add_and_measure(const Eigen::MatrixXd& dx, Eigen::MatrixXd& x) {
-  const Eigen::Index size = x.size();
+// x += dx (x column-major, dx row-major), returning max |dx| (NaN if dx has one): one pass,
+// two halves.
+double add_and_measure(const Rows3& dx, Eigen::MatrixXd& x) {
+  const Eigen::Index rows = x.rows();
   const double* d = dx.data();
-  double* y = x.data();
+  double *y0 = x.col(0).data(), *y1 = x.col(1).data(), *y2 = x.col(2).data();
   double step[2] = {0, 0};
   bool finite[2] = {true, true};
-  two_halves(size, [&](Eigen::Index k0, Eigen::Index k1, int part) {
+  two_halves(rows, [&](Eigen::Index k0, Eigen::Index k1, int part) {
     double s = 0;
     bool f = true;
     for (Eigen::Index k = k0; k < k1; ++k) {
-      y[k] += d[k];
-      s = std::max(s, std::abs(d[k]));
-      f = f && !std::isnan(d[k]);
+      const double* dk = d + 3 * k;
+      y0[k] += dk[0];
+      y1[k] += dk[1];
+      y2[k] += dk[2];
+      s = std::max({s, std::abs(dk[0]), std::abs(dk[1]), std::abs(dk[2])});
+      f = f && !std::isnan(dk[0]) && !std::isnan(dk[1]) && !std::isnan(dk[2]);
     }
     step[part] = s;
     finite[part] = f;
@@ -750,7 +754,8 @@ void ConstraintSet::drag_solve(const std::shared_ptr<const BetaSystem>& system,
   }
   for (int k = 0; k < kMaxSteps; ++k) {
     symmetric_residual3(sys.K_FF, ws.x_F, ws.rhs, ws.residual);
-    solve3(*sys.factor, ws.residual, ws.correction, SolvePrecision::float32);
+    ws.correction.resize(ws.residual.rows(), 3);  // a no-op once sized
+    sys.factor->solve3_rows(ws.residual.data(), ws.correction.data(), SolvePrecision::float32);
     const double step = add_and_measure(ws.correction, ws.x_F);
     ++out.solves;
     if (delta < 0 && previous > 0 && step > 0)

@@ -6,6 +6,7 @@
 #include "measures.h"
 #include "mesh.h"
 #include "operators.h"
+#include "sparse_times3.h"
 #include "transform.h"
 #include "vertex_normals.h"
 
@@ -169,7 +170,8 @@ class UpdateWorkspace {
   GuidanceScratch guidance_scratch;
   std::vector<Eigen::Matrix3d> handle_M;  // per handle: M_j = R_j S_j and the pivot p_j
   std::vector<Eigen::Vector3d> handle_p;
-  Eigen::MatrixXd x_C, rhs, x_F, residual, correction;
+  Eigen::MatrixXd x_C, rhs, x_F;
+  Rows3 residual, correction;  // the drag refinement's, row-major (Factorization::solve3_rows)
   Vertices face_w;  // per-triangle normal weights (vertex_normals' scratch)
   std::weak_ptr<const BetaSystem> warm_system;  // x_F solves this system (drag path)
   bool warm = false;

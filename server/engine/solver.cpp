@@ -166,22 +166,32 @@ void Factorization::check(const char* what) const {
 
 void Factorization::solve3(const double* B, double* X, SolvePrecision precision,
                            int threads) const {
+  solve3(B, Stride3::columns(size_), X, Stride3::columns(size_), precision, threads);
+}
+
+void Factorization::solve3_rows(const double* B, double* X, SolvePrecision precision,
+                                int threads) const {
+  solve3(B, Stride3::rows(), X, Stride3::rows(), precision, threads);
+}
+
+void Factorization::solve3(const double* B, Stride3 sb, double* X, Stride3 sx,
+                           SolvePrecision precision, int threads) const {
   if (size_ == 0) return;
   const cholmod_factor* L = llt_.factor();
   if (!supernodal_solvable(L)) {  // not with this CholmodLLT; allocates
-    const Eigen::MatrixXd Xc =
-        llt_.solve_concurrently(Eigen::Map<const Eigen::MatrixXd>(B, size_, 3));
-    Eigen::Map<Eigen::MatrixXd>(X, size_, 3) = Xc;
+    using Strided = Eigen::Stride<Eigen::Dynamic, Eigen::Dynamic>;
+    const Eigen::MatrixXd Xc = llt_.solve_concurrently(
+        Eigen::Map<const Eigen::MatrixXd, 0, Strided>(B, size_, 3, Strided(sb.col, sb.row)));
+    Eigen::Map<Eigen::MatrixXd, 0, Strided>(X, size_, 3, Strided(sx.col, sx.row)) = Xc;
     return;
   }
   // One workspace per thread: solves run concurrently on one factor from several threads,
   // and the workspace grows to the largest K_FF the thread has solved.
   thread_local SupernodalWorkspace ws;
   if (precision == SolvePrecision::float32)
-    supernodal_solve3(*L, values_float(), schedule_, B, size_, X, size_, ws, threads);
+    supernodal_solve3(*L, values_float(), schedule_, B, sb, X, sx, ws, threads);
   else
-    supernodal_solve3(*L, static_cast<const double*>(L->x), schedule_, B, size_, X, size_, ws,
-                      threads);
+    supernodal_solve3(*L, static_cast<const double*>(L->x), schedule_, B, sb, X, sx, ws, threads);
 }
 
 Eigen::MatrixXd Factorization::solve(const Eigen::MatrixXd& B) const {

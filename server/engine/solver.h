@@ -75,6 +75,10 @@ class Factorization {
   // copy of the factor (once, thread-safe; counted in memory_bytes()).
   void solve3(const double* B, double* X, SolvePrecision precision = SolvePrecision::float64,
               int threads = 2) const;
+  // The same for n×3 row-major B and X (three doubles a row): the drag refinement's layout,
+  // read and written a row at a time through the permutation. The same bits as solve3.
+  void solve3_rows(const double* B, double* X,
+                   SolvePrecision precision = SolvePrecision::float64, int threads = 2) const;
   // X = K_FF⁻¹ B. Three columns: solve3 (float64, two threads); other column counts
   // through cholmod_solve.
   Eigen::MatrixXd solve(const Eigen::MatrixXd& B) const;
@@ -97,6 +101,8 @@ class Factorization {
   void factorize(const SparseMatrix& K_FF);
   void finish();  // after the numeric factorization: the solve schedule
   const float* values_float() const;
+  void solve3(const double* B, Stride3 sb, double* X, Stride3 sx, SolvePrecision precision,
+              int threads) const;
   CholmodLLT llt_;
   CholmodLLT analysis_;  // the symbolic analysis alone, kept to seed later β; never modified
   int size_ = 0;

@@ -18,9 +18,15 @@ namespace hdeform {
 // Y is resized to rows × 3 (no allocation once sized).
 void sparse_times3(const SparseMatrixR& A, const GuidanceField& X, Eigen::MatrixXd& Y);
 
+// n × 3, row-major: the drag refinement's residual and correction (Factorization::solve3_rows).
+using Rows3 = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
+
 // Y = B − K·X for a symmetric column-major K (n × n: its columns are its rows), X and B n × 3.
-// Y is resized to n × 3 (no allocation once sized); Y must not alias X.
+// Y is resized to n × 3 (no allocation once sized); Y must not alias X. The same bits for
+// either layout of Y.
 void symmetric_residual3(const SparseMatrix& K, const Eigen::MatrixXd& X,
                          const Eigen::MatrixXd& B, Eigen::MatrixXd& Y);
+void symmetric_residual3(const SparseMatrix& K, const Eigen::MatrixXd& X,
+                         const Eigen::MatrixXd& B, Rows3& Y);
 
 }  // namespace hdeform

@@ -186,7 +186,7 @@ struct Sweep {
 
 template <class T>
 void supernodal_solve3(const cholmod_factor& L, const T* Lx, const SupernodalSchedule& sched,
-                       const double* B, std::ptrdiff_t ldb, double* X, std::ptrdiff_t ldx,
+                       const double* B, Stride3 sb, double* X, Stride3 sx,
                        SupernodalWorkspace& ws, int threads) {
   const auto n = static_cast<std::ptrdiff_t>(L.n);
   if (n == 0) return;
@@ -211,20 +211,20 @@ void supernodal_solve3(const cholmod_factor& L, const T* Lx, const SupernodalSch
   auto permute_in = [&] {
     for (std::ptrdiff_t k0; (k0 = next_in.fetch_add(kBlock)) < n;)
       for (std::ptrdiff_t k = k0, k1 = std::min(n, k0 + kBlock); k < k1; ++k) {
-        const std::ptrdiff_t r = perm[k];
-        y[3 * k] = B[r];
-        y[3 * k + 1] = B[r + ldb];
-        y[3 * k + 2] = B[r + 2 * ldb];
+        const double* b = B + perm[k] * sb.row;
+        y[3 * k] = b[0];
+        y[3 * k + 1] = b[sb.col];
+        y[3 * k + 2] = b[2 * sb.col];
       }
   };
   // x = Pᵀ y (reads y only: X may alias B).
   auto permute_out = [&] {
     for (std::ptrdiff_t k0; (k0 = next_out.fetch_add(kBlock)) < n;)
       for (std::ptrdiff_t k = k0, k1 = std::min(n, k0 + kBlock); k < k1; ++k) {
-        const std::ptrdiff_t r = perm[k];
-        X[r] = y[3 * k];
-        X[r + ldx] = y[3 * k + 1];
-        X[r + 2 * ldx] = y[3 * k + 2];
+        double* x = X + perm[k] * sx.row;
+        x[0] = y[3 * k];
+        x[sx.col] = y[3 * k + 1];
+        x[2 * sx.col] = y[3 * k + 2];
       }
   };
   if (!split) {
@@ -281,11 +281,11 @@ void supernodal_solve3(const cholmod_factor& L, const T* Lx, const SupernodalSch
 }
 
 template void supernodal_solve3<double>(const cholmod_factor&, const double*,
-                                        const SupernodalSchedule&, const double*, std::ptrdiff_t,
-                                        double*, std::ptrdiff_t, SupernodalWorkspace&, int);
+                                        const SupernodalSchedule&, const double*, Stride3,
+                                        double*, Stride3, SupernodalWorkspace&, int);
 template void supernodal_solve3<float>(const cholmod_factor&, const float*,
-                                       const SupernodalSchedule&, const double*, std::ptrdiff_t,
-                                       double*, std::ptrdiff_t, SupernodalWorkspace&, int);
+                                       const SupernodalSchedule&, const double*, Stride3,
+                                       double*, Stride3, SupernodalWorkspace&, int);
 
 std::vector<float> factor_values_float(const cholmod_factor& L) {
   const double* x = static_cast<const double*>(L.x);

@@ -47,6 +47,13 @@ class SupernodalWorkspace {
   std::vector<double> w_;  // 3 × (rows below a supernode's diagonal block), BLAS path only
 };
 
+// Where an n×3 dense block keeps entry (r, c): data[r * row + c * col].
+struct Stride3 {
+  std::ptrdiff_t row, col;
+  static Stride3 columns(std::ptrdiff_t ld) { return {1, ld}; }  // column-major, ld ≥ n
+  static constexpr Stride3 rows() { return {3, 1}; }              // row-major, interleaved
+};
+
 // A split of the supernodal elimination tree (parent of s = the supernode holding s's first
 // off-diagonal row), built once per factor for two threads: up to kMaxParts "parts", each a
 // set of disjoint subtrees, and the "top", every other supernode (the ancestors of the
@@ -78,8 +85,8 @@ class SupernodalSchedule {
  private:
   template <class T>
   friend void supernodal_solve3(const cholmod_factor&, const T*, const SupernodalSchedule&,
-                                const double*, std::ptrdiff_t, double*, std::ptrdiff_t,
-                                SupernodalWorkspace&, int);
+                                const double*, Stride3, double*, Stride3, SupernodalWorkspace&,
+                                int);
   std::vector<std::vector<int>> parts_;  // supernodes of each part, ascending
   std::vector<int> top_;                 // the top's supernodes, ascending
   std::vector<int> rows_;      // L->s with the parts' top rows renumbered into their buffers
@@ -102,10 +109,12 @@ void supernodal_solve3(const cholmod_factor& L, const double* B, std::ptrdiff_t 
 // in double either way. `sched` must be default-constructed or built from L. threads ∈
 // {1, 2}: 2 runs a split schedule on the caller and the process's one helper thread
 // (started on first use; a call that finds it busy with another solve runs alone); the
-// result is bitwise the same for both. ws.blas_min_cols is ignored.
+// result is bitwise the same for both. B and X in any layout (`sb`, `sx`): a row-major B
+// is read one row (24 bytes) per permuted index instead of three scattered doubles.
+// ws.blas_min_cols is ignored.
 template <class T>
 void supernodal_solve3(const cholmod_factor& L, const T* Lx, const SupernodalSchedule& sched,
-                       const double* B, std::ptrdiff_t ldb, double* X, std::ptrdiff_t ldx,
+                       const double* B, Stride3 sb, double* X, Stride3 sx,
                        SupernodalWorkspace& ws, int threads);
 
 // L.x rounded to float (L.xsize values). Precondition: supernodal_solvable(&L).

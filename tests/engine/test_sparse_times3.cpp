@@ -68,6 +68,9 @@ TEST_P(SparseTimes3, SymmetricResidualIsEigensBitForBit) {
   EXPECT_EQ(got, expected);
   // And it is the residual: K·X + Y = B to rounding.
   EXPECT_LT((K * X + got - B).cwiseAbs().maxCoeff(), 1e-12);
+  Rows3 rows;  // the row-major output (the drag refinement's): the same bits
+  symmetric_residual3(K, X, B, rows);
+  EXPECT_EQ(Eigen::MatrixXd(rows), expected);
   omp_set_num_threads(omp_get_num_procs());
 }
 

@@ -330,6 +330,16 @@ void check_scheduled(double beta) {
   const Eigen::MatrixXd F1 = solve3(f, B, SolvePrecision::float32, 1);
   const Eigen::MatrixXd F2 = solve3(f, B, SolvePrecision::float32, 2);
   EXPECT_TRUE(same_bits(F1, F2));
+  // Row-major B and X (solve3_rows, the drag refinement's layout): the same bits.
+  using Rows = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
+  const Rows B_rows = B;
+  for (int threads : {1, 2}) {
+    Rows X_rows(B.rows(), 3);
+    f.solve3_rows(B_rows.data(), X_rows.data(), SolvePrecision::float64, threads);
+    EXPECT_TRUE(same_bits(Eigen::MatrixXd(X_rows), X2));
+    f.solve3_rows(B_rows.data(), X_rows.data(), SolvePrecision::float32, threads);
+    EXPECT_TRUE(same_bits(Eigen::MatrixXd(X_rows), F2));
+  }
   EXPECT_TRUE(same_bits(solve3(f, B, SolvePrecision::float32, 2), F2));
   const double err2 = rel_col2(X2, F2), errmax = rel_max_diff(F2, X2);
   const double bound = float32_bound(f, K);
