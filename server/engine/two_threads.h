@@ -94,6 +94,7 @@ class Helper {
 // fn(begin, end, part) over [0, n) in two halves: part 0 = [0, mid) on the caller, part 1 =
 // [mid, n) on the helper (the halves of OpenMP's schedule(static) on two threads). Where the
 // helper is busy (another caller's kernel) the caller runs both, in order: same results.
+// fn must not throw (part 1 runs on the helper thread).
 // Why not an OpenMP loop: on these VMs waking a sleeping OpenMP thread (OMP_WAIT_POLICY=
 // PASSIVE) costs ≈ 50 µs per parallel region, and a spinning one takes a core from the
 // solve's helper; the helper stays awake between a frame's back-to-back calls.
