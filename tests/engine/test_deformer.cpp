@@ -383,24 +383,36 @@ TEST(Deformer, PolarDecompositionRoundTripsTheMatrix) {
 namespace hdeform {
 namespace {
 
-// update() is const and thread-safe: concurrent solves on one factorization (each with its
-// own CHOLMOD workspace) give exactly the sequential results.
+// update() is const and thread-safe: concurrent moves on one factorization (each with its
+// own workspace; one of them gets the helper thread, the other runs its loops alone) give
+// exactly the sequential results, exact and drag frames alike.
 TEST(Deformer, ConcurrentUpdatesMatchSequentialOnes) {
   const auto& b = cactus();
   const ConstraintSet cs(b.mesh, b.constraints);
   std::vector<HandleTransform> hs(8);
   for (int i = 0; i < 8; ++i) hs[i].translation = Eigen::Vector3d(0.01 * i, 0.0, 0.02);
-  std::vector<Vertices> expected;
-  for (const auto& h : hs) expected.push_back(cs.update(std::span(&h, 1), {0.1, BetaUnits::area}).positions);
-  std::vector<Vertices> got(hs.size());
-  std::vector<std::thread> threads;
-  for (int t = 0; t < 2; ++t)
-    threads.emplace_back([&, t] {
-      for (std::size_t i = t; i < hs.size(); i += 2)
-        got[i] = cs.update(std::span(&hs[i], 1), {0.1, BetaUnits::area}).positions;
-    });
-  for (auto& th : threads) th.join();
-  for (std::size_t i = 0; i < hs.size(); ++i) EXPECT_EQ(max_abs(got[i] - expected[i]), 0.0);
+  UpdateOptions drag;
+  drag.measures = drag.energies = false;
+  drag.precision = FramePrecision::drag;
+  for (const UpdateOptions& options : {UpdateOptions{}, drag}) {
+    std::vector<Frame> expected;
+    for (const auto& h : hs)
+      expected.push_back(cs.update(std::span(&h, 1), {0.1, BetaUnits::area}, options));
+    std::vector<Frame> got(hs.size());
+    std::vector<std::thread> threads;
+    for (int t = 0; t < 2; ++t)
+      threads.emplace_back([&, t] {
+        for (std::size_t i = t; i < hs.size(); i += 2)
+          got[i] = cs.update(std::span(&hs[i], 1), {0.1, BetaUnits::area}, options);
+      });
+    for (auto& th : threads) th.join();
+    for (std::size_t i = 0; i < hs.size(); ++i) {
+      EXPECT_TRUE(got[i].positions == expected[i].positions) << i;
+      EXPECT_TRUE(got[i].normals == expected[i].normals) << i;
+      EXPECT_TRUE(got[i].energies == expected[i].energies) << i;
+      EXPECT_EQ(got[i].measures.E, expected[i].measures.E) << i;
+    }
+  }
 }
 
 }  // namespace
