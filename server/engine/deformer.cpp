@@ -1,7 +1,5 @@
 #include "deformer.h"
 
-#include "two_threads.h"
-
 #include "guidance.h"
 #include "harmonic.h"
 #include "mesh_io.h"

@@ -87,7 +87,7 @@ void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::Ma
       for (int c = 0; c < 3; ++c) gl[3 * r + c] = M(c, r) - nl[r] * Mn[c];
   };
   // One handle without stretch: four triangles at a time where the CPU has AVX2 + FMA
-  // (guidance_rotation.h); each thread then does the few left of its own chunk.
+  // (guidance_rotation.h); each half then does the few left of its own.
   const bool vector_isa = kernel_isa() == Isa::avx2;
   const bool vector_rotation = k == 1 && !stretched && vector_isa;
   double* rn = Rn ? Rn->data() : nullptr;
