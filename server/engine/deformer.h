@@ -6,7 +6,6 @@
 #include "measures.h"
 #include "mesh.h"
 #include "operators.h"
-#include "sparse_times3.h"
 #include "transform.h"
 #include "vertex_normals.h"
 

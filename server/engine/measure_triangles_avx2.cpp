@@ -5,6 +5,7 @@
 // on this machine's CPU (AMD EPYC, Zen 4) a version with lanes = triangles throughout, its
 // rows gathered, was no faster than the scalar loop (2.86 vs 2.97 ms, Phase/100000/measures).
 #include "measure_triangles.h"
+#include "xyz_lanes_avx2.h"
 
 #include <immintrin.h>
 
@@ -25,9 +26,8 @@ struct TriangleLanes {
 // `xyz` masks the three lanes: rows are read and written as three doubles, never past them.
 inline TriangleLanes triangle(const int* f, const double* X, const double* G, const double* gl,
                               const double* rn, double* w, __m256i xyz) {
-  const __m256d x0 = _mm256_maskload_pd(X + 3 * static_cast<std::ptrdiff_t>(f[0]), xyz);
-  const __m256d x1 = _mm256_maskload_pd(X + 3 * static_cast<std::ptrdiff_t>(f[1]), xyz);
-  const __m256d x2 = _mm256_maskload_pd(X + 3 * static_cast<std::ptrdiff_t>(f[2]), xyz);
+  const __m256d x0 = load_row(X, f[0], xyz), x1 = load_row(X, f[1], xyz),
+                x2 = load_row(X, f[2], xyz);
   const __m256d e1 = _mm256_sub_pd(x1, x0), e2 = _mm256_sub_pd(x2, x0);
   // Row i of Y'_l = Σ_k ∇φ_k[i] x_kᵀ = ∇φ₁[i] e₁ᵀ + ∇φ₂[i] e₂ᵀ (∇φ₀ = −∇φ₁ − ∇φ₂).
   __m256d rr = _mm256_setzero_pd(), yy = _mm256_setzero_pd();
@@ -38,12 +38,9 @@ inline TriangleLanes triangle(const int* f, const double* X, const double* G, co
     rr = _mm256_fmadd_pd(r, r, rr);
     yy = _mm256_fmadd_pd(y, y, yy);
   }
-  // c = e₁ × e₂ as Eigen's cross (products rounded, then subtracted; this file is built
-  // without contraction): the vertex normals from these weights are bit for bit those of
-  // frames without measures (vertex_normals' own pass).
-  const __m256d c = _mm256_sub_pd(
-      _mm256_mul_pd(_mm256_permute4x64_pd(e1, 0xC9), _mm256_permute4x64_pd(e2, 0xD2)),  // yzx·zxy
-      _mm256_mul_pd(_mm256_permute4x64_pd(e1, 0xD2), _mm256_permute4x64_pd(e2, 0xC9)));
+  // c = e₁ × e₂ as Eigen's cross: the vertex normals from these weights are bit for bit
+  // those of frames without measures (vertex_normals' own pass).
+  const __m256d c = cross(e1, e2);
   if (w) _mm256_maskstore_pd(w, xyz, c);
   return {rr, yy, _mm256_mul_pd(c, c), _mm256_mul_pd(c, _mm256_maskload_pd(rn, xyz))};
 }

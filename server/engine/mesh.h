@@ -15,6 +15,8 @@ using Triangles = Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor>;
 // The guidance field g (3m × 3, block l = rows 3l…3l+2 = g_l), row-major: each g_l is nine
 // contiguous doubles, and the right-hand side (GᵀW_β)_F · g reads each of g's rows once.
 using GuidanceField = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
+// n × 3 row-major: the drag refinement's residual and correction (Factorization::solve3_rows).
+using Rows3 = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 
 struct TriMesh {
   Vertices V;

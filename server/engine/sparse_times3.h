@@ -1,6 +1,6 @@
 // Sparse × (n × 3) products of the move's hot path (SPEC.md §Solve: the right-hand side
 // (Gᵀ W_β)_F g − K_FC x_C and the drag refinement's residual b − K_FF x), one pass over the
-// matrix for all three columns, rows split in two halves (two_threads.h two_halves).
+// matrix for all three columns, rows split in chunks on two threads (two_threads.h for_chunks).
 //
 // Why not Eigen's product: with a row-major g it runs on one thread, and with a column-major
 // x it reads the matrix once per column (three passes). Bench: Phase/100000/rhs vs
@@ -17,9 +17,6 @@ namespace hdeform {
 // Y = A·X. A row-major (rows × c), X c × 3 row-major (the guidance field's layout).
 // Y is resized to rows × 3 (no allocation once sized).
 void sparse_times3(const SparseMatrixR& A, const GuidanceField& X, Eigen::MatrixXd& Y);
-
-// n × 3, row-major: the drag refinement's residual and correction (Factorization::solve3_rows).
-using Rows3 = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 
 // Y = B − K·X for a symmetric column-major K (n × n: its columns are its rows), X and B n × 3.
 // Y is resized to n × 3 (no allocation once sized); Y must not alias X. The same bits for

@@ -2,6 +2,7 @@
 // multiply-add may change the rounding). One row per vector, lanes x y z (the fourth lane
 // masked off: rows are read and written as three doubles, never past them).
 #include "vertex_normals_kernels.h"
+#include "xyz_lanes_avx2.h"
 
 #include <immintrin.h>
 
@@ -16,16 +17,10 @@ void face_weights_avx2(const int* F, const double* X, std::ptrdiff_t t0, std::pt
   const __m256i xyz = _mm256_setr_epi64x(-1, -1, -1, 0);
   for (std::ptrdiff_t t = t0; t < t1; ++t) {
     const int* f = F + 3 * t;
-    const __m256d x0 = _mm256_maskload_pd(X + 3 * static_cast<std::ptrdiff_t>(f[0]), xyz);
-    const __m256d e1 =
-        _mm256_sub_pd(_mm256_maskload_pd(X + 3 * static_cast<std::ptrdiff_t>(f[1]), xyz), x0);
-    const __m256d e2 =
-        _mm256_sub_pd(_mm256_maskload_pd(X + 3 * static_cast<std::ptrdiff_t>(f[2]), xyz), x0);
-    // e₁ × e₂ = e₁.yzx · e₂.zxy − e₁.zxy · e₂.yzx, as Eigen's cross.
-    const __m256d c = _mm256_sub_pd(
-        _mm256_mul_pd(_mm256_permute4x64_pd(e1, 0xC9), _mm256_permute4x64_pd(e2, 0xD2)),
-        _mm256_mul_pd(_mm256_permute4x64_pd(e1, 0xD2), _mm256_permute4x64_pd(e2, 0xC9)));
-    _mm256_maskstore_pd(face_w + 3 * t, xyz, c);
+    const __m256d x0 = load_row(X, f[0], xyz);
+    const __m256d e1 = _mm256_sub_pd(load_row(X, f[1], xyz), x0);
+    const __m256d e2 = _mm256_sub_pd(load_row(X, f[2], xyz), x0);
+    _mm256_maskstore_pd(face_w + 3 * t, xyz, cross(e1, e2));  // as Eigen's cross
   }
 }
 
@@ -35,8 +30,7 @@ void gather_normals_avx2(const int* offsets, const int* triangles, const double*
   for (std::ptrdiff_t v = v0; v < v1; ++v) {
     __m256d s = _mm256_setzero_pd();
     for (int i = offsets[v]; i < offsets[v + 1]; ++i)
-      s = _mm256_add_pd(
-          s, _mm256_maskload_pd(face_w + 3 * static_cast<std::ptrdiff_t>(triangles[i]), xyz));
+      s = _mm256_add_pd(s, load_row(face_w, triangles[i], xyz));
     const __m256d sq = _mm256_mul_pd(s, s);
     const __m128d xy = _mm256_castpd256_pd128(sq);
     const __m128d len2 = _mm_add_sd(_mm_add_sd(xy, _mm_unpackhi_pd(xy, xy)),
