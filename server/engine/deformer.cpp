@@ -109,30 +109,40 @@ void run_beside(Main&& main, Side&& side) {
   beside.get();
 }
 
+// The largest |value| a pass saw, and whether every value passed its check.
+struct MaxAbs {
+  double max = 0;
+  bool ok = true;
+};
+
+// fn(i0, i1) → MaxAbs over [0, n) in chunks on both threads (for_chunks), combined.
+template <class Fn>
+MaxAbs chunks_max_abs(Eigen::Index n, Fn&& fn) {
+  MaxAbs part[kChunks];
+  for_chunks(n, [&](Eigen::Index i0, Eigen::Index i1, int c) { part[c] = fn(i0, i1); });
+  MaxAbs all;
+  for (const MaxAbs& p : part) all = {std::max(all.max, p.max), all.ok && p.ok};
+  return all;
+}
+
 // x += dx (x column-major, dx row-major), returning max |dx| (NaN if dx has one): one pass,
-// two halves.
+// both threads.
 double add_and_measure(const Rows3& dx, Eigen::MatrixXd& x) {
-  const Eigen::Index rows = x.rows();
   const double* d = dx.data();
   double *y0 = x.col(0).data(), *y1 = x.col(1).data(), *y2 = x.col(2).data();
-  double step[2] = {0, 0};
-  bool finite[2] = {true, true};
-  two_halves(rows, [&](Eigen::Index k0, Eigen::Index k1, int part) {
-    double s = 0;
-    bool f = true;
+  const MaxAbs step = chunks_max_abs(x.rows(), [&](Eigen::Index k0, Eigen::Index k1) {
+    MaxAbs r;
     for (Eigen::Index k = k0; k < k1; ++k) {
       const double* dk = d + 3 * k;
       y0[k] += dk[0];
       y1[k] += dk[1];
       y2[k] += dk[2];
-      s = std::max({s, std::abs(dk[0]), std::abs(dk[1]), std::abs(dk[2])});
-      f = f && !std::isnan(dk[0]) && !std::isnan(dk[1]) && !std::isnan(dk[2]);
+      r.max = std::max({r.max, std::abs(dk[0]), std::abs(dk[1]), std::abs(dk[2])});
+      r.ok = r.ok && !std::isnan(dk[0]) && !std::isnan(dk[1]) && !std::isnan(dk[2]);
     }
-    step[part] = s;
-    finite[part] = f;
+    return r;
   });
-  return finite[0] && finite[1] ? std::max(step[0], step[1])
-                                : std::numeric_limits<double>::quiet_NaN();
+  return step.ok ? step.max : std::numeric_limits<double>::quiet_NaN();
 }
 
 std::string fmt_result_error(int handle, const HandleTransform& t) {
@@ -656,7 +666,7 @@ void ConstraintSet::solve(const std::shared_ptr<const BetaSystem>& system,
     M[j] = transforms[j].linear();
     p[j] = transforms[j].pivot.value_or(centroids_[j]);
   }
-  two_halves(nC, [&](Eigen::Index i0, Eigen::Index i1, int) {
+  for_chunks(nC, [&](Eigen::Index i0, Eigen::Index i1, int) {
     for (Eigen::Index i = i0; i < i1; ++i) {
       const int v = constrained_[i], j = region_of_[v] - 1;
       const Eigen::Vector3d x = X.row(v).transpose();
@@ -681,28 +691,25 @@ void ConstraintSet::solve(const std::shared_ptr<const BetaSystem>& system,
     ws.warm = true;
     ws.warm_system = system;
   }
-  // Scatter into vertex order and check the result in the same pass (both cores).
-  double reach[2] = {0, 0};  // max |coordinate|; NaN never compares above it: counted apart
-  bool finite[2] = {true, true};
-  two_halves(nF + nC, [&](Eigen::Index i0, Eigen::Index i1, int part) {
-    double far = 0;
-    bool f = true;
+  // Scatter into vertex order and check the result in the same pass (both cores). NaN never
+  // compares above the max: `ok` counts it apart.
+  const MaxAbs reach = chunks_max_abs(nF + nC, [&](Eigen::Index i0, Eigen::Index i1) {
+    MaxAbs r;
     for (Eigen::Index i = i0; i < i1; ++i) {
       const bool is_free = i < nF;
-      const Eigen::Index r = is_free ? i : i - nF;
-      const int v = is_free ? free_[r] : constrained_[r];
+      const Eigen::Index k = is_free ? i : i - nF;
+      const int v = is_free ? free_[k] : constrained_[k];
       const Eigen::MatrixXd& from = is_free ? ws.x_F : ws.x_C;
       for (int d = 0; d < 3; ++d) {
-        const double x = from(r, d);
+        const double x = from(k, d);
         out.positions(v, d) = x;
-        f = f && std::isfinite(x);
-        far = std::max(far, std::abs(x));
+        r.ok = r.ok && std::isfinite(x);
+        r.max = std::max(r.max, std::abs(x));
       }
     }
-    reach[part] = far;
-    finite[part] = f;
+    return r;
   });
-  if (!finite[0] || !finite[1] || std::max(reach[0], reach[1]) > kMaxCoordinate) {
+  if (!reach.ok || reach.max > kMaxCoordinate) {
     ws.warm = false;  // never start the next drag frame from a rejected solution
     throw_result_error(transforms);
   }

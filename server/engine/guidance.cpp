@@ -87,19 +87,19 @@ void guidance_field(const Triangles& F, const Vertices& normals, const Eigen::Ma
       for (int c = 0; c < 3; ++c) gl[3 * r + c] = M(c, r) - nl[r] * Mn[c];
   };
   // One handle without stretch: four triangles at a time where the CPU has AVX2 + FMA
-  // (guidance_rotation.h); each half then does the few left of its own.
+  // (guidance_rotation.h); each chunk then does the few left of its own.
   const bool vector_isa = kernel_isa() == Isa::avx2;
   const bool vector_rotation = k == 1 && !stretched && vector_isa;
   double* rn = Rn ? Rn->data() : nullptr;
 
-  // Two halves each, on the caller and the solve's helper thread (two_threads.h).
+  // Chunks each, on the caller and the solve's helper thread (two_threads.h for_chunks).
   if (turn)
-    two_halves(n, [&](Eigen::Index v0, Eigen::Index v1, int) {
+    for_chunks(n, [&](Eigen::Index v0, Eigen::Index v1, int) {
       if (vector_isa) return detail::vertex_turns_avx2(Phi.data(), v0, v1, third, turn);
       for (Eigen::Index v = v0; v < v1; ++v)
         turn[v] = {std::cos(Phi(v, 0) * third), std::sin(Phi(v, 0) * third)};
     });
-  two_halves(m, [&](Eigen::Index l0, Eigen::Index l1, int) {
+  for_chunks(m, [&](Eigen::Index l0, Eigen::Index l1, int) {
     Eigen::Index l = l0;
     if (vector_rotation)
       l = detail::guidance_rotation_avx2(F.data(), normals.data(), turn, axis.data(), l0, l1,

@@ -3,8 +3,7 @@
 #include "cpu_features.h"
 #include "deformer.h"
 #include "measure_triangles.h"
-
-#include <omp.h>
+#include "two_threads.h"
 
 #include <algorithm>
 #include <cmath>
@@ -66,19 +65,12 @@ Measures measure(const PreparedMesh& pm, const Vertices& X, const GuidanceField&
   if (face_w) face_w->resize(m, 3);
   const bool vector_isa = kernel_isa() == Isa::avx2;
 
-  // Independent per triangle: the two cores split the loop, each thread a contiguous chunk
-  // (blocks of four for the AVX2 loop); the chunks' sums are added in thread order, so the
-  // measures do not depend on which thread finished first.
-  std::vector<detail::MeasureSums> part(static_cast<std::size_t>(omp_get_max_threads()));
-  int threads = 1;
-#pragma omp parallel
-  {
-    const Eigen::Index T = omp_get_num_threads(), t = omp_get_thread_num();
-#pragma omp single
-    threads = static_cast<int>(T);
-    const Eigen::Index chunk = ((m + T - 1) / T + 3) & ~Eigen::Index{3};
-    const Eigen::Index begin = std::min(m, t * chunk), end = std::min(m, begin + chunk);
-    detail::MeasureSums& s = part[static_cast<std::size_t>(t)];
+  // Independent per triangle: chunks run on the caller and the solve's helper (for_chunks: no
+  // OpenMP wake, no allocation); the chunks' sums are added in chunk order, so the measures
+  // are the same bits whichever thread ran which chunk, or one thread all.
+  detail::MeasureSums part[kChunks];
+  for_chunks(m, [&](Eigen::Index begin, Eigen::Index end, int c) {
+    detail::MeasureSums& s = part[c];
     Eigen::Index l = begin;
     if (vector_isa)
       l = detail::measure_triangles_avx2(F.data(), X.data(), pm.gradients().data(), g.data(),
@@ -86,10 +78,9 @@ Measures measure(const PreparedMesh& pm, const Vertices& X, const GuidanceField&
                                          ef2 ? ef2->data() : nullptr,
                                          face_w ? face_w->data() : nullptr, s);
     measure_triangles(pm, X, g, Rn, l, end, ef2, face_w, s);
-  }
+  });
   detail::MeasureSums sum;
-  for (int t = 0; t < threads; ++t) {
-    const detail::MeasureSums& s = part[static_cast<std::size_t>(t)];
+  for (const detail::MeasureSums& s : part) {
     sum.E += s.E;
     sum.iso += s.iso;
     sum.conf += s.conf;

@@ -17,7 +17,7 @@ void sparse_times3(const SparseMatrixR& A, const GuidanceField& X, Eigen::Matrix
   double* y0 = Y.col(0).data();
   double* y1 = Y.col(1).data();
   double* y2 = Y.col(2).data();
-  two_halves(rows, [&](Eigen::Index i0, Eigen::Index i1, int) {
+  for_chunks(rows, [&](Eigen::Index i0, Eigen::Index i1, int) {
     for (Eigen::Index i = i0; i < i1; ++i) {
       double s0 = 0, s1 = 0, s2 = 0;
       for (auto p = outer[i]; p < outer[i + 1]; ++p) {
@@ -47,7 +47,7 @@ void residual_rows(const SparseMatrix& K, const Eigen::MatrixXd& X, const Eigen:
   const double* k = K.valuePtr();
   const double *x0 = X.col(0).data(), *x1 = X.col(1).data(), *x2 = X.col(2).data();
   const double *b0 = B.col(0).data(), *b1 = B.col(1).data(), *b2 = B.col(2).data();
-  two_halves(n, [&](Eigen::Index i0, Eigen::Index i1, int) {
+  for_chunks(n, [&](Eigen::Index i0, Eigen::Index i1, int) {
     for (Eigen::Index i = i0; i < i1; ++i) {
       double s0 = 0, s1 = 0, s2 = 0;
       for (auto p = outer[i]; p < outer[i + 1]; ++p) {

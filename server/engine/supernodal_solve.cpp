@@ -202,53 +202,49 @@ void supernodal_solve3(const cholmod_factor& L, const T* Lx, const SupernodalSch
                      split ? sched.rows_.data() : static_cast<const int*>(L.s), Lx, y},
                     sweep_kernels<T>()};
   const int* top_cols = sched.top_cols_.data();
-  // Work is claimed, not assigned: parts and blocks of rows go to whichever thread asks.
+  // Work is claimed, not assigned: blocks of rows and parts go to whichever thread asks (the
+  // caller from the front, the helper from the back), and each phase ends when its items are
+  // done (Claims), so the helper may join late or never (Helper::offer) and the caller never
+  // waits for it to wake.
   constexpr std::ptrdiff_t kBlock = 8192;
-  std::atomic<std::ptrdiff_t> next_in{0}, next_out{0};
-  std::atomic<int> next_fwd{0}, next_bwd{0};
+  const int nblocks = static_cast<int>((n + kBlock - 1) / kBlock);
 
   // y = P b, interleaved: y[3k + c] = B(Perm[k], c).
-  auto permute_in = [&] {
-    for (std::ptrdiff_t k0; (k0 = next_in.fetch_add(kBlock)) < n;)
-      for (std::ptrdiff_t k = k0, k1 = std::min(n, k0 + kBlock); k < k1; ++k) {
-        const double* b = B + perm[k] * sb.row;
-        y[3 * k] = b[0];
-        y[3 * k + 1] = b[sb.col];
-        y[3 * k + 2] = b[2 * sb.col];
-      }
+  auto permute_in = [&](int blk) {
+    for (std::ptrdiff_t k = blk * kBlock, k1 = std::min(n, k + kBlock); k < k1; ++k) {
+      const double* b = B + perm[k] * sb.row;
+      y[3 * k] = b[0];
+      y[3 * k + 1] = b[sb.col];
+      y[3 * k + 2] = b[2 * sb.col];
+    }
   };
   // x = Pᵀ y (reads y only: X may alias B).
-  auto permute_out = [&] {
-    for (std::ptrdiff_t k0; (k0 = next_out.fetch_add(kBlock)) < n;)
-      for (std::ptrdiff_t k = k0, k1 = std::min(n, k0 + kBlock); k < k1; ++k) {
-        double* x = X + perm[k] * sx.row;
-        x[0] = y[3 * k];
-        x[sx.col] = y[3 * k + 1];
-        x[2 * sx.col] = y[3 * k + 2];
-      }
+  auto permute_out = [&](int blk) {
+    for (std::ptrdiff_t k = blk * kBlock, k1 = std::min(n, k + kBlock); k < k1; ++k) {
+      double* x = X + perm[k] * sx.row;
+      x[0] = y[3 * k];
+      x[sx.col] = y[3 * k + 1];
+      x[2 * sx.col] = y[3 * k + 2];
+    }
   };
   if (!split) {
-    permute_in();
+    for (int blk = 0; blk < nblocks; ++blk) permute_in(blk);
     sw.forward_all(nsuper);
     sw.backward_all(nsuper);
-    permute_out();
+    for (int blk = 0; blk < nblocks; ++blk) permute_out(blk);
     return;
   }
-  // Each thread of the team (1 or 2) runs this; every part's arithmetic is the same
-  // whichever thread runs it, and only thread 0 touches the top.
-  Barrier2 bar;
-  auto body = [&](int tid, int team) {
-    auto barrier = [&bar, team] {
-      if (team > 1) bar.arrive_and_wait();
-    };
-    permute_in();
-    barrier();  // B is read (X may alias it) and y is complete
-    for (int p; (p = next_fwd.fetch_add(1)) < K;) {
+  // Each thread (the caller, and the helper if it joins) runs this; every item's arithmetic
+  // is the same whichever thread runs it, and only the caller touches the top.
+  Claims in(nblocks), fwd(K), bwd(K), out(nblocks);
+  std::atomic<int> top_done{0};
+  auto body = [&](int tid) {
+    in.run(tid, permute_in);  // B is read (X may alias it) and y is complete
+    fwd.run(tid, [&](int p) {
       double* buf = y + 3 * (n + p * ntop);
       std::fill(buf, buf + 3 * ntop, 0.0);
       sw.forward_list(sched.parts_[p]);
-    }
-    barrier();
+    });
     if (tid == 0) {
       for (int p = 0; p < K; ++p) {  // fixed order: the bits do not depend on the team
         const double* buf = y + 3 * (n + p * ntop);
@@ -261,9 +257,12 @@ void supernodal_solve3(const cholmod_factor& L, const T* Lx, const SupernodalSch
       }
       sw.forward_list(sched.top_);
       sw.backward_list(sched.top_);
+      top_done.store(1, std::memory_order_release);
+      top_done.notify_one();
+    } else {
+      await_value(top_done, 1);
     }
-    barrier();
-    for (int p; (p = next_bwd.fetch_add(1)) < K;) {
+    bwd.run(tid, [&](int p) {
       double* buf = y + 3 * (n + p * ntop);  // the part reads the top's x from here
       for (std::ptrdiff_t k = 0; k < ntop; ++k) {
         const double* yr = y + 3 * static_cast<std::ptrdiff_t>(top_cols[k]);
@@ -272,12 +271,14 @@ void supernodal_solve3(const cholmod_factor& L, const T* Lx, const SupernodalSch
         buf[3 * k + 2] = yr[2];
       }
       sw.backward_list(sched.parts_[p]);
-    }
-    barrier();
-    permute_out();
+    });
+    out.run(tid, permute_out);
   };
-  auto run2 = [](void* ctx, int tid) { (*static_cast<decltype(body)*>(ctx))(tid, 2); };
-  if (threads < 2 || !Helper::instance().run(run2, &body)) body(0, 1);
+  auto run2 = [](void* ctx, int tid) { (*static_cast<decltype(body)*>(ctx))(tid); };
+  if (threads < 2)
+    body(0);
+  else
+    Helper::instance().offer(run2, &body);
 }
 
 template void supernodal_solve3<double>(const cholmod_factor&, const double*,

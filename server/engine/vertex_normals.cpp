@@ -36,7 +36,7 @@ inline void gather(const VertexTriangles& vt, const Vertices& face_w, Eigen::Ind
   N.row(v) = s;
 }
 
-// Both passes in two halves (two_threads.h), each by the AVX2 kernels
+// Both passes in chunks on two threads (two_threads.h for_chunks), each by the AVX2 kernels
 // (vertex_normals_kernels.h) or the scalar loops.
 void face_weights(const Vertices& X, const Triangles& F, Eigen::Index t0, Eigen::Index t1,
                   Vertices& face_w, bool vector_isa) {
@@ -63,10 +63,10 @@ void vertex_normals(const Vertices& X, const Triangles& F, const VertexTriangles
   face_w.resize(m, 3);
   N.resize(n, 3);
   const bool vector_isa = kernel_isa() == Isa::avx2;
-  two_halves(m, [&](Eigen::Index t0, Eigen::Index t1, int) {
+  for_chunks(m, [&](Eigen::Index t0, Eigen::Index t1, int) {
     face_weights(X, F, t0, t1, face_w, vector_isa);
   });
-  two_halves(n, [&](Eigen::Index v0, Eigen::Index v1, int) {
+  for_chunks(n, [&](Eigen::Index v0, Eigen::Index v1, int) {
     gather_block(vt, face_w, v0, v1, N, vector_isa);
   });
 }
@@ -75,7 +75,7 @@ void vertex_normals_from_faces(const VertexTriangles& vt, const Vertices& face_w
   const auto n = static_cast<Eigen::Index>(vt.offsets.size()) - 1;
   N.resize(n, 3);
   const bool vector_isa = kernel_isa() == Isa::avx2;
-  two_halves(n, [&](Eigen::Index v0, Eigen::Index v1, int) {
+  for_chunks(n, [&](Eigen::Index v0, Eigen::Index v1, int) {
     gather_block(vt, face_w, v0, v1, N, vector_isa);
   });
 }
