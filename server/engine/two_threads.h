@@ -7,7 +7,6 @@
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
-#include <mutex>
 #include <thread>
 
 namespace hdeform {
@@ -97,8 +96,8 @@ class Helper {
   // A team of two: fn(ctx, 1) on the helper and fn(ctx, 0) on the caller, both always run
   // (fn may use a Barrier2). false (nothing run) if the helper is busy.
   bool run(void (*fn)(void*, int), void* ctx) {
-    std::unique_lock<std::mutex> lock(busy_, std::try_to_lock);
-    if (!lock.owns_lock()) return false;
+    const Taken taken(*this);
+    if (!taken) return false;
     const unsigned g = start(fn, ctx);
     fn(ctx, 0);
     await_value(done_, g);
@@ -110,8 +109,8 @@ class Helper {
   // to run, and a barrier would hold the caller for it. A busy helper: fn(ctx, 0) alone.
   // fn must not throw.
   void offer(void (*fn)(void*, int), void* ctx) {
-    std::unique_lock<std::mutex> lock(busy_, std::try_to_lock);
-    if (!lock.owns_lock()) return fn(ctx, 0);
+    const Taken taken(*this);
+    if (!taken) return fn(ctx, 0);
     const unsigned g = start(fn, ctx);
     fn(ctx, 0);
     std::uint64_t open = 2 * std::uint64_t{g};
@@ -127,6 +126,24 @@ class Helper {
   }
 
  private:
+  // The helper for one call, or nothing if another call has it. A flag, not a mutex: a call
+  // on the thread that already holds the helper (a kernel inside a two-thread part, as
+  // tests/engine/helper_busy.h does) must just find it busy; try_lock on an owned mutex is
+  // undefined.
+  class Taken {
+   public:
+    explicit Taken(Helper& h)
+        : h_(h.busy_.exchange(true, std::memory_order_acquire) ? nullptr : &h) {}
+    ~Taken() {
+      if (h_) h_->busy_.store(false, std::memory_order_release);
+    }
+    explicit operator bool() const { return h_ != nullptr; }
+    Taken(const Taken&) = delete;
+    Taken& operator=(const Taken&) = delete;
+
+   private:
+    Helper* h_;
+  };
   // Publishes job g = go_ + 1 with its ticket open (2g); the helper joins by turning it to
   // 2g + 1, offer() closes it with 0. Callers hold busy_.
   unsigned start(void (*fn)(void*, int), void* ctx) {
@@ -153,7 +170,7 @@ class Helper {
       done_.notify_one();
     }
   }
-  std::mutex busy_;
+  std::atomic<bool> busy_{false};
   std::thread thread_;
   std::atomic<unsigned> go_{0}, done_{0};
   std::atomic<std::uint64_t> ticket_{0};

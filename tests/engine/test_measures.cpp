@@ -161,7 +161,11 @@ TEST_P(Measure, BuildsAgree) {
       EXPECT_NEAR(a.max_e_conf, o.max_e_conf, 1e-12 * a.max_e_conf);
       EXPECT_LT((ef2 - ef2_other).cwiseAbs().maxCoeff(), 1e-6f * ef2.cwiseAbs().maxCoeff());
       EXPECT_TRUE(w == w_other) << "the normals' weights must not depend on the build";
-      EXPECT_NE(a.E, o.E) << "both builds ran the same code";
+      // The builds round differently (FMA), so some sum differs in its last bits; any one
+      // sum may still round to the same double (E did, on one of these meshes).
+      EXPECT_TRUE(a.E != o.E || a.E_iso_N != o.E_iso_N || a.E_conf_N != o.E_conf_N ||
+                  a.E_area_pct != o.E_area_pct || !(ef2 == ef2_other))
+          << "both builds ran the same code";
       if (helper_busy) {
         EXPECT_EQ(a.E, two.E);
         EXPECT_EQ(a.E_iso_N, two.E_iso_N);
