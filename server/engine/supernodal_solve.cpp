@@ -8,9 +8,7 @@
 
 #include <algorithm>
 #include <atomic>
-#include <mutex>
 #include <numeric>
-#include <thread>
 
 namespace hdeform {
 
@@ -209,18 +207,18 @@ void supernodal_solve3(const cholmod_factor& L, const T* Lx, const SupernodalSch
   constexpr std::ptrdiff_t kBlock = 8192;
   const int nblocks = static_cast<int>((n + kBlock - 1) / kBlock);
 
-  // y = P b, interleaved: y[3k + c] = B(Perm[k], c).
-  auto permute_in = [&](int blk) {
-    for (std::ptrdiff_t k = blk * kBlock, k1 = std::min(n, k + kBlock); k < k1; ++k) {
+  // y = P b, interleaved: y[3k + c] = B(Perm[k], c), for rows [k0, k1).
+  auto permute_in = [&](std::ptrdiff_t k0, std::ptrdiff_t k1) {
+    for (std::ptrdiff_t k = k0; k < k1; ++k) {
       const double* b = B + perm[k] * sb.row;
       y[3 * k] = b[0];
       y[3 * k + 1] = b[sb.col];
       y[3 * k + 2] = b[2 * sb.col];
     }
   };
-  // x = Pᵀ y (reads y only: X may alias B).
-  auto permute_out = [&](int blk) {
-    for (std::ptrdiff_t k = blk * kBlock, k1 = std::min(n, k + kBlock); k < k1; ++k) {
+  // x = Pᵀ y (reads y only: X may alias B), for rows [k0, k1).
+  auto permute_out = [&](std::ptrdiff_t k0, std::ptrdiff_t k1) {
+    for (std::ptrdiff_t k = k0; k < k1; ++k) {
       double* x = X + perm[k] * sx.row;
       x[0] = y[3 * k];
       x[sx.col] = y[3 * k + 1];
@@ -228,18 +226,21 @@ void supernodal_solve3(const cholmod_factor& L, const T* Lx, const SupernodalSch
     }
   };
   if (!split) {
-    for (int blk = 0; blk < nblocks; ++blk) permute_in(blk);
+    permute_in(0, n);
     sw.forward_all(nsuper);
     sw.backward_all(nsuper);
-    for (int blk = 0; blk < nblocks; ++blk) permute_out(blk);
+    permute_out(0, n);
     return;
   }
+  // The permutations in blocks of kBlock rows, so that both threads can claim them.
+  auto in_block = [&](int blk) { permute_in(blk * kBlock, std::min(n, (blk + 1) * kBlock)); };
+  auto out_block = [&](int blk) { permute_out(blk * kBlock, std::min(n, (blk + 1) * kBlock)); };
   // Each thread (the caller, and the helper if it joins) runs this; every item's arithmetic
   // is the same whichever thread runs it, and only the caller touches the top.
   Claims in(nblocks), fwd(K), bwd(K), out(nblocks);
   std::atomic<int> top_done{0};
   auto body = [&](int tid) {
-    in.run(tid, permute_in);  // B is read (X may alias it) and y is complete
+    in.run(tid, in_block);  // B is read (X may alias it) and y is complete
     fwd.run(tid, [&](int p) {
       double* buf = y + 3 * (n + p * ntop);
       std::fill(buf, buf + 3 * ntop, 0.0);
@@ -272,7 +273,7 @@ void supernodal_solve3(const cholmod_factor& L, const T* Lx, const SupernodalSch
       }
       sw.backward_list(sched.parts_[p]);
     });
-    out.run(tid, permute_out);
+    out.run(tid, out_block);
   };
   auto run2 = [](void* ctx, int tid) { (*static_cast<decltype(body)*>(ctx))(tid); };
   if (threads < 2)

@@ -6,6 +6,7 @@
 #include "procedural.h"
 #include "selection.h"
 
+#include <cstring>
 #include <fstream>
 #include <vector>
 #include <sstream>
@@ -14,6 +15,12 @@
 namespace hdeform::test {
 
 inline std::string data_path(const std::string& rel) { return std::string(HDEFORM_TEST_DATA) + "/" + rel; }
+
+// Equal bit for bit (not only within rounding): the engine's determinism checks.
+inline bool same_bits(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
+  return a.rows() == b.rows() && a.cols() == b.cols() &&
+         std::memcmp(a.data(), b.data(), sizeof(double) * a.size()) == 0;
+}
 
 inline std::string slurp(const std::string& path) {
   std::ifstream f(path);

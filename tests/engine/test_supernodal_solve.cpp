@@ -37,6 +37,7 @@ namespace hdeform {
 namespace {
 
 using test::k_ff;
+using test::same_bits;
 
 double rel_max_diff(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
   return (a - b).cwiseAbs().maxCoeff() / b.cwiseAbs().maxCoeff();
@@ -189,11 +190,6 @@ Eigen::MatrixXd solve3(const Factorization& f, const Eigen::MatrixXd& B, SolvePr
   Eigen::MatrixXd X(B.rows(), 3);
   f.solve3(B.data(), X.data(), p, threads);
   return X;
-}
-
-bool same_bits(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
-  return a.rows() == b.rows() && a.cols() == b.cols() &&
-         std::memcmp(a.data(), b.data(), sizeof(double) * a.size()) == 0;
 }
 
 // max over columns of ‖a − b‖₂ / ‖b‖₂

@@ -10,7 +10,6 @@
 
 #include <atomic>
 #include <chrono>
-#include <cstring>
 #include <thread>
 #include <vector>
 
@@ -128,21 +127,18 @@ TEST(TwoThreads, ClaimedSolveGivesTheBitsOfOneThread) {
   ASSERT_TRUE(f.schedule().split());
   std::srand(3);
   const Eigen::MatrixXd B = Eigen::MatrixXd::Random(f.size(), 3);
-  auto same = [](const Eigen::MatrixXd& x, const Eigen::MatrixXd& y) {
-    return std::memcmp(x.data(), y.data(), sizeof(double) * x.size()) == 0;
-  };
   for (SolvePrecision p : {SolvePrecision::float64, SolvePrecision::float32}) {
     Eigen::MatrixXd one(B.rows(), 3), two(B.rows(), 3), other(B.rows(), 3);
     f.solve3(B.data(), one.data(), p, 1);
     std::thread second([&] {
       for (int rep = 0; rep < 4; ++rep) {
         f.solve3(B.data(), other.data(), p, 2);
-        EXPECT_TRUE(same(other, one));
+        EXPECT_TRUE(test::same_bits(other, one));
       }
     });
     for (int rep = 0; rep < 4; ++rep) {
       f.solve3(B.data(), two.data(), p, 2);
-      EXPECT_TRUE(same(two, one));
+      EXPECT_TRUE(test::same_bits(two, one));
     }
     second.join();
   }
