@@ -17,6 +17,10 @@
 //                          read on a second thread; frames, frames/s, coalesced updates.
 //   Drag/N/hz:H/updates:U  the same at a fixed rate (a user dragging at H Hz): fps, and
 //                          p50/p99 latency from each answered update to its frame.
+//   Drag/N/hz:20/updates:U/ENC
+//                          at 20 Hz (no queue behind a move) with frames in encoding ENC:
+//                          over_p50_ms (median of latency − Frame.solve_ms) is what the
+//                          stream, the encode and the client add to the move.
 //   Unary/N/ENC            Unary with frames in encoding ENC (quantized, meshopt).
 //   Encode/N/ENC           the server's encoder alone on one real frame of the capsule (its
 //                          first move, with normals and energies): time per encoding; bytes
@@ -420,10 +424,11 @@ void BM_Stream(benchmark::State& state, int n) {
 
 // `updates` updates on one Deform stream, `interval_us` apart (0 = as fast as possible),
 // frames read on a second thread.
-void BM_Burst(benchmark::State& state, int n, int updates, int interval_us) {
+void BM_Burst(benchmark::State& state, int n, int updates, int interval_us,
+              pb::FrameEncoding encoding) {
   Case* c = get_case(n, state);
   if (!c) return;
-  std::vector<double> frames_v, fps_v, coalesced_v, last_ms_v, send_ms_v, lat;
+  std::vector<double> frames_v, fps_v, coalesced_v, last_ms_v, send_ms_v, lat, server, over;
   bool newest_answered = true;
   for (auto _ : state) {
     grpc::ClientContext ctx;
@@ -443,10 +448,12 @@ void BM_Burst(benchmark::State& state, int n, int updates, int interval_us) {
         ++frames;
         last_seq = frame.sequence();
         last_frame = now;
+        server.push_back(frame.solve_ms());
         const std::int64_t i = frame.sequence() - base;
         if (i >= 0 && i < updates) {
           const auto sent = Clock::time_point(Clock::duration(sent_ns[i].load()));
           lat.push_back(ms_since(sent, now));
+          over.push_back(lat.back() - frame.solve_ms());
         }
       }
     });
@@ -455,7 +462,10 @@ void BM_Burst(benchmark::State& state, int n, int updates, int interval_us) {
         std::this_thread::sleep_until(t0 + std::chrono::microseconds(
                                                static_cast<std::int64_t>(interval_us) * i));
       pb::DeformRequest req;
-      if (i == 0) req.set_name(c->name);
+      if (i == 0) {
+        req.set_name(c->name);
+        req.mutable_format()->set_encoding(encoding);
+      }
       req.set_sequence(base + i);
       set_move(req.add_transforms(), base + i);
       sent_ns[i].store(Clock::now().time_since_epoch().count());
@@ -487,6 +497,8 @@ void BM_Burst(benchmark::State& state, int n, int updates, int interval_us) {
   state.counters["newest_answered"] = newest_answered ? 1 : 0;  // last frame = last update
   state.counters["lat_p50_ms"] = percentile(lat, 0.5);  // answered update → its frame
   state.counters["lat_p99_ms"] = percentile(lat, 0.99);
+  state.counters["server_p50_ms"] = percentile(server, 0.5);  // Frame.solve_ms
+  state.counters["over_p50_ms"] = percentile(over, 0.5);  // latency − solve_ms, per frame
 }
 
 // K sessions on a fresh server; each: CreateSession (upload) + SetConstraints + one
@@ -583,16 +595,28 @@ void register_all() {
         ->UseRealTime();
     const int updates = g_smoke ? 20 : 200;
     benchmark::RegisterBenchmark(("Burst" + N + "/updates:" + std::to_string(updates)).c_str(),
-                                 BM_Burst, s.n, updates, 0)
+                                 BM_Burst, s.n, updates, 0, pb::FRAME_ENCODING_FLOAT32)
         ->Iterations(g_smoke ? 1 : s.bursts)
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime();
     benchmark::RegisterBenchmark(
         ("Drag" + N + "/hz:60/updates:" + std::to_string(updates)).c_str(), BM_Burst, s.n,
-        updates, 16667)
+        updates, 16667, pb::FRAME_ENCODING_FLOAT32)
         ->Iterations(g_smoke ? 1 : 2)
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime();
+    // At 20 Hz a move ends before the next update comes (no coalescing, no queue), so
+    // over_p50_ms (latency − solve_ms) is what the stream, the encode and the client add.
+    const int slow_updates = g_smoke ? 10 : 60;
+    for (auto e : {pb::FRAME_ENCODING_FLOAT32, pb::FRAME_ENCODING_QUANTIZED,
+                   pb::FRAME_ENCODING_MESHOPT})
+      benchmark::RegisterBenchmark(("Drag" + N + "/hz:20/updates:" +
+                                    std::to_string(slow_updates) + "/" + encoding_name(e))
+                                       .c_str(),
+                                   BM_Burst, s.n, slow_updates, 50000, e)
+          ->Iterations(g_smoke ? 1 : 2)
+          ->Unit(benchmark::kMillisecond)
+          ->UseRealTime();
     for (bool distinct : {true, false}) {
       const int k = g_smoke ? 3 : (distinct ? s.memory_sessions : 4 * s.memory_sessions);
       benchmark::RegisterBenchmark(("Memory" + N + (distinct ? "/distinct" : "/shared") +

@@ -67,7 +67,7 @@ void FrameDeltaEncoder::encode(const v1::Frame& frame, v1::Frame* out) {
     deltas.resize(current.size());
     const auto* before = reinterpret_cast<const unsigned char*>(reference_.data());
     auto* d = reinterpret_cast<unsigned char*>(deltas.data());
-#pragma omp parallel for schedule(static) if (n >= 16384)  // as quantize_onto
+#pragma omp parallel for schedule(static) if (n >= 16384)  // smaller: waking the team costs more
     for (std::size_t i = 0; i < n; ++i) {
       const std::size_t o = kQuantizedVertexBytes * i;
       for (int k = 0; k < 3; ++k) {

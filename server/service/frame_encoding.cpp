@@ -1,6 +1,8 @@
 #include "frame_encoding.h"
 
+#include "cpu_features.h"
 #include "errors.h"
+#include "quantize_kernel.h"
 
 #include <meshoptimizer.h>
 
@@ -77,72 +79,101 @@ inline void octahedral(const float n[3], std::int8_t out[2]) {
   out[1] = static_cast<std::int8_t>(std::lrintf(std::clamp(v, -1.0f, 1.0f) * 127.0f));
 }
 
-// Below this many vertices a frame is quantized on one thread (waking the team costs more).
-constexpr std::size_t kParallelVertices = 16384;
-
 }  // namespace
 
 void octahedral_encode(const float n[3], std::int8_t out[2]) { octahedral(n, out); }
 
 v1::Box bounding_box(std::span<const float> p) {
   const std::size_t n = p.size() / 3;
-  float lo0 = 0, lo1 = 0, lo2 = 0, hi0 = 0, hi1 = 0, hi2 = 0;
+  float lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
   if (n > 0) {
-    lo0 = hi0 = p[0];
-    lo1 = hi1 = p[1];
-    lo2 = hi2 = p[2];
-    // min and max are exact: any split of the loop gives the same box.
-#pragma omp parallel for schedule(static) if (n >= kParallelVertices) \
-    reduction(min : lo0, lo1, lo2) reduction(max : hi0, hi1, hi2)
-    for (std::size_t i = 1; i < n; ++i) {
-      lo0 = std::min(lo0, p[3 * i]);
-      hi0 = std::max(hi0, p[3 * i]);
-      lo1 = std::min(lo1, p[3 * i + 1]);
-      hi1 = std::max(hi1, p[3 * i + 1]);
-      lo2 = std::min(lo2, p[3 * i + 2]);
-      hi2 = std::max(hi2, p[3 * i + 2]);
+    for (int k = 0; k < 3; ++k) lo[k] = hi[k] = p[k];
+    std::size_t done = 1;
+#ifdef HDEFORM_HAVE_AVX2_KERNELS
+    if (kernel_isa() == Isa::avx2) done += detail::box_range_avx2(p.data(), 1, n, lo, hi);
+#endif
+    detail::box_range(p.data(), done, n, lo, hi);
+    // min and max are exact, so any order of the loop gives the same box but for the sign of
+    // a zero: + 0 makes it +0.
+    for (int k = 0; k < 3; ++k) {
+      lo[k] += 0.0f;
+      hi[k] += 0.0f;
     }
   }
   v1::Box box;
-  box.mutable_min()->set_x(lo0);
-  box.mutable_min()->set_y(lo1);
-  box.mutable_min()->set_z(lo2);
-  box.mutable_max()->set_x(hi0);
-  box.mutable_max()->set_y(hi1);
-  box.mutable_max()->set_z(hi2);
+  box.mutable_min()->set_x(lo[0]);
+  box.mutable_min()->set_y(lo[1]);
+  box.mutable_min()->set_z(lo[2]);
+  box.mutable_max()->set_x(hi[0]);
+  box.mutable_max()->set_y(hi[1]);
+  box.mutable_max()->set_z(hi[2]);
   return box;
 }
 
-bool quantize_onto(std::span<const float> p, std::span<const float> nrm, const v1::Box& box,
-                   unsigned char* out) {
-  const double lo[3] = {box.min().x(), box.min().y(), box.min().z()};
-  const double hi[3] = {box.max().x(), box.max().y(), box.max().z()};
-  double scale[3];  // q = (x − lo) · 65535 / extent, in double: float would lose the last bits
-  for (int k = 0; k < 3; ++k) {
-    const double extent = hi[k] - lo[k];
-    scale[k] = extent > 0 ? 65535.0 / extent : 0.0;  // a flat axis: every q is 0, decoded as min
-  }
-  const std::size_t n = p.size() / 3;
-  const bool has_normals = nrm.size() == p.size();
+namespace detail {
+
+void box_range(const float* p, std::size_t begin, std::size_t end, float lo[3], float hi[3]) {
+  for (std::size_t i = begin; i < end; ++i)
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = std::min(lo[k], p[3 * i + k]);
+      hi[k] = std::max(hi[k], p[3 * i + k]);
+    }
+}
+
+void max_finite_range(const float* e, std::size_t begin, std::size_t end, float* top) {
+  for (std::size_t l = begin; l < end; ++l)
+    if (std::isfinite(e[l])) *top = std::max(*top, e[l]);
+}
+
+void quantize_energy_range(const float* e, std::size_t begin, std::size_t end, float inv,
+                           std::uint16_t* q) {
+  for (std::size_t l = begin; l < end; ++l)
+    q[l] = std::isfinite(e[l]) ? to_u16(e[l] * inv) : std::uint16_t{65535};
+}
+
+bool quantize_range(const float* p, const float* nrm, std::size_t begin, std::size_t end,
+                    const QuantizeGrid& grid, unsigned char* out) {
   bool inside = true;
-#pragma omp parallel for schedule(static) if (n >= kParallelVertices) reduction(&& : inside)
-  for (std::size_t i = 0; i < n; ++i) {
+  for (std::size_t i = begin; i < end; ++i) {
     std::uint16_t q[3];
     for (int k = 0; k < 3; ++k) {
       const double x = p[3 * i + k];
-      const double t = (x - lo[k]) * scale[k];
+      const double t = (x - grid.lo[k]) * grid.scale[k];
       // Outside: rounds below 0 or above 65535, or off a flat axis. NaN fails both tests.
-      if (!(t >= -0.5 && t < 65535.5) || (scale[k] == 0 && x != lo[k])) inside = false;
-      q[k] = static_cast<std::uint16_t>(std::clamp(std::lrint(t), 0L, 65535L));
+      if (!(t >= -0.5 && t < 65535.5) || (grid.scale[k] == 0 && x != grid.lo[k])) inside = false;
+      // Clamped before rounding (NaN to 0), as the AVX2 build's max and min do.
+      q[k] = static_cast<std::uint16_t>(std::lrint(t > 0 ? std::min(t, 65535.0) : 0.0));
     }
     unsigned char* v = out + kQuantizedVertexBytes * i;
     std::memcpy(v, q, sizeof q);
-    if (has_normals)
+    if (nrm)
       octahedral(&nrm[3 * i], reinterpret_cast<std::int8_t*>(v + 6));
     else
       v[6] = v[7] = 0;
   }
   return inside;
+}
+
+}  // namespace detail
+
+bool quantize_onto(std::span<const float> p, std::span<const float> nrm, const v1::Box& box,
+                   unsigned char* out) {
+  const double lo[3] = {box.min().x(), box.min().y(), box.min().z()};
+  const double hi[3] = {box.max().x(), box.max().y(), box.max().z()};
+  detail::QuantizeGrid grid{{lo[0], lo[1], lo[2]}, {}};
+  for (int k = 0; k < 3; ++k) {
+    const double extent = hi[k] - lo[k];
+    grid.scale[k] = extent > 0 ? 65535.0 / extent : 0.0;
+  }
+  const std::size_t n = p.size() / 3;
+  const float* normals = nrm.size() == p.size() ? nrm.data() : nullptr;
+  bool inside = true;
+  std::size_t done = 0;
+#ifdef HDEFORM_HAVE_AVX2_KERNELS
+  if (kernel_isa() == Isa::avx2)
+    done = detail::quantize_range_avx2(p.data(), normals, 0, n, grid, out, &inside);
+#endif
+  return detail::quantize_range(p.data(), normals, done, n, grid, out) && inside;
 }
 
 std::string quantize_vertices(std::span<const float> p, std::span<const float> nrm,
@@ -154,15 +185,22 @@ std::string quantize_vertices(std::span<const float> p, std::span<const float> n
 }
 
 std::string quantize_energies(std::span<const float> e, float* energies_max) {
+  [[maybe_unused]] const bool avx2 = kernel_isa() == Isa::avx2;
   float top = 0;
-  for (float x : e)
-    if (std::isfinite(x)) top = std::max(top, x);
+  std::size_t done = 0;
+#ifdef HDEFORM_HAVE_AVX2_KERNELS
+  if (avx2) done = detail::max_finite_range_avx2(e.data(), 0, e.size(), &top);
+#endif
+  detail::max_finite_range(e.data(), done, e.size(), &top);
   *energies_max = top;
   std::string out(sizeof(std::uint16_t) * e.size(), '\0');
   auto* q = reinterpret_cast<std::uint16_t*>(out.data());
   const float inv = top > 0 ? 1.0f / top : 0.0f;
-  for (std::size_t l = 0; l < e.size(); ++l)
-    q[l] = std::isfinite(e[l]) ? to_u16(e[l] * inv) : std::uint16_t{65535};
+  done = 0;
+#ifdef HDEFORM_HAVE_AVX2_KERNELS
+  if (avx2) done = detail::quantize_energy_range_avx2(e.data(), 0, e.size(), inv, q);
+#endif
+  detail::quantize_energy_range(e.data(), done, e.size(), inv, q);
   return out;
 }
 

@@ -6,6 +6,7 @@
 #include "frame_test_util.h"
 #include "service/encoded_frames.h"
 #include "service/frame_encoding.h"
+#include "cpu_features.h"
 #include "service_fixture.h"
 
 #include <google/protobuf/descriptor.h>
@@ -14,6 +15,8 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstring>
+#include <limits>
 #include <random>
 #include <set>
 #include <thread>
@@ -95,6 +98,109 @@ TEST(FrameEncoding, FlatAxesEmptyFramesAndZeroEnergiesDecode) {
   pb::Frame empty;
   ASSERT_TRUE(svc::encode_frame_to(pb::Frame{}, fmt, false, &empty));
   EXPECT_TRUE(decode_frame(empty, 0, 0).positions.empty());
+}
+
+// The AVX2 quantization (quantize_avx2.cpp) against the generic loop: the same bytes and the
+// same inside/outside answer on ordinary frames and on every odd value a float can hold.
+TEST(FrameEncoding, TheAvx2QuantizationWritesTheGenericBytes) {
+  if (!isa_supported(Isa::avx2)) GTEST_SKIP() << "this CPU has no AVX2";
+  const Isa before = kernel_isa();
+  auto quantize = [](Isa isa, const std::vector<float>& p, const std::vector<float>& nr,
+                     const pb::Box& box, bool* inside) {
+    EXPECT_TRUE(set_kernel_isa(isa));
+    std::vector<unsigned char> out(8 * (p.size() / 3), 0xAB);
+    *inside = svc::quantize_onto(p, nr, box, out.data());
+    return out;
+  };
+  auto expect_same = [&](const std::vector<float>& p, const std::vector<float>& nr,
+                         const pb::Box& box, bool inside_expected, const char* what) {
+    bool in_generic = false, in_avx2 = false;
+    const auto generic = quantize(Isa::generic, p, nr, box, &in_generic);
+    const auto avx2 = quantize(Isa::avx2, p, nr, box, &in_avx2);
+    EXPECT_TRUE(generic == avx2) << what;
+    EXPECT_EQ(in_generic, inside_expected) << what;
+    EXPECT_EQ(in_avx2, inside_expected) << what;
+  };
+  auto floats_of = [](const std::string& bytes) {
+    std::vector<float> v(bytes.size() / sizeof(float));
+    std::memcpy(v.data(), bytes.data(), bytes.size());
+    return v;
+  };
+  const std::size_t n = 1003;  // not a multiple of 8: the generic loop does the last 3
+  const pb::Frame f = random_frame(n, 0, 11);
+  std::vector<float> p = floats_of(f.positions()), nr = floats_of(f.normals());
+  const pb::Box box = svc::bounding_box(p);
+  expect_same(p, nr, box, true, "random frame");
+  expect_same(p, {}, box, true, "no normals");
+
+  // Odd values, each inside the part the AVX2 loop does.
+  const float inf = std::numeric_limits<float>::infinity();
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float odd[] = {0.0f, -0.0f, nan, inf, -inf, 1e-30f, -1e-30f, 1.0f, -1.0f, 0.5f};
+  std::vector<float> q = p, m = nr;
+  for (std::size_t i = 0; i < 8 * 50; ++i)
+    m[i] = odd[(i * 7 + i / 10) % std::size(odd)];  // every normal component meets every value
+  for (std::size_t i = 0; i < 8 * 4; ++i) q[3 * i + i % 3] = odd[i % std::size(odd)];
+  expect_same(p, m, box, true, "odd normals");
+  expect_same(q, m, box, false, "odd positions");
+  // Round-half cases and the box's own edges, on a box that fits them exactly.
+  std::vector<float> edge = p;
+  for (std::size_t i = 0; i < 64; ++i) {
+    const int k = static_cast<int>(i % 3);
+    const double lo = k == 0 ? box.min().x() : k == 1 ? box.min().y() : box.min().z();
+    const double hi = k == 0 ? box.max().x() : k == 1 ? box.max().y() : box.max().z();
+    edge[3 * i + k] = static_cast<float>(lo + (hi - lo) * (static_cast<double>(i) + 0.5) / 65535.0);
+    if (i % 5 == 0) edge[3 * i + k] = static_cast<float>(i % 2 ? hi : lo);
+  }
+  expect_same(edge, nr, box, true, "half steps and edges");
+  // Outside by a little (one vertex in the AVX2 part) and a flat axis.
+  std::vector<float> out = p;
+  out[3 * 13 + 1] = box.max().y() + 0.01f;
+  expect_same(out, nr, box, false, "one vertex above the box");
+  pb::Box flat = box;
+  flat.mutable_max()->set_z(flat.min().z());
+  std::vector<float> on_flat = p;
+  for (std::size_t i = 0; i < n; ++i) on_flat[3 * i + 2] = flat.min().z();
+  expect_same(on_flat, nr, flat, true, "flat axis, every vertex on it");
+  expect_same(p, nr, flat, false, "flat axis, vertices off it");
+
+  // The box: the same bits (zeros as +0), and NaN ignored after the first vertex.
+  auto box_of = [](Isa isa, const std::vector<float>& v) {
+    EXPECT_TRUE(set_kernel_isa(isa));
+    return svc::bounding_box(v).SerializeAsString();
+  };
+  std::vector<float> zeros(3 * 40, 0.0f);
+  for (std::size_t i = 0; i < zeros.size(); i += 2) zeros[i] = -0.0f;
+  for (const auto* v : {&p, &edge, &on_flat, &zeros}) {
+    EXPECT_EQ(box_of(Isa::generic, *v), box_of(Isa::avx2, *v));
+  }
+  std::vector<float> with_nan = p;
+  with_nan[3 * 1] = static_cast<float>(box.min().x()) - 1;  // the minimum, then a NaN after it
+  with_nan[3 * 9] = nan;                                    // in the same SIMD lane
+  with_nan[3 * 20 + 2] = nan;
+  EXPECT_EQ(box_of(Isa::generic, with_nan), box_of(Isa::avx2, with_nan));
+  EXPECT_EQ(svc::bounding_box(with_nan).min().x(), with_nan[3 * 1]);
+  EXPECT_FALSE(std::signbit(svc::bounding_box(zeros).min().x()));
+
+  // Energies: the scale and every uint16, with values that are not finite or below 0, and a
+  // scale so small that e · (1 / max) overflows.
+  auto energies_of = [](Isa isa, const std::vector<float>& e, float* top) {
+    EXPECT_TRUE(set_kernel_isa(isa));
+    return svc::quantize_energies(e, top);
+  };
+  std::vector<float> e(1003);
+  for (std::size_t l = 0; l < e.size(); ++l) e[l] = static_cast<float>((l * 37) % 101) * 0.25f;
+  std::vector<float> odd_e = e;
+  for (std::size_t l = 0; l < 64; ++l) odd_e[l * 3] = odd[l % std::size(odd)];
+  std::vector<float> tiny(40, 1e-45f);  // the smallest subnormal: 1 / max is +inf
+  tiny[3] = 0.0f;
+  for (const auto* v : {&e, &odd_e, &tiny}) {
+    float top_generic = -1, top_avx2 = -2;
+    const std::string generic = energies_of(Isa::generic, *v, &top_generic);
+    EXPECT_TRUE(generic == energies_of(Isa::avx2, *v, &top_avx2));  // (no dump of 2 KB)
+    EXPECT_EQ(top_generic, top_avx2);
+  }
+  set_kernel_isa(before);
 }
 
 // Sets every field of `m` that is not skipped to a non-default value (recursively).
