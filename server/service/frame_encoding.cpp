@@ -10,7 +10,6 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
-#include <limits>
 #include <vector>
 
 namespace hdeform::service {
@@ -64,7 +63,7 @@ void copy_frame_header(const v1::Frame& in, v1::Frame* out) {
 namespace {
 
 // Per vertex of every frame: float math and lrintf (one instruction each without errno,
-// CMakeLists.txt), inlined into quantize_onto's loop.
+// CMakeLists.txt), inlined into detail::quantize_range's loop.
 inline void octahedral(const float n[3], std::int8_t out[2]) {
   const float l1 = std::abs(n[0]) + std::abs(n[1]) + std::abs(n[2]);
   const float inv = l1 > 0 ? 1.0f / l1 : 0.0f;
@@ -168,12 +167,19 @@ bool quantize_onto(std::span<const float> p, std::span<const float> nrm, const v
   const std::size_t n = p.size() / 3;
   const float* normals = nrm.size() == p.size() ? nrm.data() : nullptr;
   bool inside = true;
-  std::size_t done = 0;
 #ifdef HDEFORM_HAVE_AVX2_KERNELS
-  if (kernel_isa() == Isa::avx2)
-    done = detail::quantize_range_avx2(p.data(), normals, 0, n, grid, out, &inside);
+  if (kernel_isa() == Isa::avx2) {  // one thread: waking a team costs more than the loop
+    const std::size_t done = detail::quantize_range_avx2(p.data(), normals, 0, n, grid, out, &inside);
+    return detail::quantize_range(p.data(), normals, done, n, grid, out) && inside;
+  }
 #endif
-  return detail::quantize_range(p.data(), normals, done, n, grid, out) && inside;
+  constexpr std::size_t kChunk = 8192;  // the generic loop on the team, from 2 chunks up
+  const std::size_t chunks = (n + kChunk - 1) / kChunk;
+#pragma omp parallel for schedule(static) if (chunks >= 2) reduction(&& : inside)
+  for (std::size_t c = 0; c < chunks; ++c)
+    inside = detail::quantize_range(p.data(), normals, c * kChunk, std::min(n, (c + 1) * kChunk),
+                                    grid, out) && inside;
+  return inside;
 }
 
 std::string quantize_vertices(std::span<const float> p, std::span<const float> nrm,

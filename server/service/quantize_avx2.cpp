@@ -1,6 +1,8 @@
-// The QUANTIZED encodings' loops in AVX2, 8 values a step (quantize_kernel.h). Compiled with -mavx2 and
-// without contraction, so every operation rounds as the generic loop's: the same bytes.
-// service_bench Encode/100000/{quantized,meshopt} measures it against the generic loop.
+// The QUANTIZED encodings' loops in AVX2, 8 vertices or 16 energies a step
+// (quantize_kernel.h). Each operation is the generic loop's own, in the same order, with the
+// operand orders chosen so NaN goes where the generic loop sends it: the same bytes
+// (tests/service/test_frame_encoding.cpp). Measured: service_bench Encode/100000/* and
+// docs/benchmarks.md "The encode in AVX2".
 #include "quantize_kernel.h"
 
 #include <immintrin.h>

@@ -1,8 +1,8 @@
 // The loops of the QUANTIZED encodings (frame_encoding.h: bounding_box, quantize_onto,
 // quantize_energies), the generic build and the AVX2 one (quantize_avx2.cpp, x86-64 only;
 // chosen when the engine's kernel_isa() is Isa::avx2).
-// Internal to frame_encoding.cpp and its tests: both builds write the same bytes and give the
-// same answer for every input, NaN and infinities included.
+// Internal to frame_encoding.cpp (tests compare the builds through its functions): both
+// write the same bytes and give the same answer for every input, NaN and infinities included.
 #pragma once
 
 #include <cstddef>
@@ -11,8 +11,9 @@
 namespace hdeform::service::detail {
 
 // The grid of a QUANTIZED frame (deform.proto Box): per axis k, a position x goes to
-// q = round((x − lo[k]) · scale[k]) clamped to [0, 65535], in double (float would lose the last
-// bits). scale[k] = 65535 / extent, or 0 on a flat axis (every q is 0, decoded as lo).
+// t = (x − lo[k]) · scale[k] in double (float would lose the last bits), clamped to [0, 65535]
+// (NaN to 0) and then rounded to nearest. scale[k] = 65535 / extent, or 0 on a flat axis
+// (every q is 0, decoded as lo).
 struct QuantizeGrid {
   double lo[3];
   double scale[3];
@@ -31,8 +32,8 @@ std::size_t quantize_range_avx2(const float* p, const float* nrm, std::size_t be
                                 std::size_t end, const QuantizeGrid& grid, unsigned char* out,
                                 bool* inside);
 
-// lo[k] = min, hi[k] = max of lo[k], hi[k] and axis k of vertices [begin, end) (NaN
-// ignored). The AVX2 build does the largest multiple of 8 and returns how many it did.
+// lo[k] = min, hi[k] = max of lo[k], hi[k] and axis k of vertices [begin, end): a NaN
+// vertex is skipped (a NaN already in lo or hi stays). The AVX2 build does the largest multiple of 8 and returns how many it did.
 void box_range(const float* p, std::size_t begin, std::size_t end, float lo[3], float hi[3]);
 std::size_t box_range_avx2(const float* p, std::size_t begin, std::size_t end, float lo[3],
                            float hi[3]);

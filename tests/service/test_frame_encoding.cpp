@@ -100,8 +100,9 @@ TEST(FrameEncoding, FlatAxesEmptyFramesAndZeroEnergiesDecode) {
   EXPECT_TRUE(decode_frame(empty, 0, 0).positions.empty());
 }
 
-// The AVX2 quantization (quantize_avx2.cpp) against the generic loop: the same bytes and the
-// same inside/outside answer on ordinary frames and on every odd value a float can hold.
+// The AVX2 quantization (quantize_avx2.cpp) against the generic loops: the same bytes and the
+// same inside/outside answer on ordinary frames, on exact ties, on each cause of "outside"
+// alone, and on NaN, infinities, signed zeros, subnormals and the largest float.
 TEST(FrameEncoding, TheAvx2QuantizationWritesTheGenericBytes) {
   if (!isa_supported(Isa::avx2)) GTEST_SKIP() << "this CPU has no AVX2";
   const Isa before = kernel_isa();
@@ -132,54 +133,89 @@ TEST(FrameEncoding, TheAvx2QuantizationWritesTheGenericBytes) {
   const pb::Box box = svc::bounding_box(p);
   expect_same(p, nr, box, true, "random frame");
   expect_same(p, {}, box, true, "no normals");
+  {  // large enough for the generic loop to run on the OpenMP team (chunks of 8192 vertices)
+    const pb::Frame big = random_frame(20011, 0, 12);
+    std::vector<float> bp = floats_of(big.positions()), bn = floats_of(big.normals());
+    const pb::Box bbox = svc::bounding_box(bp);
+    expect_same(bp, bn, bbox, true, "20011 vertices");
+    bp[3 * 19000 + 1] = static_cast<float>(bbox.max().y()) + 1;
+    expect_same(bp, bn, bbox, false, "20011 vertices, one outside in the last chunk");
+  }
 
-  // Odd values, each inside the part the AVX2 loop does.
+  // Odd values, each inside the part the AVX2 loop does: NaN, infinities, signed zeros,
+  // subnormals (a normal whose 1 / L1 norm is +inf), the largest float (a grid coordinate far
+  // beyond 2^63, clamped to the edge).
   const float inf = std::numeric_limits<float>::infinity();
   const float nan = std::numeric_limits<float>::quiet_NaN();
-  const float odd[] = {0.0f, -0.0f, nan, inf, -inf, 1e-30f, -1e-30f, 1.0f, -1.0f, 0.5f};
+  const float odd[] = {0.0f, -0.0f, nan, inf, -inf, 1e-30f, -1e-30f, 1.0f, -1.0f, 0.5f,
+                       std::numeric_limits<float>::denorm_min(), -1e-39f,
+                       std::numeric_limits<float>::max(), -1e20f};
   std::vector<float> q = p, m = nr;
-  for (std::size_t i = 0; i < 8 * 50; ++i)
-    m[i] = odd[(i * 7 + i / 10) % std::size(odd)];  // every normal component meets every value
-  for (std::size_t i = 0; i < 8 * 4; ++i) q[3 * i + i % 3] = odd[i % std::size(odd)];
+  for (std::size_t i = 0; i < 8 * 60; ++i)
+    m[i] = odd[(i * 7 + i / 14) % std::size(odd)];  // every normal component meets every value
+  for (std::size_t i = 0; i < 8 * 6; ++i) q[3 * i + i % 3] = odd[i % std::size(odd)];
   expect_same(p, m, box, true, "odd normals");
   expect_same(q, m, box, false, "odd positions");
-  // Round-half cases and the box's own edges, on a box that fits them exactly.
-  std::vector<float> edge = p;
-  for (std::size_t i = 0; i < 64; ++i) {
-    const int k = static_cast<int>(i % 3);
-    const double lo = k == 0 ? box.min().x() : k == 1 ? box.min().y() : box.min().z();
-    const double hi = k == 0 ? box.max().x() : k == 1 ? box.max().y() : box.max().z();
-    edge[3 * i + k] = static_cast<float>(lo + (hi - lo) * (static_cast<double>(i) + 0.5) / 65535.0);
-    if (i % 5 == 0) edge[3 * i + k] = static_cast<float>(i % 2 ? hi : lo);
+  // Exact ties: on the box [0, 65535]³ the grid step is 1, so k + 0.5 is a tie in t.
+  pb::Box unit;
+  for (auto* c : {unit.mutable_min(), unit.mutable_max()}) {
+    const float v = c == unit.mutable_min() ? 0.0f : 65535.0f;
+    c->set_x(v);
+    c->set_y(v);
+    c->set_z(v);
   }
-  expect_same(edge, nr, box, true, "half steps and edges");
-  // Outside by a little (one vertex in the AVX2 part) and a flat axis.
-  std::vector<float> out = p;
-  out[3 * 13 + 1] = box.max().y() + 0.01f;
-  expect_same(out, nr, box, false, "one vertex above the box");
+  std::vector<float> ties(3 * 64);
+  for (std::size_t i = 0; i < ties.size(); ++i)
+    ties[i] = i % 7 == 0 ? 65534.5f : i % 5 == 0 ? -0.5f : static_cast<float>(i % 61) + 0.5f;
+  expect_same(ties, {}, unit, true, "ties to even");
+  // Each cause of "outside" alone, in the AVX2 part, with a clean tail (the last 3 vertices
+  // are the generic loop's, which would answer for the whole call).
+  const float step_x = static_cast<float>((box.max().x() - box.min().x()) / 65535.0);
+  auto one_off = [&](std::size_t at, float value, const pb::Box& grid, std::vector<float> v,
+                     const char* what) {
+    v[at] = value;
+    expect_same(v, nr, grid, false, what);
+  };
+  one_off(3 * 13 + 1, static_cast<float>(box.max().y()) + 0.01f, box, p, "one vertex above");
+  one_off(3 * 45, static_cast<float>(box.min().x()) - step_x, box, p, "one vertex below");
+  one_off(3 * 33 + 1, nan, box, p, "one NaN");
+  ties[3 * 9] = 65535.5f;  // the first tie that rounds above the grid
+  expect_same(ties, {}, unit, false, "one tie above the grid");
   pb::Box flat = box;
   flat.mutable_max()->set_z(flat.min().z());
   std::vector<float> on_flat = p;
   for (std::size_t i = 0; i < n; ++i) on_flat[3 * i + 2] = flat.min().z();
   expect_same(on_flat, nr, flat, true, "flat axis, every vertex on it");
-  expect_same(p, nr, flat, false, "flat axis, vertices off it");
+  one_off(3 * 21 + 2, static_cast<float>(flat.min().z()) + 1e-3f, flat, on_flat,
+          "flat axis, one vertex off it");
 
-  // The box: the same bits (zeros as +0), and NaN ignored after the first vertex.
+  // The box: the same bits (zeros as +0), and a NaN after the first vertex ignored, also
+  // when it follows a lane's extreme value or ends a lane.
   auto box_of = [](Isa isa, const std::vector<float>& v) {
     EXPECT_TRUE(set_kernel_isa(isa));
     return svc::bounding_box(v).SerializeAsString();
   };
   std::vector<float> zeros(3 * 40, 0.0f);
   for (std::size_t i = 0; i < zeros.size(); i += 2) zeros[i] = -0.0f;
-  for (const auto* v : {&p, &edge, &on_flat, &zeros}) {
+  for (const auto* v : {&p, &ties, &on_flat, &zeros}) {
     EXPECT_EQ(box_of(Isa::generic, *v), box_of(Isa::avx2, *v));
   }
+  // The AVX2 loop starts at vertex 1: vertices 1 + j + 8b share lane j.
   std::vector<float> with_nan = p;
-  with_nan[3 * 1] = static_cast<float>(box.min().x()) - 1;  // the minimum, then a NaN after it
-  with_nan[3 * 9] = nan;                                    // in the same SIMD lane
-  with_nan[3 * 20 + 2] = nan;
+  with_nan[3 * 1] = static_cast<float>(box.min().x()) - 1;  // lane 0: the minimum, then NaN
+  with_nan[3 * 9] = nan;
+  with_nan[3 * 2] = static_cast<float>(box.max().x()) + 1;  // lane 1: the maximum, then NaN
+  with_nan[3 * 10] = nan;
+  with_nan[3 * 992 + 2] = static_cast<float>(box.min().z()) - 1;  // lane 7 of the last two
+  with_nan[3 * 1000 + 2] = nan;                                   // blocks: NaN ends it
   EXPECT_EQ(box_of(Isa::generic, with_nan), box_of(Isa::avx2, with_nan));
-  EXPECT_EQ(svc::bounding_box(with_nan).min().x(), with_nan[3 * 1]);
+  for (Isa isa : {Isa::generic, Isa::avx2}) {
+    ASSERT_TRUE(set_kernel_isa(isa));
+    const pb::Box b = svc::bounding_box(with_nan);
+    EXPECT_EQ(b.min().x(), with_nan[3 * 1]);
+    EXPECT_EQ(b.max().x(), with_nan[3 * 2]);
+    EXPECT_EQ(b.min().z(), with_nan[3 * 992 + 2]);
+  }
   EXPECT_FALSE(std::signbit(svc::bounding_box(zeros).min().x()));
 
   // Energies: the scale and every uint16, with values that are not finite or below 0, and a
