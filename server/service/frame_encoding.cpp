@@ -157,11 +157,10 @@ bool quantize_range(const float* p, const float* nrm, std::size_t begin, std::si
 
 bool quantize_onto(std::span<const float> p, std::span<const float> nrm, const v1::Box& box,
                    unsigned char* out) {
-  const double lo[3] = {box.min().x(), box.min().y(), box.min().z()};
+  detail::QuantizeGrid grid{{box.min().x(), box.min().y(), box.min().z()}, {}};
   const double hi[3] = {box.max().x(), box.max().y(), box.max().z()};
-  detail::QuantizeGrid grid{{lo[0], lo[1], lo[2]}, {}};
   for (int k = 0; k < 3; ++k) {
-    const double extent = hi[k] - lo[k];
+    const double extent = hi[k] - grid.lo[k];
     grid.scale[k] = extent > 0 ? 65535.0 / extent : 0.0;
   }
   const std::size_t n = p.size() / 3;

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <random>
 #include <string>
 #include <vector>
@@ -24,6 +25,13 @@ inline double angle_deg(const float a[3], const float b[3]) {
 
 inline std::string float_bytes(const std::vector<float>& v) {
   return std::string(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(float));
+}
+
+// The inverse of float_bytes: a frame buffer's float32 values.
+inline std::vector<float> floats_of(const std::string& bytes) {
+  std::vector<float> v(bytes.size() / sizeof(float));
+  if (!v.empty()) std::memcpy(v.data(), bytes.data(), v.size() * sizeof(float));  // null if empty
+  return v;
 }
 
 // A float32 frame of n random points in a skewed box, random unit normals, energies.

@@ -10,7 +10,6 @@
 #include "service_fixture.h"
 
 #include <chrono>
-#include <cstring>
 #include <omp.h>
 #include <thread>
 
@@ -30,12 +29,6 @@ constexpr bool kThreadSanitizer = false;
 #else
 constexpr bool kThreadSanitizer = false;
 #endif
-
-std::vector<float> floats_of(const std::string& bytes) {
-  std::vector<float> v(bytes.size() / sizeof(float));
-  if (!v.empty()) std::memcpy(v.data(), bytes.data(), v.size() * sizeof(float));  // null if empty
-  return v;
-}
 
 // `f` with every position moved by `shift` · (a smooth field of the position): a drag step.
 pb::Frame moved(const pb::Frame& f, float shift) {

@@ -15,7 +15,6 @@
 
 #include <chrono>
 #include <cmath>
-#include <cstring>
 #include <limits>
 #include <random>
 #include <set>
@@ -121,11 +120,6 @@ TEST(FrameEncoding, TheAvx2QuantizationWritesTheGenericBytes) {
     EXPECT_TRUE(generic == avx2) << what;
     EXPECT_EQ(in_generic, inside_expected) << what;
     EXPECT_EQ(in_avx2, inside_expected) << what;
-  };
-  auto floats_of = [](const std::string& bytes) {
-    std::vector<float> v(bytes.size() / sizeof(float));
-    std::memcpy(v.data(), bytes.data(), bytes.size());
-    return v;
   };
   const std::size_t n = 1003;  // not a multiple of 8: the generic loop does the last 3
   const pb::Frame f = random_frame(n, 0, 11);
