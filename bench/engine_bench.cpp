@@ -9,17 +9,17 @@
 //
 // Extra flag (ours): --hdeform_smoke  one repetition everywhere (ctest bench-smoke).
 #include "bench_common.h"
-#include "cpu_features.h"
-#include "deformer.h"
-#include "measures.h"
-#include "mesh_io.h"
-#include "process_environment.h"
-#include "procedural.h"
-#include "selection.h"
-#include "solver.h"
-#include "sparse_times3.h"
-#include "supernodal_solve.h"
-#include "vertex_ordering.h"
+#include "engine/deform/deformer.h"
+#include "engine/deform/measures.h"
+#include "engine/io/mesh_io.h"
+#include "engine/io/selection.h"
+#include "engine/operators/sparse_times3.h"
+#include "engine/runtime/process_environment.h"
+#include "engine/simd/cpu_features.h"
+#include "engine/solve/supernodal_factorization.h"
+#include "engine/solve/supernodal_solve.h"
+#include "engine/solve/vertex_ordering.h"
+#include "fixtures/procedural.h"
 
 #include <benchmark/benchmark.h>
 
@@ -69,7 +69,7 @@ struct System {
   double raw_beta = 0;
   SparseMatrix K_FF, K_FC;  // K_FF stored full (both triangles), as the engine does
   SparseMatrixR GtW_F;      // row-major, like the engine
-  std::shared_ptr<const Factorization> cholmod;  // analysed + factored (METIS, supernodal)
+  std::shared_ptr<const SupernodalFactorization> cholmod;  // analysed + factored (METIS, supernodal)
   using Simplicial = Eigen::SimplicialLLT<SparseMatrix, Eigen::Lower, Eigen::AMDOrdering<int>>;
   std::unique_ptr<Simplicial> simplicial;  // analysed + factored (AMD)
 };
@@ -221,8 +221,8 @@ System& system(Case& c, double beta) {
   }
   return s;
 }
-const Factorization& cholmod(System& s) {
-  if (!s.cholmod) s.cholmod = std::make_shared<Factorization>(s.K_FF);
+const SupernodalFactorization& cholmod(System& s) {
+  if (!s.cholmod) s.cholmod = std::make_shared<SupernodalFactorization>(s.K_FF);
   return *s.cholmod;
 }
 System::Simplicial& simplicial(System& s) {
@@ -344,7 +344,7 @@ void BM_ConstraintSet(benchmark::State& state, std::string key) {
   state.counters["cs_MB"] = mb(c.cs_bytes_open);
 }
 
-// Session open = operators + ConstraintSet (issue 10 target at 100K: ≤ 0.7 s), with the
+// Session open = operators + ConstraintSet (target at 100K: ≤ 0.7 s), with the
 // phases of both as counters (PreparedMesh::build_timings, ConstraintSet::open_timings).
 void BM_SessionOpen(benchmark::State& state, std::string key) {
   Case& c = get(key);
@@ -430,7 +430,7 @@ void BM_BetaRefactor(benchmark::State& state, std::string key) {
 // Handle move with the factorization cached, as the service does it (one UpdateWorkspace and
 // one Frame reused across moves):
 //   full   exact solve + measures + energies + normals
-//   exact  exact solve + measures + normals (issue 10's "whole exact frame"; ≤ 10 ms at 100K)
+//   exact  exact solve + measures + normals (the whole exact frame; target ≤ 10 ms at 100K)
 //   drag   drag path (float32 factor + refinement) + normals, no measures (the "drag frame")
 //   light  exact solve + measures only
 //   alloc  `full` through the allocating update() (fresh buffers every move: the page faults)
@@ -565,7 +565,7 @@ void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta
   for (std::size_t r = 0; r < c.constrained.size(); ++r)
     x_C.row(static_cast<Eigen::Index>(r)) = frame.positions.row(c.constrained[r]);
   Eigen::MatrixXd rhs = s.GtW_F * g - s.K_FC * x_C;
-  const Factorization* fac = phase == Phase::solve ? &cholmod(s) : nullptr;
+  const SupernodalFactorization* fac = phase == Phase::solve ? &cholmod(s) : nullptr;
   Eigen::VectorXf ef2;
   RowMajorX3 g_row = g;
   Eigen::MatrixX3d Y;
@@ -657,7 +657,7 @@ void BM_Phase(benchmark::State& state, std::string key, Phase phase, double beta
 }
 
 // Solver comparison on the same K_FF: CHOLMOD supernodal (METIS; the engine's
-// Factorization) vs Eigen SimplicialLLT (AMD; the thesis's solver).
+// SupernodalFactorization) vs Eigen SimplicialLLT (AMD; the thesis's solver).
 enum class Op { analyze_factor, factor, solve3 };
 
 // The three right-hand sides solved with an analysed and factored solver.
@@ -667,8 +667,8 @@ void solve_once(const Solver& solver, const Eigen::MatrixXd& B) {
   benchmark::DoNotOptimize(X.data());
 }
 // Solver/.../cholmod/solve3 and Solve/.../cholmod measure stock cholmod_solve, as before
-// Factorization::solve took the fused kernel (Phase/N/solve measures the engine's path).
-void solve_once(const Factorization& f, const Eigen::MatrixXd& B) {
+// SupernodalFactorization::solve took the fused kernel (Phase/N/solve measures the engine's path).
+void solve_once(const SupernodalFactorization& f, const Eigen::MatrixXd& B) {
   Eigen::MatrixXd X = f.solve_cholmod(B);
   benchmark::DoNotOptimize(X.data());
 }
@@ -684,14 +684,14 @@ void BM_Cholmod(benchmark::State& state, std::string key, double beta, Op op) {
   Case& c = get(key);
   System& s = system(c, beta);
   const Eigen::MatrixXd B = random_rhs(s.K_FF.rows());
-  const Factorization& analysed = cholmod(s);
+  const SupernodalFactorization& analysed = cholmod(s);
   for (auto _ : state) {
     switch (op) {
       case Op::analyze_factor:
-        free_untimed(state, std::make_unique<Factorization>(s.K_FF));
+        free_untimed(state, std::make_unique<SupernodalFactorization>(s.K_FF));
         break;
       case Op::factor:
-        free_untimed(state, std::make_unique<Factorization>(analysed, s.K_FF));
+        free_untimed(state, std::make_unique<SupernodalFactorization>(analysed, s.K_FF));
         break;
       case Op::solve3:
         solve_once(analysed, B);
@@ -711,12 +711,12 @@ void BM_MeshOrder(benchmark::State& state, std::string key, double beta, Op op) 
   const Eigen::MatrixXd B = random_rhs(s.K_FF.rows());
   const auto perm =
       restrict_order(s.raw_beta == 0 ? c.pm->order() : c.pm->wide_order(), c.free_);
-  const Factorization ordered(s.K_FF, false, &perm);
+  const SupernodalFactorization ordered(s.K_FF, false, &perm);
   for (auto _ : state) {
     if (op == Op::solve3)
       solve_once(ordered, B);
     else
-      free_untimed(state, std::make_unique<Factorization>(s.K_FF, false, &perm));
+      free_untimed(state, std::make_unique<SupernodalFactorization>(s.K_FF, false, &perm));
   }
   solver_counters(state, c, s, ordered.memory_bytes());
   state.counters["nnz_L"] = static_cast<double>(ordered.factor()->xsize);
@@ -817,7 +817,7 @@ void register_size(int n) {
                              {Move::drag_paced, "drag_paced"}})
       reg("Update" + N + "/" + beta_tag(beta) + "/" + tag, fast, BM_Update, key, beta, mode, 0);
   }
-  if (big)  // issue 10's 1M drag frame target is a steady state: 2 moves first, then 5 timed
+  if (big)  // the 1M drag frame is measured in a steady state: 2 moves first, then 5 timed
     for (auto [mode, tag] : {std::pair{Move::exact, "exact"}, {Move::drag, "drag"}})
       benchmark::RegisterBenchmark(("Update" + N + "/beta:0/" + tag + "/steady").c_str(),
                                    BM_Update, key, 0.0, mode, g_smoke ? 0 : 2)

@@ -1,5 +1,5 @@
-// Load bench (issue 8): many sessions, each with live editors and watchers, for minutes.
-// How to run and the measured numbers: docs/benchmarks.md, "Load (issue 8)".
+// Load bench: many sessions, each with live editors and watchers, for minutes.
+// How to run and the measured numbers: docs/benchmarks.md, "Load".
 //
 // A timed soak rather than a Google Benchmark fixture: what matters is what happens over
 // minutes (errors, the server's memory curve, latency under sustained load), not the mean

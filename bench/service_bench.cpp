@@ -36,13 +36,13 @@
 //
 // Extra flag (ours): --hdeform_smoke  a handful of iterations everywhere (ctest bench-smoke).
 #include "bench_common.h"
+#include "engine/runtime/process_environment.h"
+#include "fixtures/procedural.h"
 #include "frame_decode.h"
-#include "frame_delta.h"
-#include "frame_encoding.h"
-#include "process_environment.h"
 #include "hdeform/v1/deform.grpc.pb.h"
-#include "procedural.h"
-#include "server.h"
+#include "service/frames/frame_delta.h"
+#include "service/frames/frame_encoding.h"
+#include "service/rpc/server.h"
 
 #include <benchmark/benchmark.h>
 #include <grpcpp/grpcpp.h>

@@ -1,14 +1,14 @@
 // The K_FF solve benchmarks of engine_bench (docs/benchmarks.md): Bandwidth/read and
 // Solve/N/beta:b/{cholmod, fused_1t, fused_2t, fused_f32_1t, fused_f32_2t, fused_generic_*}, registered
 // by engine_bench's main through register_solve_benchmarks(). Own fixtures (capsule,
-// K_FF and its Factorization per β), kept for the whole run so that interleaved
+// K_FF and its SupernodalFactorization per β), kept for the whole run so that interleaved
 // repetitions do not rebuild them.
-#include "deformer.h"
-#include "procedural.h"
-#include "serial_openmp.h"
-#include "solver.h"
-#include "supernodal_solve.h"
-#include "cpu_features.h"
+#include "engine/deform/deformer.h"
+#include "engine/runtime/serial_openmp.h"
+#include "engine/simd/cpu_features.h"
+#include "engine/solve/supernodal_factorization.h"
+#include "engine/solve/supernodal_solve.h"
+#include "fixtures/procedural.h"
 
 #include <benchmark/benchmark.h>
 
@@ -38,7 +38,7 @@ struct SolveCase {
   std::shared_ptr<const PreparedMesh> pm;
   std::vector<int> block_index;  // free vertex → row of K_FF, −1 if constrained
   int n = 0;
-  std::map<double, std::unique_ptr<Factorization>> factors;
+  std::map<double, std::unique_ptr<SupernodalFactorization>> factors;
   std::map<double, SparseMatrix> K_FF;
 };
 
@@ -83,9 +83,9 @@ const SparseMatrix& k_ff(SolveCase& c, double beta) {
   return c.K_FF[beta] = std::move(K_FF);
 }
 
-const Factorization& factor(SolveCase& c, double beta) {
+const SupernodalFactorization& factor(SolveCase& c, double beta) {
   auto& f = c.factors[beta];
-  if (!f) f = std::make_unique<Factorization>(k_ff(c, beta));
+  if (!f) f = std::make_unique<SupernodalFactorization>(k_ff(c, beta));
   return *f;
 }
 
@@ -188,8 +188,8 @@ enum class Variant { cholmod, fused };
 const Isa best_isa = kernel_isa();
 
 // Solve/N/beta:b/...: K_FF X = B, three random right-hand sides, on the same factor.
-// cholmod = Factorization::solve_cholmod (cholmod_solve, result copied to an Eigen matrix);
-// fused_* = Factorization::solve3 into a preallocated X (thread_local workspace, warmed
+// cholmod = SupernodalFactorization::solve_cholmod (cholmod_solve, result copied to an Eigen matrix);
+// fused_* = SupernodalFactorization::solve3 into a preallocated X (thread_local workspace, warmed
 // untimed, as is the float copy). Counters: factor value MB as read, the single-thread
 // read floor (ms) and x_floor = time per solve / floor.
 void BM_Solve(benchmark::State& state, int nominal, double beta, Variant variant,
@@ -199,7 +199,7 @@ void BM_Solve(benchmark::State& state, int nominal, double beta, Variant variant
     return;
   }
   SolveCase& c = solve_case(nominal);
-  const Factorization& f = factor(c, beta);
+  const SupernodalFactorization& f = factor(c, beta);
   std::srand(7);
   const Eigen::MatrixXd B = Eigen::MatrixXd::Random(f.size(), 3);
   Eigen::MatrixXd X(B.rows(), 3);

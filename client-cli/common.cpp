@@ -4,7 +4,7 @@
 #include "progress.h"
 
 #if HDEFORM_CLI_IN_PROCESS
-#include "service/server.h"
+#include "service/rpc/server.h"
 #endif
 
 #include <spdlog/spdlog.h>

@@ -8,7 +8,7 @@
 #include "common.h"
 
 #ifdef HDEFORM_CLI_IN_PROCESS
-#include "engine/process_environment.h"
+#include "engine/runtime/process_environment.h"
 #endif
 
 #include <CLI/CLI.hpp>

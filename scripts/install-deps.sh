@@ -9,7 +9,7 @@ packages=(
   # sanitizer builds (scripts/sanitize.sh): clang with its ASan/UBSan runtime and OpenMP
   clang libclang-rt-14-dev libomp-dev
   # engine
-  libopenmesh-dev libeigen3-dev libsuitesparse-dev libopenblas0-pthread libblas-dev liblapack-dev
+  libeigen3-dev libsuitesparse-dev libopenblas0-pthread libblas-dev liblapack-dev
   libtinygltf-dev libstb-dev
   # service and clients
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler libssl-dev

@@ -1,7 +1,7 @@
 // hdeform-server: the gRPC service on TCP (and optionally the gRPC-Web/HTTP gateway with
 // the web viewer). Every flag also reads an HDEFORM_* environment variable.
-#include "service/server.h"
-#include "process_environment.h"
+#include "engine/runtime/process_environment.h"
+#include "service/rpc/server.h"
 
 #ifdef HDEFORM_HAVE_GATEWAY
 #include "gateway/http_gateway.h"

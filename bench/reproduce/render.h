@@ -2,7 +2,7 @@
 // rasterization of a triangle mesh, flat-shaded, coloured per triangle, written as PNG.
 #pragma once
 
-#include "mesh.h"
+#include "engine/mesh/mesh.h"
 
 #include <Eigen/Core>
 

@@ -1,14 +1,14 @@
 // hdeform-reproduce: regenerates docs/thesis-reproduction.md — the thesis's chapter-7
 // experiments re-run on the bundled data, beside its published numbers.
 //   build/bench/reproduce/hdeform-reproduce --data data --out docs
-#include "auto_beta.h"
-#include "deformer.h"
-#include "mesh_io.h"
+#include "engine/deform/auto_beta.h"
+#include "engine/deform/deformer.h"
+#include "engine/io/mesh_io.h"
+#include "engine/io/selection.h"
+#include "fixtures/thesis_tables.h"
 #include "render.h"
-#include "selection.h"
 #include "svg_chart.h"
 #include "write_if_changed.h"
-#include "thesis_tables.h"
 
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
@@ -323,7 +323,7 @@ int main(int argc, char** argv) {
   // --- Automatic β ---------------------------------------------------------------------
   {
     md << "\n## Automatic β (beyond the thesis)\n\n"
-       << "`select_beta` (`server/engine/auto_beta.h`) solves the 12 values β ∈ {"
+       << "`select_beta` (`server/engine/deform/auto_beta.h`) solves the 12 values β ∈ {"
        << beta_list(AutoBetaParams{}.grid)
        << "} (raw units for the benchmarks, area units for the bundled models, as the table "
           "says) and picks the smallest β whose cost is within "

@@ -1,7 +1,7 @@
 // Measures against β as small-multiple SVG line charts (thesis Figure 7.5's layout).
 #pragma once
 
-#include "thesis_tables.h"
+#include "fixtures/thesis_tables.h"
 
 #include <string>
 #include <utility>

@@ -1,4 +1,4 @@
-#include "grpc_web.h"
+#include "gateway/grpc_web.h"
 
 #include <array>
 

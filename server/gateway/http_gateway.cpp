@@ -45,7 +45,7 @@
 //                                           plain-text error with the mapped HTTP status.
 //   GET  /healthz                           "ok"
 //   GET  /…                                 static files from web_root (index.html for /)
-#include "http_gateway.h"
+#include "gateway/http_gateway.h"
 
 #include <openssl/err.h>
 #include <openssl/pem.h>
@@ -75,8 +75,8 @@
 #include <thread>
 #include <vector>
 
-#include "grpc_web.h"
-#include "tls_files.h"
+#include "common/tls_files.h"
+#include "gateway/grpc_web.h"
 #include "hdeform/v1/deform.pb.h"
 
 namespace hdeform::gateway {

@@ -1,7 +1,7 @@
 // The gRPC-Web gateway against a fake Deformation service (no engine): framing of unary,
 // error and streaming calls, /upload → client-streaming CreateSession, the 413 limit, static
-// files, cancellation when the browser goes away, and stop() during a stream. Safe to expose
-// (issue 8): no file outside the web root, no cross-site POST, and bounded cost — header,
+// files, cancellation when the browser goes away, and stop() during a stream. Safe to expose:
+// no file outside the web root, no cross-site POST, and bounded cost — header,
 // idle and stall timeouts, caps that idle clients cannot exhaust, accept() errors survived.
 #include <gtest/gtest.h>
 #include <fcntl.h>
@@ -24,9 +24,9 @@
 #include <vector>
 #include <thread>
 
-#include "grpc_web.h"
+#include "gateway/grpc_web.h"
+#include "gateway/http_gateway.h"
 #include "hdeform/v1/deform.grpc.pb.h"
-#include "http_gateway.h"
 
 namespace {
 

@@ -7,7 +7,7 @@
 #include <functional>
 #include <string>
 
-#include "grpc_web.h"
+#include "gateway/grpc_web.h"
 
 namespace {
 

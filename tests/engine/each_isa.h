@@ -5,7 +5,7 @@
 //   INSTANTIATE_TEST_SUITE_P(Isa, MySuite, test::kEachIsa, test::isa_param_name);
 #pragma once
 
-#include "cpu_features.h"
+#include "engine/simd/cpu_features.h"
 
 #include <gtest/gtest.h>
 

@@ -1,10 +1,10 @@
 // Shared helpers for engine tests: bundled benchmark meshes and their constraints.
 #pragma once
 
-#include "deformer.h"
-#include "mesh_io.h"
-#include "procedural.h"
-#include "selection.h"
+#include "engine/deform/deformer.h"
+#include "engine/io/mesh_io.h"
+#include "engine/io/selection.h"
+#include "fixtures/procedural.h"
 
 #include <cstring>
 #include <fstream>

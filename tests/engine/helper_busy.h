@@ -3,7 +3,7 @@
 // caller takes while another session's kernel holds the helper. Results must not change.
 #pragma once
 
-#include "two_threads.h"
+#include "engine/runtime/two_threads.h"
 
 #include <gtest/gtest.h>
 

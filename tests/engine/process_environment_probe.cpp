@@ -3,7 +3,7 @@
 // OMP_DISPLAY_ENV=verbose, so libgomp itself prints the policy it read at load), and whether
 // a large malloc'd block got transparent huge pages ("thp=yes"; "thp=n/a" where the kernel
 // has THP off or a sanitizer's allocator replaces glibc's, which ignores the tunable).
-#include "process_environment.h"
+#include "engine/runtime/process_environment.h"
 
 #include <omp.h>
 

@@ -2,8 +2,8 @@
 // target k − 1 is frame k (to float32), the weights are one-hot at the sample times, every
 // POSITION accessor has its bounds, and the size stays within bytes_for(). The Khronos
 // validator and three.js playback are checked in tests/browser (they need node).
-#include "animation_glb.h"
-#include "mesh_io.h"
+#include "engine/io/animation_glb.h"
+#include "engine/io/mesh_io.h"
 
 #include <gtest/gtest.h>
 #include <tiny_gltf.h>

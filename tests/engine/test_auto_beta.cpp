@@ -1,6 +1,6 @@
 // Automatic β: picks the thesis's recommended range (0.1–0.25, raw units) where the naive
 // result has artifacts and 0 where it has none.
-#include "auto_beta.h"
+#include "engine/deform/auto_beta.h"
 #include "fixtures.h"
 
 #include <gtest/gtest.h>

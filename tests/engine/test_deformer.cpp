@@ -276,8 +276,8 @@ TEST(Deformer, RejectsBadTransformsAndBeta) {
   EXPECT_THROW(cs.update(std::span(&h, 1), {1.0, BetaUnits::area}), InvalidInput);
 }
 
-// Issue 8 (2): every vertex constrained used to hand CHOLMOD an empty system and crash on
-// a null factor. Decision (docs/api.md): the answer is simply the targets.
+// Every vertex constrained: an empty system must not reach CHOLMOD (which crashes on
+// a null factor). Decision (docs/api.md): the answer is simply the targets.
 TEST(Deformer, NoFreeVertexGivesTheTargets) {
   const Benchmark& b = cactus();
   Constraints c;

@@ -1,10 +1,10 @@
-// The drag path (SPEC.md §Drag frames, issue 10 item 2) and the reusable move buffers
+// The drag path (SPEC.md §Drag frames) and the reusable move buffers
 // (item 4): drag frames stay within kDragTolerance × bbox diagonal of the exact solve over
 // whole drags (cold start, warm start, a jump), flags say what a frame is, and a workspace
 // reused across moves allocates nothing and changes no bit of an exact frame.
 #include "each_isa.h"
 #include "fixtures.h"
-#include "procedural.h"
+#include "fixtures/procedural.h"
 
 #include <gtest/gtest.h>
 

@@ -3,7 +3,7 @@
 // and compared with the mesh: positions within the stated grid error, normals within int8's,
 // triangles exact; the meshopt file decodes to exactly the quantized file's bytes.
 // The Khronos validator checks the same files in tests/browser/glb_compression.mjs.
-#include "mesh_io.h"
+#include "engine/io/mesh_io.h"
 
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>

@@ -2,9 +2,9 @@
 // slerp per triangle, the quaternion average, g_l = Y_l M_lᵀ), on any Φ: the engine's one
 // sincos per vertex (a product of three per-vertex turns) is the same field to rounding.
 #include "each_isa.h"
+#include "engine/deform/guidance.h"
+#include "engine/simd/guidance_rotation.h"
 #include "fixtures.h"
-#include "guidance.h"
-#include "guidance_rotation.h"
 
 #include <gtest/gtest.h>
 #include <omp.h>

@@ -1,7 +1,7 @@
 // Keyframe interpolation (keyframes.h): keys reproduced exactly, slerp / linear in between,
 // easing, holding outside the keys, pivots, and every bad timeline named.
-#include "keyframes.h"
-#include "mesh.h"
+#include "engine/deform/keyframes.h"
+#include "engine/mesh/mesh.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-// Local regularization (issue 5): a per-triangle β field around the handle.
+// Local regularization: a per-triangle β field around the handle.
 #include "fixtures.h"
 
 #include <gtest/gtest.h>

@@ -1,10 +1,10 @@
 // measures.h against closed forms (SPEC.md §Measures): the rest pose, a uniform scale, a
 // rigid rotation, counted flips; and the AVX2 build against the scalar one on a noisy pose.
 #include "each_isa.h"
+#include "engine/deform/guidance.h"
+#include "engine/deform/measures.h"
 #include "fixtures.h"
-#include "guidance.h"
 #include "helper_busy.h"
-#include "measures.h"
 
 #include <gtest/gtest.h>
 

@@ -1,6 +1,6 @@
 // Mesh file I/O: round trips, the data/ meshes, glTF welding, triangulation, errors.
-#include "mesh_io.h"
-#include "validate.h"
+#include "engine/io/mesh_io.h"
+#include "engine/mesh/validate.h"
 
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>

@@ -1,11 +1,11 @@
 // Issue 10, item 5: the operators and system blocks assembled straight into compressed
 // storage (operator_assembly.h, system_blocks.h) against the straightforward builds they
 // replaced (triplets, sparse products, Eigen sums), and one vs two OpenMP threads.
+#include "engine/mesh/validate.h"
+#include "engine/operators/operator_assembly.h"
+#include "engine/operators/system_blocks.h"
 #include "fixtures.h"
-#include "operator_assembly.h"
-#include "procedural.h"
-#include "system_blocks.h"
-#include "validate.h"
+#include "fixtures/procedural.h"
 
 #include <gtest/gtest.h>
 #include <omp.h>

@@ -1,5 +1,5 @@
 // Botsch–Sorkine .sel/.def parsing and geometric selectors.
-#include "selection.h"
+#include "engine/io/selection.h"
 
 #include <gtest/gtest.h>
 

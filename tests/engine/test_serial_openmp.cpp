@@ -1,5 +1,5 @@
 // SerialOpenMP: a per-thread hold on OpenMP regions, for CHOLMOD's num_threads(4) loops.
-#include "serial_openmp.h"
+#include "engine/runtime/serial_openmp.h"
 
 #include <gtest/gtest.h>
 #include <omp.h>

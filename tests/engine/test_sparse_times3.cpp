@@ -1,6 +1,6 @@
 // sparse_times3.h against Eigen's products: the same bits (the kernels sum each row in Eigen's
 // order), whatever the OpenMP thread count.
-#include "sparse_times3.h"
+#include "engine/operators/sparse_times3.h"
 
 #include <gtest/gtest.h>
 #include <omp.h>

@@ -1,10 +1,10 @@
 // supernodal_factorize (the two-core numeric factorization over CHOLMOD's symbolic analysis)
 // against cholmod_factorize on the same analysis: the bundled meshes and procedural capsules
 // at β = 0 and β > 0; one thread and two give the same bits; a matrix that is not positive
-// definite is refused, by the kernel and by Factorization.
+// definite is refused, by the kernel and by SupernodalFactorization.
+#include "engine/solve/supernodal_factorization.h"
+#include "engine/solve/supernodal_factorize.h"
 #include "fixtures.h"
-#include "solver.h"
-#include "supernodal_factorize.h"
 
 #include <gtest/gtest.h>
 
@@ -112,7 +112,7 @@ TEST(SupernodalFactorize, DefaultPlanSplitsLargeFactors) {
   const PreparedMesh* pm = b.mesh.get();
   const Constraints& c = b.constraints;
   for (double beta : {0.0, 0.5}) {
-    const Factorization f(k_ff(*pm, c, beta));
+    const SupernodalFactorization f(k_ff(*pm, c, beta));
     ASSERT_GE(f.size(), 20000);
     CholmodLLT llt;
     llt.analyzePattern(k_ff(*pm, c, beta));
@@ -129,7 +129,7 @@ TEST(SupernodalFactorize, DefaultPlanSplitsLargeFactors) {
   }
 }
 
-// Not positive definite: the kernel names the column, Factorization refuses the system,
+// Not positive definite: the kernel names the column, SupernodalFactorization refuses the system,
 // and a NaN is refused the same way (dpotrf's check).
 TEST(SupernodalFactorize, RefusesIndefiniteMatrices) {
   const test::Benchmark b = test::load_benchmark("bar");
@@ -152,7 +152,7 @@ TEST(SupernodalFactorize, RefusesIndefiniteMatrices) {
       EXPECT_LT(col, K.rows());
       EXPECT_EQ(p.ours.factor()->minor, static_cast<std::size_t>(col));
     }
-    EXPECT_THROW(Factorization{bad}, InvalidInput) << variant;
+    EXPECT_THROW(SupernodalFactorization{bad}, InvalidInput) << variant;
   }
 }
 

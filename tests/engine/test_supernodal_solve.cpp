@@ -1,10 +1,10 @@
 // supernodal_solve3 (the fused K_FF solve of SPEC.md §Solve over CHOLMOD's factor) against
 // cholmod_solve: the bundled meshes and a procedural capsule at β = 0 and β > 0, through
-// both kinds of factorization Factorization builds (own analysis; shared wide analysis).
-#include "fixtures.h"
-#include "solver.h"
-#include "supernodal_solve.h"
+// both kinds of factorization SupernodalFactorization builds (own analysis; shared wide analysis).
 #include "each_isa.h"
+#include "engine/solve/supernodal_factorization.h"
+#include "engine/solve/supernodal_solve.h"
+#include "fixtures.h"
 
 #include <gtest/gtest.h>
 
@@ -42,7 +42,7 @@ double rel_max_diff(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
   return (a - b).cwiseAbs().maxCoeff() / b.cwiseAbs().maxCoeff();
 }
 
-Eigen::MatrixXd fused(const Factorization& f, const Eigen::MatrixXd& B, SupernodalWorkspace& ws) {
+Eigen::MatrixXd fused(const SupernodalFactorization& f, const Eigen::MatrixXd& B, SupernodalWorkspace& ws) {
   Eigen::MatrixXd X(B.rows(), 3);
   supernodal_solve3(*f.factor(), B.data(), B.rows(), X.data(), X.rows(), ws);
   return X;
@@ -51,31 +51,20 @@ Eigen::MatrixXd fused(const Factorization& f, const Eigen::MatrixXd& B, Supernod
 // Both factorization kinds at β = 0 and two β > 0 on one model; random B.
 void check_model(const PreparedMesh& pm, const Constraints& c, SupernodalWorkspace& ws) {
   std::srand(11);
-  const Factorization f0(k_ff(pm, c, 0.0));
+  const SupernodalFactorization f0(k_ff(pm, c, 0.0));
   ASSERT_TRUE(supernodal_solvable(f0.factor()));
   const Eigen::MatrixXd B0 = Eigen::MatrixXd::Random(f0.size(), 3);
   EXPECT_LT(rel_max_diff(fused(f0, B0, ws), f0.solve_cholmod(B0)), 1e-12) << "beta 0";
   EXPECT_LT(rel_max_diff(f0.solve(B0), f0.solve_cholmod(B0)), 1e-12) << "beta 0, solve()";
-  // The BLAS path (dtrsm + dgemm) for supernodes of ≥ cut columns, alone and mixed.
-  for (int cut : {1, 4, 16}) {
-    SupernodalWorkspace wb;
-    wb.blas_min_cols = cut;
-    EXPECT_LT(rel_max_diff(fused(f0, B0, wb), f0.solve_cholmod(B0)), 1e-12) << "blas " << cut;
-  }
 
   const SparseMatrix K1 = k_ff(pm, c, 0.3);
-  const Factorization wide(K1);  // own analysis of the wide pattern
+  const SupernodalFactorization wide(K1);  // own analysis of the wide pattern
   const Eigen::MatrixXd B1 = Eigen::MatrixXd::Random(wide.size(), 3);
   EXPECT_LT(rel_max_diff(fused(wide, B1, ws), wide.solve_cholmod(B1)), 1e-12) << "beta 0.3";
-  const Factorization shared(wide, k_ff(pm, c, 0.7));  // numeric on the shared analysis
+  const SupernodalFactorization shared(wide, k_ff(pm, c, 0.7));  // numeric on the shared analysis
   ASSERT_TRUE(supernodal_solvable(shared.factor()));
   EXPECT_LT(rel_max_diff(fused(shared, B1, ws), shared.solve_cholmod(B1)), 1e-12) << "beta 0.7";
   EXPECT_LT(rel_max_diff(shared.solve(B1), shared.solve_cholmod(B1)), 1e-12);
-  for (int cut : {1, 8}) {
-    SupernodalWorkspace wb;
-    wb.blas_min_cols = cut;
-    EXPECT_LT(rel_max_diff(fused(shared, B1, wb), shared.solve_cholmod(B1)), 1e-12) << cut;
-  }
   // The residual too, not only agreement with CHOLMOD.
   const Eigen::MatrixXd X1 = fused(wide, B1, ws);
   EXPECT_LT((K1 * X1 - B1).cwiseAbs().maxCoeff(), 1e-9 * (K1 * X1).cwiseAbs().maxCoeff());
@@ -101,8 +90,8 @@ TEST(SupernodalSolve, MatchesCholmodOnProceduralCapsule) {
 TEST(SupernodalSolve, WorkspaceReuseAcrossSizes) {
   const test::Benchmark cactus = test::load_benchmark("cactus");
   const test::Benchmark bar = test::load_benchmark("bar");
-  const Factorization fa(k_ff(*cactus.mesh, cactus.constraints, 0.0));
-  const Factorization fb(k_ff(*bar.mesh, bar.constraints, 0.0));
+  const SupernodalFactorization fa(k_ff(*cactus.mesh, cactus.constraints, 0.0));
+  const SupernodalFactorization fb(k_ff(*bar.mesh, bar.constraints, 0.0));
   ASSERT_NE(fa.size(), fb.size());
   std::srand(3);
   const Eigen::MatrixXd Ba = Eigen::MatrixXd::Random(fa.size(), 3);
@@ -120,7 +109,7 @@ TEST(SupernodalSolve, WorkspaceReuseAcrossSizes) {
 // In place (X aliases B), and B with a leading dimension larger than n.
 TEST(SupernodalSolve, AliasingAndLeadingDimension) {
   const test::Benchmark bar = test::load_benchmark("bar");
-  const Factorization f(k_ff(*bar.mesh, bar.constraints, 0.0));
+  const SupernodalFactorization f(k_ff(*bar.mesh, bar.constraints, 0.0));
   std::srand(5);
   const Eigen::MatrixXd B = Eigen::MatrixXd::Random(f.size(), 3);
   SupernodalWorkspace ws;
@@ -136,7 +125,7 @@ TEST(SupernodalSolve, AliasingAndLeadingDimension) {
   EXPECT_EQ(out.bottomRows(2), Eigen::MatrixXd::Zero(2, 3));
 }
 
-// Tiny systems: 1×1, 2×2, a small SPD tridiagonal; and n = 0 through Factorization.
+// Tiny systems: 1×1, 2×2, a small SPD tridiagonal; and n = 0 through SupernodalFactorization.
 TEST(SupernodalSolve, TinyAndEmpty) {
   SupernodalWorkspace ws;
   for (int n : {1, 2, 3, 5, 17}) {
@@ -150,24 +139,24 @@ TEST(SupernodalSolve, TinyAndEmpty) {
     }
     SparseMatrix K(n, n);
     K.setFromTriplets(t.begin(), t.end());
-    const Factorization f(K);
+    const SupernodalFactorization f(K);
     ASSERT_TRUE(supernodal_solvable(f.factor())) << n;
     std::srand(n);
     const Eigen::MatrixXd B = Eigen::MatrixXd::Random(n, 3);
     EXPECT_LT(rel_max_diff(fused(f, B, ws), f.solve_cholmod(B)), 1e-12) << n;
     EXPECT_LT((K * fused(f, B, ws) - B).cwiseAbs().maxCoeff(), 1e-13) << n;
   }
-  const Factorization empty{SparseMatrix(0, 0)};
+  const SupernodalFactorization empty{SparseMatrix(0, 0)};
   EXPECT_EQ(empty.factor(), nullptr);
   EXPECT_FALSE(supernodal_solvable(nullptr));
   EXPECT_EQ(empty.solve(Eigen::MatrixXd(0, 3)).rows(), 0);
 }
 
-// Factorization::solve from two threads on one factor (thread_local workspaces) gives the
+// SupernodalFactorization::solve from two threads on one factor (thread_local workspaces) gives the
 // single-threaded bits.
 TEST(SupernodalSolve, ConcurrentSolvesAgree) {
   const test::Benchmark cactus = test::load_benchmark("cactus");
-  const Factorization f(k_ff(*cactus.mesh, cactus.constraints, 0.0));
+  const SupernodalFactorization f(k_ff(*cactus.mesh, cactus.constraints, 0.0));
   std::srand(9);
   const Eigen::MatrixXd B = Eigen::MatrixXd::Random(f.size(), 3);
   const Eigen::MatrixXd ref = f.solve(B);
@@ -181,10 +170,10 @@ TEST(SupernodalSolve, ConcurrentSolvesAgree) {
 }
 
 // ---------------------------------------------------------------------------------------
-// Factorization::solve3: the two-thread schedule and float32 factor values, on a capsule
+// SupernodalFactorization::solve3: the two-thread schedule and float32 factor values, on a capsule
 // large enough to be split (K_FF ≥ 20K rows).
 
-Eigen::MatrixXd solve3(const Factorization& f, const Eigen::MatrixXd& B, SolvePrecision p,
+Eigen::MatrixXd solve3(const SupernodalFactorization& f, const Eigen::MatrixXd& B, SolvePrecision p,
                        int threads) {
   Eigen::MatrixXd X(B.rows(), 3);
   f.solve3(B.data(), X.data(), p, threads);
@@ -206,7 +195,7 @@ double rel_col2(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
 //   ‖x − x̃‖ / ‖x̃‖ ≤ e (√λmax + e) / λmin + e / √λmin   (plus the double solve's own
 //   rounding, ~1e-13 here). λmax ≤ Gershgorin's bound; λmin from inverse iteration (which
 //   overestimates it: halved for safety).
-double float32_bound(const Factorization& f, const SparseMatrix& K) {
+double float32_bound(const SupernodalFactorization& f, const SparseMatrix& K) {
   const cholmod_factor& L = *f.factor();
   const int* super = static_cast<const int*>(L.super);
   const int* pi = static_cast<const int*>(L.pi);
@@ -268,7 +257,7 @@ const BigCase& big_case() {
 void check_scheduled(double beta) {
   const BigCase& bc = big_case();
   const SparseMatrix K = k_ff(*bc.pm, bc.c, beta);
-  const Factorization f(K);
+  const SupernodalFactorization f(K);
   ASSERT_GE(f.size(), 30000);
   const SupernodalSchedule& sch = f.schedule();
   ASSERT_TRUE(sch.split());
@@ -350,7 +339,7 @@ TEST(SupernodalSolve, ScheduledTwoThreadsBetaPositive) { check_scheduled(0.3); }
 // Small factors are not split and still solve through solve3 with either thread count.
 TEST(SupernodalSolve, Solve3SmallUnsplit) {
   const test::Benchmark bar = test::load_benchmark("bar");
-  const Factorization f(k_ff(*bar.mesh, bar.constraints, 0.0));
+  const SupernodalFactorization f(k_ff(*bar.mesh, bar.constraints, 0.0));
   EXPECT_FALSE(f.schedule().split());
   std::srand(4);
   const Eigen::MatrixXd B = Eigen::MatrixXd::Random(f.size(), 3);
@@ -385,7 +374,7 @@ TEST_P(SolveOnEachIsa, ScheduledBetaPositive) { check_scheduled(0.3); }
 // The builds differ in rounding only (FMA, the order of the four-row sums).
 TEST_P(SolveOnEachIsa, AgreesWithTheOtherBuild) {
   const BigCase& bc = big_case();
-  const Factorization f(k_ff(*bc.pm, bc.c, 0.3));
+  const SupernodalFactorization f(k_ff(*bc.pm, bc.c, 0.3));
   std::srand(21);
   const Eigen::MatrixXd B = Eigen::MatrixXd::Random(f.size(), 3);
   const Eigen::MatrixXd X = solve3(f, B, SolvePrecision::float64, 2);

@@ -2,7 +2,7 @@
 // trends for β > 0. The expected values are the thesis's printed table, not our output;
 // the plane is checked for trends only (the thesis used other regions).
 #include "fixtures.h"
-#include "thesis_tables.h"
+#include "fixtures/thesis_tables.h"
 
 #include <gtest/gtest.h>
 

@@ -1,10 +1,10 @@
 // two_threads.h: claimed work runs every item exactly once whether the helper joins on time,
 // late or never; for_chunks' chunks are fixed by n alone. In kernel_tests, so that
 // scripts/tsan.sh race-checks the helper's join-or-close handshake.
+#include "engine/runtime/two_threads.h"
+#include "engine/solve/supernodal_factorization.h"
 #include "fixtures.h"
 #include "helper_busy.h"
-#include "solver.h"
-#include "two_threads.h"
 
 #include <gtest/gtest.h>
 
@@ -123,7 +123,7 @@ TEST(TwoThreads, RunAlwaysRunsBothParts) {
 // bits of one thread, solve after solve, and with a second caller that finds the helper busy.
 TEST(TwoThreads, ClaimedSolveGivesTheBitsOfOneThread) {
   const test::Benchmark b = test::capsule_benchmark(40000);
-  const Factorization f(test::k_ff(*b.mesh, b.constraints, 0.0));
+  const SupernodalFactorization f(test::k_ff(*b.mesh, b.constraints, 0.0));
   ASSERT_TRUE(f.schedule().split());
   std::srand(3);
   const Eigen::MatrixXd B = Eigen::MatrixXd::Random(f.size(), 3);

@@ -1,5 +1,5 @@
 // Mesh validation: one test per error class, each on a small hand-made bad mesh.
-#include "validate.h"
+#include "engine/mesh/validate.h"
 
 #include <gtest/gtest.h>
 

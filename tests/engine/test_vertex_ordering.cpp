@@ -1,10 +1,10 @@
 // The per-mesh nested dissection (vertex_ordering.h) restricted to a constraint set's free
 // vertices, against METIS run on K_FF itself: the same solutions, a comparable fill, and
 // the constraint set's factorizations built from it.
+#include "engine/solve/supernodal_factorization.h"
+#include "engine/solve/vertex_ordering.h"
 #include "fixtures.h"
-#include "procedural.h"
-#include "solver.h"
-#include "vertex_ordering.h"
+#include "fixtures/procedural.h"
 
 #include <gtest/gtest.h>
 
@@ -49,8 +49,8 @@ void check_model(const char* name, const PreparedMesh& pm, const Constraints& c)
     const SparseMatrix K = k_ff(pm, c, beta);
     const auto perm = restrict_order(beta == 0 ? pm.order() : pm.wide_order(), free);
     ASSERT_TRUE(is_permutation_of_iota(perm));
-    const Factorization metis(K, false);
-    const Factorization given(K, false, &perm);
+    const SupernodalFactorization metis(K, false);
+    const SupernodalFactorization given(K, false, &perm);
     const Eigen::MatrixXd B = Eigen::MatrixXd::Random(K.rows(), 3);
     const Eigen::MatrixXd X = given.solve_cholmod(B), Xm = metis.solve_cholmod(B);
     EXPECT_LT((X - Xm).cwiseAbs().maxCoeff(), 1e-10 * Xm.cwiseAbs().maxCoeff()) << beta;

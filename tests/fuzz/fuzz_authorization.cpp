@@ -1,7 +1,7 @@
-// libFuzzer target for the `authorization` header parser (server/service/access.h): any
+// libFuzzer target for the `authorization` header parser (server/service/access/access.h): any
 // bytes a client sends. At most 64 tokens, each 1–256 characters, none with the "Bearer "
 // prefix or surrounding blanks left on.
-#include "access.h"
+#include "service/access/access.h"
 
 #include <cstddef>
 #include <cstdint>

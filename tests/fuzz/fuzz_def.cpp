@@ -1,6 +1,6 @@
 // libFuzzer target for parse_def: only InvalidInput may be thrown; a result is a finite
 // affine 4×4 matrix.
-#include "selection.h"
+#include "engine/io/selection.h"
 
 #include <cmath>
 #include <cstddef>

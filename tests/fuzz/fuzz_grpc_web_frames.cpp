@@ -2,7 +2,7 @@
 // on the whole input — every message must be a view inside the body, and a body without an
 // error must be covered exactly by its frames — and parse_timeout on the input and on its
 // first line (a grpc-timeout header value).
-#include "grpc_web.h"
+#include "gateway/grpc_web.h"
 
 #include <cstddef>
 #include <cstdint>

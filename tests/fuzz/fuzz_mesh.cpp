@@ -6,7 +6,7 @@
 // picks the limits, so the limit and cancellation paths are fuzzed too: size % 4 == 1 →
 // at most 40 vertices and 60 triangles; == 2 → cancelled at the second poll (ReadCancelled
 // is then allowed); otherwise unlimited.
-#include "mesh_io.h"
+#include "engine/io/mesh_io.h"
 
 #include <cstddef>
 #include <cstdint>

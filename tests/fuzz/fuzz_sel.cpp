@@ -1,7 +1,7 @@
 // libFuzzer target for parse_sel: the first two bytes (little-endian) are the mesh's vertex
 // count (0–65535), the rest is the .sel file. Only InvalidInput may be thrown; a result
 // has exactly that many labels, each 0, 1 or 2.
-#include "selection.h"
+#include "engine/io/selection.h"
 
 #include <cstddef>
 #include <cstdint>

@@ -1,8 +1,8 @@
-// libFuzzer target for stored session records (server/service/stored_record.h): a state
+// libFuzzer target for stored session records (server/service/state/stored_record.h): a state
 // database or a Redis that someone else can write to is input too. parse_record either
 // returns a record it has checked or throws StateError; tokens_of never reads out of bounds.
-#include "stored_record.h"
-#include "state_backend.h"
+#include "service/state/state_backend.h"
+#include "service/state/stored_record.h"
 
 #include <cstddef>
 #include <cstdint>

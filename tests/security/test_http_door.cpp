@@ -4,7 +4,7 @@
 // sessions keep being served throughout.
 #include "service_fixture.h"
 
-#include "http_gateway.h"
+#include "gateway/http_gateway.h"
 
 #include <boost/asio.hpp>
 #include <boost/beast/core.hpp>

@@ -5,8 +5,8 @@
 // plain-text peers, refuse bad files at start-up naming the file, and pass Authorization on.
 #include "service_fixture.h"
 
-#include "grpc_web.h"
-#include "http_gateway.h"
+#include "gateway/grpc_web.h"
+#include "gateway/http_gateway.h"
 
 #include <boost/asio.hpp>
 #include <boost/asio/ssl.hpp>

@@ -2,7 +2,7 @@
 #pragma once
 
 #include "hdeform/v1/deform.grpc.pb.h"
-#include "service/server.h"
+#include "service/rpc/server.h"
 
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/support/client_interceptor.h>

@@ -1,6 +1,6 @@
 // The shared LRU and the worker pool's strands, without gRPC.
-#include "cache.h"
-#include "worker_pool.h"
+#include "service/infra/cache.h"
+#include "service/infra/worker_pool.h"
 
 #include <gtest/gtest.h>
 

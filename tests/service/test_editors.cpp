@@ -2,7 +2,7 @@
 // handles, grabs with leases, presence on the watch stream, and stale constraint / β changes
 // refused. A real server over loopback; the clients present real session tokens.
 #include "editors_fixture.h"
-#include "handle_update.h"
+#include "service/session/handle_update.h"
 
 #include <condition_variable>
 #include <cstring>

@@ -5,8 +5,8 @@
 // and the calls that cannot carry it refuse it by name.
 #include "frame_decode.h"
 #include "frame_test_util.h"
-#include "service/frame_delta.h"
-#include "service/frame_encoding.h"
+#include "service/frames/frame_delta.h"
+#include "service/frames/frame_encoding.h"
 #include "service_fixture.h"
 
 #include <chrono>

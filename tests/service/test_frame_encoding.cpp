@@ -2,11 +2,11 @@
 // decoder (client-cli/frame_decode.h) and against the error bounds the proto states; then
 // over loopback: UpdateHandles, Deform and WatchSession in every encoding, exact frames as
 // float32 on request, omitted buffers, and coalescing pipelined updates.
+#include "engine/simd/cpu_features.h"
 #include "frame_decode.h"
 #include "frame_test_util.h"
-#include "service/encoded_frames.h"
-#include "service/frame_encoding.h"
-#include "cpu_features.h"
+#include "service/frames/encoded_frames.h"
+#include "service/frames/frame_encoding.h"
 #include "service_fixture.h"
 
 #include <google/protobuf/descriptor.h>

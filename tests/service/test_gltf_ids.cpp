@@ -1,6 +1,6 @@
 // Selector.base_ids on a glTF upload whose vertices are split at a seam: the ids are base-GLB
 // (frame buffer) indices, mapped through the reader's weld map to engine ids.
-#include "mesh_io.h"
+#include "engine/io/mesh_io.h"
 #include "service_fixture.h"
 
 #include <tiny_gltf.h>

@@ -2,7 +2,7 @@
 // server in either order. UpdateHandlesRequest.sequence orders one client's updates, so a late,
 // older update never undoes a newer move (docs/api.md "Pipelined updates"). First the
 // per-client table on its own, then over loopback.
-#include "service/client_sequences.h"
+#include "service/session/client_sequences.h"
 #include "service_fixture.h"
 
 #include <chrono>

@@ -1,5 +1,5 @@
 // ExportSession → ImportSession reproduces the deformation bit for bit.
-#include "mesh_io.h"
+#include "engine/io/mesh_io.h"
 #include "service_fixture.h"
 
 using namespace hdeform::testing;

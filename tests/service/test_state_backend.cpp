@@ -1,6 +1,6 @@
 // Durable state backends (state_backend.h) against real stores: SQLite in a fresh temp
 // folder and a redis-server started by the test on a free loopback port.
-#include "state_backend.h"
+#include "service/state/state_backend.h"
 
 #include <arpa/inet.h>
 #include <fcntl.h>

@@ -1,5 +1,5 @@
 // QUANTIZED and MESHOPT frames: a buffer built here the way the server builds it
-// (server/service/frame_encoding.cpp) decodes within deform.proto's stated error bounds;
+// (server/service/frames/frame_encoding.cpp) decodes within deform.proto's stated error bounds;
 // MESHOPT decodes to exactly the QUANTIZED buffer it packs; wrong sizes and bad boxes fail
 // with a clear error.
 import assert from "node:assert/strict";

@@ -1,6 +1,6 @@
 // FRAME_ENCODING_QUANTIZED (deform.proto, FrameEncoding): 8 bytes per vertex — 3 × uint16 LE
 // position in Frame.position_box, 2 × int8 octahedral normal — and uint16 LE energies scaled
-// by Frame.energies_max. The byte layout is the server's (server/service/frame_encoding.cpp);
+// by Frame.energies_max. The byte layout is the server's (server/service/frames/frame_encoding.cpp);
 // the arithmetic mirrors the C++ reference decoder (client-cli/frame_decode.cpp).
 import type { Frame } from "../gen/hdeform/v1/deform_pb";
 import { FrameDecodeError, type DecodedFrame, type VertexArrays } from "./decoded_frame";

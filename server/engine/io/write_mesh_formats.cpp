@@ -1,0 +1,265 @@
+// Mesh writers: OBJ, OFF, PLY (ASCII) and GLB. See mesh_writers.h.
+//
+// Text formats print doubles with std::to_chars (shortest representation that reads back to
+// the same double, i.e. round-trips exactly like %.17g but stays readable).
+// GLB: one buffer [POSITION float32 n×3 | NORMAL float32 n×3 | indices uint32 m×3], three
+// buffer views in that order, one mesh with one TRIANGLES primitive, one node, one scene.
+
+#include "engine/io/mesh_writers.h"
+
+#include "engine/io/mesh_io.h"
+
+#include <tiny_gltf.h>
+
+#include <algorithm>
+#include <bit>
+#include <charconv>
+#include <cmath>
+#include <cstring>
+#include <cstdint>
+#include <iterator>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+#include <vector>
+
+namespace hdeform::detail {
+namespace {
+
+void append_double(std::string& out, double v) {
+  char buf[32];
+  auto r = std::to_chars(buf, buf + sizeof buf, v);
+  out.append(buf, r.ptr);
+}
+void append_int(std::string& out, long long v) {
+  char buf[24];
+  auto r = std::to_chars(buf, buf + sizeof buf, v);
+  out.append(buf, r.ptr);
+}
+void append_row(std::string& out, const char* prefix, const Vertices& V, Eigen::Index i) {
+  out += prefix;
+  for (int k = 0; k < 3; ++k) {
+    if (k > 0) out += ' ';
+    append_double(out, V(i, k));
+  }
+}
+
+// Room for a text mesh: about 60 characters a vertex (120 with normals), 30 a triangle.
+void reserve_text(std::string& out, const Vertices& V, const Triangles& F, const Vertices* N) {
+  out.reserve(static_cast<size_t>(V.rows()) * (N ? 120 : 60) + static_cast<size_t>(F.rows()) * 30);
+}
+
+// The body OFF and ASCII PLY share: a line per vertex ("x y z", then " nx ny nz" with
+// normals), then a line per triangle "3 a b c" (0-based).
+void append_vertices_and_faces(std::string& out, const Vertices& V, const Triangles& F,
+                               const Vertices* N) {
+  for (Eigen::Index i = 0; i < V.rows(); ++i) {
+    append_row(out, "", V, i);
+    if (N) append_row(out, " ", *N, i);
+    out += '\n';
+  }
+  for (Eigen::Index t = 0; t < F.rows(); ++t) {
+    out += '3';
+    for (int k = 0; k < 3; ++k) {
+      out += ' ';
+      append_int(out, F(t, k));
+    }
+    out += '\n';
+  }
+}
+
+}  // namespace
+
+std::string write_obj(const Vertices& V, const Triangles& F, const Vertices* N) {
+  std::string out = "# hdeform\n";
+  reserve_text(out, V, F, N);
+  for (Eigen::Index i = 0; i < V.rows(); ++i) {
+    append_row(out, "v ", V, i);
+    out += '\n';
+  }
+  if (N)
+    for (Eigen::Index i = 0; i < N->rows(); ++i) {
+      append_row(out, "vn ", *N, i);
+      out += '\n';
+    }
+  for (Eigen::Index t = 0; t < F.rows(); ++t) {
+    out += 'f';
+    for (int k = 0; k < 3; ++k) {
+      out += ' ';
+      append_int(out, F(t, k) + 1LL);
+      if (N) {
+        out += "//";
+        append_int(out, F(t, k) + 1LL);
+      }
+    }
+    out += '\n';
+  }
+  return out;
+}
+
+std::string write_off(const Vertices& V, const Triangles& F, const Vertices* N) {
+  std::string out = N ? "NOFF\n" : "OFF\n";
+  reserve_text(out, V, F, N);
+  append_int(out, V.rows());
+  out += ' ';
+  append_int(out, F.rows());
+  out += " 0\n";
+  append_vertices_and_faces(out, V, F, N);
+  return out;
+}
+
+namespace {
+
+// The PLY header both encodings share: doubles per vertex, a uchar-counted int list per face.
+void append_ply_header(std::string& out, const char* format, const Vertices& V,
+                       const Triangles& F, const Vertices* N) {
+  out += "ply\nformat ";
+  out += format;
+  out += " 1.0\ncomment hdeform\nelement vertex ";
+  append_int(out, V.rows());
+  out += "\nproperty double x\nproperty double y\nproperty double z\n";
+  if (N) out += "property double nx\nproperty double ny\nproperty double nz\n";
+  out += "element face ";
+  append_int(out, F.rows());
+  out += "\nproperty list uchar int vertex_indices\nend_header\n";
+}
+
+}  // namespace
+
+std::string write_ply(const Vertices& V, const Triangles& F, const Vertices* N) {
+  std::string out;
+  reserve_text(out, V, F, N);
+  append_ply_header(out, "ascii", V, F, N);
+  append_vertices_and_faces(out, V, F, N);
+  return out;
+}
+
+std::string write_ply_binary(const Vertices& V, const Triangles& F, const Vertices* N) {
+  std::string out;
+  append_ply_header(out, "binary_little_endian", V, F, N);
+  static_assert(std::endian::native == std::endian::little, "binary PLY is written as is");
+  const int per_vertex = N ? 6 : 3;
+  const std::size_t header = out.size();
+  out.resize(header + static_cast<std::size_t>(V.rows()) * per_vertex * 8 +
+             static_cast<std::size_t>(F.rows()) * 13);
+  char* p = out.data() + header;
+  for (Eigen::Index i = 0; i < V.rows(); ++i)
+    for (int k = 0; k < per_vertex; ++k) {
+      const double v = k < 3 ? V(i, k) : (*N)(i, k - 3);
+      std::memcpy(p, &v, 8);
+      p += 8;
+    }
+  for (Eigen::Index t = 0; t < F.rows(); ++t) {
+    *p++ = 3;
+    for (int k = 0; k < 3; ++k) {
+      const std::int32_t idx = F(t, k);
+      std::memcpy(p, &idx, 4);
+      p += 4;
+    }
+  }
+  return out;
+}
+
+std::string write_glb(const Vertices& V, const Triangles& F, const Vertices* N, bool up_z) {
+  Vertices computed;
+  if (!N) {
+    computed = vertex_normals(V, F);
+    N = &computed;
+  }
+  const size_t n = static_cast<size_t>(V.rows());
+  const size_t m = static_cast<size_t>(F.rows());
+  tinygltf::Model model;
+  model.asset.version = "2.0";
+  model.asset.generator = "hdeform";
+  tinygltf::Buffer buffer;
+  buffer.data.resize(n * 24 + m * 12);
+  float* pos = reinterpret_cast<float*>(buffer.data.data());
+  float* nrm = pos + 3 * n;
+  std::vector<double> lo(3, std::numeric_limits<double>::infinity());
+  std::vector<double> hi(3, -std::numeric_limits<double>::infinity());
+  for (size_t i = 0; i < n; ++i)
+    for (int k = 0; k < 3; ++k) {
+      const float p = static_cast<float>(V(static_cast<Eigen::Index>(i), k));
+      pos[3 * i + k] = p;
+      nrm[3 * i + k] = static_cast<float>((*N)(static_cast<Eigen::Index>(i), k));
+      lo[k] = std::min(lo[k], static_cast<double>(p));
+      hi[k] = std::max(hi[k], static_cast<double>(p));
+    }
+  uint32_t* ind = reinterpret_cast<uint32_t*>(buffer.data.data() + n * 24);
+  for (size_t t = 0; t < m; ++t)
+    for (int k = 0; k < 3; ++k) ind[3 * t + k] = static_cast<uint32_t>(F(static_cast<Eigen::Index>(t), k));
+  model.buffers.push_back(std::move(buffer));
+
+  auto view = [&](size_t offset, size_t length, int target) {
+    tinygltf::BufferView bv;
+    bv.buffer = 0;
+    bv.byteOffset = offset;
+    bv.byteLength = length;
+    bv.target = target;
+    model.bufferViews.push_back(bv);
+  };
+  view(0, n * 12, TINYGLTF_TARGET_ARRAY_BUFFER);
+  view(n * 12, n * 12, TINYGLTF_TARGET_ARRAY_BUFFER);
+  view(n * 24, m * 12, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
+
+  tinygltf::Accessor ap;
+  ap.bufferView = 0;
+  ap.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
+  ap.count = n;
+  ap.type = TINYGLTF_TYPE_VEC3;
+  if (n > 0) {
+    ap.minValues = lo;
+    ap.maxValues = hi;
+  }
+  tinygltf::Accessor an = ap;
+  an.bufferView = 1;
+  an.minValues.clear();
+  an.maxValues.clear();
+  tinygltf::Accessor ai;
+  ai.bufferView = 2;
+  ai.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
+  ai.count = 3 * m;
+  ai.type = TINYGLTF_TYPE_SCALAR;
+  model.accessors = {ap, an, ai};
+
+  tinygltf::Primitive prim;
+  prim.attributes["POSITION"] = 0;
+  prim.attributes["NORMAL"] = 1;
+  prim.indices = 2;
+  prim.mode = TINYGLTF_MODE_TRIANGLES;
+  tinygltf::Mesh mesh;
+  mesh.primitives.push_back(prim);
+  model.meshes.push_back(mesh);
+  tinygltf::Node node;
+  node.mesh = 0;
+  model.nodes.push_back(node);
+  add_scene(model, up_z);
+  return serialise_glb(model, "write_mesh");
+}
+
+void add_scene(tinygltf::Model& model, bool up_z) {
+  tinygltf::Scene scene;
+  if (up_z) {
+    // −90° about x: (x, y, z) → (x, z, −y). On a parent, so the mesh node stays plain.
+    tinygltf::Node up;
+    up.name = "z-up to y-up";
+    up.rotation.assign(std::begin(kZUpToYUp), std::end(kZUpToYUp));
+    up.children.push_back(0);
+    model.nodes.push_back(up);
+    scene.nodes.push_back(static_cast<int>(model.nodes.size() - 1));
+  } else {
+    scene.nodes.push_back(0);
+  }
+  model.scenes.push_back(scene);
+  model.defaultScene = 0;
+}
+
+std::string serialise_glb(tinygltf::Model& model, const char* who) {
+  tinygltf::TinyGLTF writer;
+  std::ostringstream os;
+  if (!writer.WriteGltfSceneToStream(&model, os, false, true))
+    throw std::runtime_error(std::string(who) + ": tinygltf failed to serialise the GLB");
+  return os.str();
+}
+
+}  // namespace hdeform::detail

@@ -1,0 +1,24 @@
+// Mesh validation with precise errors (which element, how many): SPEC.md requires a
+// 2-manifold triangle mesh with finite coordinates and no degenerate triangles.
+#pragma once
+
+#include "engine/mesh/mesh.h"
+
+#include <string>
+#include <vector>
+
+namespace hdeform {
+
+struct ValidationResult {
+  std::vector<int> unreferenced;      // vertex ids no triangle uses (kept, pinned at rest)
+  std::vector<std::string> warnings;  // human-readable, one per issue
+};
+
+// Throws InvalidInput naming the first problem class found and how many elements it
+// affects, with the first offending ids: empty mesh, index out of range, non-finite
+// coordinates, zero-area triangles (area ≤ 1e-14 · bbox diagonal²), non-manifold edges
+// (> 2 triangles or inconsistent orientation), non-manifold vertices (more than one fan).
+// Unreferenced vertices are not an error: they are reported and kept, so ids stay stable.
+ValidationResult validate_mesh(const TriMesh& mesh);
+
+}  // namespace hdeform

@@ -1,0 +1,26 @@
+// Fill-reducing orderings shared by every constraint set of one mesh (SPEC.md §Solve).
+// METIS nested dissection of the whole mesh's pattern is computed once per mesh and
+// pattern (β = 0's L, β > 0's L ∪ Reg); a constraint set orders K_FF by each free vertex's
+// rank in it. Removing the constrained vertices keeps every separator a separator, so the
+// restricted order keeps METIS's fill without a METIS call per constraint set
+// (docs/benchmarks.md "Orderings shared per mesh").
+#pragma once
+
+#include "engine/operators/operators.h"
+
+#include <vector>
+
+namespace hdeform {
+
+// METIS nested dissection (through CHOLMOD) of the symmetric pattern of A, n × n, read
+// from its lower triangle: order[k] = the vertex eliminated k-th. Deterministic, also with
+// concurrent calls (METIS runs one call at a time: its random generator is global). Serial.
+std::vector<int> nested_dissection(const SparseMatrix& A);
+// The same for the union of the patterns of A and B (both n × n, symmetric).
+std::vector<int> nested_dissection(const SparseMatrix& A, const SparseMatrix& B);
+
+// The permutation of a block whose row i is vertex free[i]: perm[k] = i of the k-th free
+// vertex in `order` (a permutation of 0..n−1). free: distinct vertex ids in [0, n).
+std::vector<int> restrict_order(const std::vector<int>& order, const std::vector<int>& free);
+
+}  // namespace hdeform

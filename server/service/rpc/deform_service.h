@@ -1,0 +1,174 @@
+// The hdeform.v1.Deformation service on gRPC's callback API. Reactions never block:
+// parsing, preparing, factorizing and solving run on the worker pool, one session's work
+// serialized on that session's strand.
+#pragma once
+
+#include "hdeform/v1/deform.grpc.pb.h"
+#include "service/infra/cache.h"
+#include "service/infra/upload_budget.h"
+#include "service/infra/worker_pool.h"
+#include "service/rpc/server.h"
+#include "service/session/mesh_library.h"
+#include "service/session/session_store.h"
+
+#include <atomic>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <vector>
+
+namespace hdeform::service {
+
+class DeformService final : public v1::Deformation::CallbackService {
+ public:
+  explicit DeformService(const ServerOptions& options);
+  ~DeformService() override;
+
+  // Ends every WatchSession stream (sessions are closed) and stops the TTL sweeper.
+  void close_sessions();
+  // Drains and joins the worker pool (after the gRPC server has shut down).
+  void stop_workers();
+
+  SessionStore& sessions() { return store_; }
+  UploadBudget& uploads() { return uploads_; }
+  std::atomic<std::size_t>& running_sweeps() { return running_sweeps_; }
+  // True once shutdown began: long work polls it (cooperative cancellation).
+  bool stopping() const { return stopping_.load(); }
+  Cache& cache() { return cache_; }
+  WorkerPool& pool() { return *pool_; }
+  const MeshLibrary& library() const { return library_; }
+  const ServerOptions& options() const { return options_; }
+
+  grpc::ServerReadReactor<v1::CreateSessionRequest>* CreateSession(
+      grpc::CallbackServerContext* ctx, v1::Session* response) override;
+  grpc::ServerUnaryReactor* GetSession(grpc::CallbackServerContext* ctx,
+                                       const v1::GetSessionRequest* request,
+                                       v1::Session* response) override;
+  grpc::ServerUnaryReactor* ListSessions(grpc::CallbackServerContext* ctx,
+                                         const v1::ListSessionsRequest* request,
+                                         v1::ListSessionsResponse* response) override;
+  grpc::ServerUnaryReactor* DeleteSession(grpc::CallbackServerContext* ctx,
+                                          const v1::DeleteSessionRequest* request,
+                                          v1::DeleteSessionResponse* response) override;
+  grpc::ServerUnaryReactor* ListMeshes(grpc::CallbackServerContext* ctx,
+                                       const v1::ListMeshesRequest* request,
+                                       v1::ListMeshesResponse* response) override;
+  grpc::ServerUnaryReactor* SetConstraints(grpc::CallbackServerContext* ctx,
+                                           const v1::SetConstraintsRequest* request,
+                                           v1::Session* response) override;
+  grpc::ServerUnaryReactor* SetBeta(grpc::CallbackServerContext* ctx,
+                                    const v1::SetBetaRequest* request,
+                                    v1::Session* response) override;
+  grpc::ServerUnaryReactor* UpdateHandles(grpc::CallbackServerContext* ctx,
+                                          const v1::UpdateHandlesRequest* request,
+                                          v1::Frame* response) override;
+  grpc::ServerWriteReactor<v1::MeshChunk>* GetMesh(grpc::CallbackServerContext* ctx,
+                                                   const v1::GetMeshRequest* request) override;
+  grpc::ServerUnaryReactor* Sweep(grpc::CallbackServerContext* ctx,
+                                  const v1::SweepRequest* request,
+                                  v1::SweepResponse* response) override;
+  grpc::ServerBidiReactor<v1::DeformRequest, v1::Frame>* Deform(
+      grpc::CallbackServerContext* ctx) override;
+  grpc::ServerWriteReactor<v1::SessionEvent>* WatchSession(
+      grpc::CallbackServerContext* ctx, const v1::WatchSessionRequest* request) override;
+  grpc::ServerUnaryReactor* ExportSession(grpc::CallbackServerContext* ctx,
+                                          const v1::ExportSessionRequest* request,
+                                          v1::Snapshot* response) override;
+  grpc::ServerUnaryReactor* ImportSession(grpc::CallbackServerContext* ctx,
+                                          const v1::ImportSessionRequest* request,
+                                          v1::Session* response) override;
+  grpc::ServerUnaryReactor* GrabHandles(grpc::CallbackServerContext* ctx,
+                                        const v1::GrabHandlesRequest* request,
+                                        v1::GrabHandlesResponse* response) override;
+  grpc::ServerUnaryReactor* ReleaseHandles(grpc::CallbackServerContext* ctx,
+                                           const v1::ReleaseHandlesRequest* request,
+                                           v1::GrabHandlesResponse* response) override;
+  grpc::ServerUnaryReactor* Undo(grpc::CallbackServerContext* ctx, const v1::UndoRequest* request,
+                                 v1::Session* response) override;
+  grpc::ServerUnaryReactor* Redo(grpc::CallbackServerContext* ctx, const v1::UndoRequest* request,
+                                 v1::Session* response) override;
+  grpc::ServerUnaryReactor* ListHistory(grpc::CallbackServerContext* ctx,
+                                        const v1::ListHistoryRequest* request,
+                                        v1::ListHistoryResponse* response) override;
+  grpc::ServerUnaryReactor* SaveSnapshot(grpc::CallbackServerContext* ctx,
+                                         const v1::SaveSnapshotRequest* request,
+                                         v1::NamedSnapshot* response) override;
+  grpc::ServerUnaryReactor* ListSnapshots(grpc::CallbackServerContext* ctx,
+                                          const v1::ListSnapshotsRequest* request,
+                                          v1::ListSnapshotsResponse* response) override;
+  grpc::ServerUnaryReactor* RestoreSnapshot(grpc::CallbackServerContext* ctx,
+                                            const v1::RestoreSnapshotRequest* request,
+                                            v1::Session* response) override;
+  grpc::ServerUnaryReactor* DeleteSnapshot(grpc::CallbackServerContext* ctx,
+                                           const v1::DeleteSnapshotRequest* request,
+                                           v1::DeleteSnapshotResponse* response) override;
+  grpc::ServerUnaryReactor* GetHandleWeights(grpc::CallbackServerContext* ctx,
+                                             const v1::GetHandleWeightsRequest* request,
+                                             v1::HandleWeights* response) override;
+  grpc::ServerUnaryReactor* SetTimeline(grpc::CallbackServerContext* ctx,
+                                        const v1::SetTimelineRequest* request,
+                                        v1::Timeline* response) override;
+  grpc::ServerUnaryReactor* GetTimeline(grpc::CallbackServerContext* ctx,
+                                        const v1::GetTimelineRequest* request,
+                                        v1::Timeline* response) override;
+  grpc::ServerUnaryReactor* PoseAt(grpc::CallbackServerContext* ctx,
+                                   const v1::PoseAtRequest* request,
+                                   v1::Keyframe* response) override;
+  grpc::ServerWriteReactor<v1::MeshChunk>* ExportAnimation(
+      grpc::CallbackServerContext* ctx, const v1::ExportAnimationRequest* request) override;
+  grpc::ServerUnaryReactor* RotateTokens(grpc::CallbackServerContext* ctx,
+                                         const v1::RotateTokensRequest* request,
+                                         v1::Session* response) override;
+
+  // Capability check (access.h): throws ServiceError UNAUTHENTICATED (no token) or
+  // PERMISSION_DENIED unless the call's tokens grant `needed` on `session`.
+  // Whether the call presented the session's edit token (or the operator token).
+  bool can_edit(const grpc::ServerContextBase& ctx, const Session& session) const;
+  void authorize(const grpc::ServerContextBase& ctx, const Session& session, Access needed,
+                 const char* op) const;
+  // The presented tokens include the operator token.
+  bool is_admin(const std::vector<TokenHash>& token_hashes) const;
+  // The named session (restored from durable state if needed), authorized for `needed`.
+  std::shared_ptr<Session> session_for(const grpc::ServerContextBase& ctx,
+                                       const std::string& name, Access needed, const char* op);
+
+  // Blocking helpers used by the reactors (run on the pool).
+  std::shared_ptr<const MeshRef> load_library_mesh(const std::string& name);
+  std::shared_ptr<const MeshRef> load_upload(std::shared_ptr<const std::string> bytes,
+                                             const std::string& filename);
+
+ private:
+  using Work = std::function<void()>;
+  // Mesh parsing bounds: --max-vertices while parsing, stopped by shutdown.
+  ReadLimits read_limits() const;
+  // Finish a unary call with fn's outcome: inline (cheap), on the pool, or on a session's
+  // strand (NOT_FOUND when the session does not exist). `admit` runs at arrival, before the
+  // call waits for the strand (cheap checks and per-session admission).
+  grpc::ServerUnaryReactor* finish_inline(grpc::CallbackServerContext* ctx, const char* op,
+                                          const Work& fn);
+  grpc::ServerUnaryReactor* finish_on_pool(grpc::CallbackServerContext* ctx, const char* op,
+                                           Work fn);
+  grpc::ServerUnaryReactor* finish_on_session(grpc::CallbackServerContext* ctx, const char* op,
+                                              const std::string& name, Access needed,
+                                              std::function<void(Session&)> fn,
+                                              std::function<void(Session&)> admit = {});
+  // Durable state from the options (none, SQLite folder, Redis); throws StateError.
+  void open_state();
+  std::shared_ptr<const MeshRef> load_stored_mesh(const v1::Snapshot& snapshot,
+                                                  const std::string& mesh_key);
+
+  ServerOptions options_;
+  // Everything the workers read is built before pool_ starts them (declaration order is
+  // construction order): a worker thread must never see a member before its initialization.
+  std::atomic<std::size_t> running_sweeps_{0};
+  std::atomic<bool> stopping_{false};
+  UploadBudget uploads_;
+  std::unique_ptr<WorkerPool> pool_;
+  Cache cache_;
+  MeshLibrary library_;
+  SessionStore store_;
+  std::optional<TokenHash> admin_hash_;
+  std::shared_ptr<StateBackend> state_;
+};
+
+}  // namespace hdeform::service

@@ -1,0 +1,173 @@
+#include "service/session/history.h"
+
+#include "service/infra/service_error.h"
+
+#include <algorithm>
+
+namespace hdeform::service {
+
+bool same_transform(const HandleTransform& a, const HandleTransform& b) {
+  return a.pivot.has_value() == b.pivot.has_value() && (!a.pivot || *a.pivot == *b.pivot) &&
+         a.rotation.coeffs() == b.rotation.coeffs() && a.stretch == b.stretch &&
+         a.translation == b.translation;
+}
+
+namespace {
+
+std::size_t given_bytes(const Step& s) {
+  std::size_t n = 0;
+  if (s.before.given) n += s.before.given->ByteSizeLong();
+  if (s.after.given) n += s.after.given->ByteSizeLong();
+  return n;
+}
+
+bool undoable_kind(pb::StepKind k) {
+  return k == pb::STEP_KIND_CONSTRAINTS || k == pb::STEP_KIND_BETA || k == pb::STEP_KIND_MOVE ||
+         k == pb::STEP_KIND_RESTORE;
+}
+
+std::string describe(const pb::HistoryStep& s) {
+  return "step " + std::to_string(s.id()) + " (" + s.author() + ": " + s.summary() + ")";
+}
+
+}  // namespace
+
+const pb::HistoryStep& History::record(Step step) {
+  step.info.set_id(next_id_++);
+  if (step.info.kind() != pb::STEP_KIND_UNDO && step.info.kind() != pb::STEP_KIND_REDO)
+    redo_.erase(step.info.client_id());
+  bytes_ += given_bytes(step);
+  steps_.push_back(std::move(step));
+  while (steps_.size() > 1 &&
+         (steps_.size() > limits_.max_steps || bytes_ > limits_.max_bytes)) {
+    bytes_ -= given_bytes(steps_.front());
+    steps_.pop_front();
+  }
+  return steps_.back().info;
+}
+
+void History::drag_moved(const std::string& client_id, const std::vector<int>& handles,
+                         const std::vector<HandleTransform>& before) {
+  auto& d = drags_[client_id];
+  for (int h : handles)
+    if (!d.before.count(h)) d.before.emplace(h, before[static_cast<std::size_t>(h)]);
+}
+
+std::map<int, HandleTransform> History::end_drag(const std::string& client_id) {
+  auto it = drags_.find(client_id);
+  if (it == drags_.end()) return {};
+  auto out = std::move(it->second.before);
+  drags_.erase(it);
+  return out;
+}
+
+void History::forget_drags() { drags_.clear(); }
+
+const Step* History::find(std::int64_t id) const {
+  for (const auto& s : steps_)
+    if (s.info.id() == id) return &s;
+  return nullptr;
+}
+
+Step* History::find(std::int64_t id) {
+  return const_cast<Step*>(static_cast<const History*>(this)->find(id));
+}
+
+const Step& History::undo_target(const std::string& client_id, std::int64_t step) const {
+  if (step != 0) {
+    const Step* s = find(step);
+    if (!s)
+      fail(grpc::StatusCode::NOT_FOUND,
+           "Undo: no step " + std::to_string(step) + " in the history (it keeps the last " +
+               std::to_string(limits_.max_steps) + " steps, --max-history)");
+    if (s->info.undone())
+      fail(grpc::StatusCode::FAILED_PRECONDITION, "Undo: " + describe(s->info) + " is already undone");
+    return *s;
+  }
+  for (auto it = steps_.rbegin(); it != steps_.rend(); ++it)
+    if (it->info.client_id() == client_id && undoable_kind(it->info.kind()) && !it->info.undone())
+      return *it;
+  fail(grpc::StatusCode::FAILED_PRECONDITION,
+       "Undo: nothing to undo for client '" + client_id + "' (no change of its own in the history)");
+}
+
+void History::clear() {
+  steps_.clear();
+  bytes_ = 0;
+  redo_.clear();
+  drags_.clear();
+}
+
+const Step& History::redo_target(const std::string& client_id, std::int64_t step) const {
+  if (step != 0) {
+    const Step* s = find(step);
+    if (!s || !s->info.undone())
+      fail(grpc::StatusCode::FAILED_PRECONDITION,
+           "Redo: step " + std::to_string(step) + " is not an undone step in the history");
+    return *s;
+  }
+  auto it = redo_.find(client_id);
+  if (it != redo_.end())
+    for (auto id = it->second.rbegin(); id != it->second.rend(); ++id)
+      if (const Step* s = find(*id); s && s->info.undone()) return *s;
+  fail(grpc::StatusCode::FAILED_PRECONDITION,
+       "Redo: nothing to redo for client '" + client_id +
+           "' (its undos were redone, or it made a new change since)");
+}
+
+const Step* History::later_change(const Step& step) const {
+  for (auto it = steps_.rbegin(); it != steps_.rend() && it->info.id() > step.info.id(); ++it) {
+    bool touches = (step.constraints || it->constraints) ||
+                   (step.beta && it->beta);
+    for (int h : step.handles)
+      touches = touches || std::find(it->handles.begin(), it->handles.end(), h) != it->handles.end();
+    if (touches) return &*it;
+  }
+  return nullptr;
+}
+
+void History::check_unchanged(const Step& step, const EditState& current,
+                              const EditState& expect, const char* what) const {
+  std::string changed;
+  if (current.cs_key != expect.cs_key) changed = "the constraints";
+  else if (step.beta && !current.beta.same_as(expect.beta)) changed = "beta";
+  else if (step.constraints) {
+    bool same = current.transforms.size() == expect.transforms.size();
+    for (std::size_t j = 0; same && j < current.transforms.size(); ++j)
+      same = same_transform(current.transforms[j], expect.transforms[j]);
+    if (!same) changed = "the handles' transforms";
+  } else
+    for (int h : step.handles)
+      if (static_cast<std::size_t>(h) >= current.transforms.size() ||
+          !same_transform(current.transforms[static_cast<std::size_t>(h)],
+                          expect.transforms[static_cast<std::size_t>(h)])) {
+        changed = "handle " + std::to_string(h);
+        break;
+      }
+  if (changed.empty()) return;
+  const Step* later = later_change(step);
+  fail(grpc::StatusCode::ABORTED,
+       std::string(what) + " of " + describe(step.info) + " refused: " + changed +
+           " changed since" + (later ? " (" + describe(later->info) + ")" : std::string()) +
+           "; reverting it would lose that change");
+}
+
+void History::mark_undone(std::int64_t target, const std::string& client_id) {
+  if (Step* s = find(target)) s->info.set_undone(true);
+  redo_[client_id].push_back(target);
+}
+
+void History::mark_redone(std::int64_t target, const std::string& client_id) {
+  if (Step* s = find(target)) s->info.set_undone(false);
+  auto& r = redo_[client_id];
+  r.erase(std::remove(r.begin(), r.end(), target), r.end());
+}
+
+std::vector<pb::HistoryStep> History::page(std::int64_t before, std::size_t page_size) const {
+  std::vector<pb::HistoryStep> out;
+  for (auto it = steps_.rbegin(); it != steps_.rend() && out.size() < page_size; ++it)
+    if (before == 0 || it->info.id() < before) out.push_back(it->info);
+  return out;
+}
+
+}  // namespace hdeform::service

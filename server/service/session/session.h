@@ -1,0 +1,347 @@
+// One editing session: a shared mesh, a shared constraint set, β, one transform per handle,
+// a version, and its observers. Mutations and solves run on the session's strand (one at
+// a time, on the worker pool); describe() and the observer list may be used from any
+// thread.
+#pragma once
+
+#include "engine/deform/deformer.h"
+#include "engine/io/animation_glb.h"
+#include "hdeform/v1/deform.pb.h"
+#include "service/access/access.h"
+#include "service/frames/encoded_frames.h"
+#include "service/infra/cache.h"
+#include "service/infra/request_limits.h"
+#include "service/infra/worker_pool.h"
+#include "service/session/client_sequences.h"
+#include "service/session/history.h"
+#include "service/session/mesh_library.h"
+#include "service/session/roster.h"
+#include "service/session/timeline.h"
+
+#include <google/protobuf/repeated_field.h>
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace hdeform::service {
+
+namespace pb = ::hdeform::v1;
+
+// While a drag goes on, a frame carries measures only if the last measured one is this old.
+inline constexpr std::chrono::milliseconds kDragMeasuresPeriod{100};
+
+// A WatchSession stream as the session sees it. push() never blocks.
+class EventSink {
+ public:
+  virtual ~EventSink() = default;
+  virtual void push(std::shared_ptr<const pb::SessionEvent> event) = 0;
+  virtual void close() = 0;  // the session is gone (after a `deleted` event)
+};
+
+class Session : public std::enable_shared_from_this<Session> {
+ public:
+  Session(std::string id, std::shared_ptr<const MeshRef> mesh, WorkerPool& pool, Cache& cache,
+          const RequestLimits& limits = {});
+
+  const std::string& id() const { return id_; }
+  const std::string& name() const { return name_; }  // "sessions/{id}"
+  const MeshRef& mesh() const { return *mesh_; }
+  std::shared_ptr<const MeshRef> mesh_ref() const { return mesh_; }
+  // Runs `task` on this session's strand (serialized, on the worker pool).
+  void post(WorkerPool::Task task) { strand_->post(std::move(task)); }
+  // Runs `admit` (which may throw; then nothing is posted) and posts `task`, as one step
+  // against every other admit_and_post on this session: the strand runs the tasks in the
+  // order their admits ran, which coalescing tickets rely on (the newest ticket runs last).
+  template <class Admit>
+  void admit_and_post(Admit&& admit, WorkerPool::Task task) {
+    std::lock_guard lock(arrival_mutex_);
+    admit();
+    strand_->post(std::move(task));
+  }
+
+  // ---- blocking: call on the strand. Throw ServiceError / InvalidInput. ----
+  // expected_config_version (0: any): ABORTED unless no constraint or β change came since.
+  // `client_id`: the author recorded in the history (empty: anonymous).
+  pb::Session set_constraints(const pb::Constraints& constraints, std::int64_t expected_version,
+                              std::int64_t expected_config_version = 0,
+                              const std::string& client_id = "");
+  pb::Session set_beta(const pb::Beta& beta, std::int64_t expected_version,
+                       std::int64_t expected_config_version = 0,
+                       const std::string& client_id = "");
+
+  // History and named snapshots (history.h; docs/api.md "History and snapshots"). Each
+  // change is a new step that every watcher sees; undo and redo are refused (ABORTED) when a
+  // later change touched what they would revert.
+  pb::Session undo(const pb::UndoRequest& request);
+  pb::Session redo(const pb::UndoRequest& request);
+  pb::ListHistoryResponse list_history(const pb::ListHistoryRequest& request) const;
+  pb::NamedSnapshot save_snapshot(const pb::SaveSnapshotRequest& request);
+  pb::ListSnapshotsResponse list_snapshots() const;
+  pb::Session restore_snapshot(const pb::RestoreSnapshotRequest& request);
+  void delete_snapshot(const std::string& snapshot);
+  // Durable state: the named snapshots as stored (a fresh session only).
+  void adopt_snapshots(const google::protobuf::RepeatedPtrField<pb::NamedSnapshot>& snapshots);
+
+  // Timeline (timeline.h; docs/api.md "Timeline and animation"). set_timeline runs on the
+  // strand: it is checked against the constraint set, which a SetConstraints may replace
+  // (that clears the timeline: its transforms are per handle).
+  pb::Timeline set_timeline(const pb::SetTimelineRequest& request);
+  pb::Timeline timeline() const;
+  pb::Keyframe pose_at(double time_s) const;
+  // ExportAnimation in steps, like a Sweep: plan() checks the request and its limits and
+  // captures the state; frame() solves the next sample (any thread, never the strand);
+  // finish() writes the GLB.
+  struct AnimationPlan {
+    std::shared_ptr<const ConstraintSet> cs;
+    ParsedTimeline timeline;
+    SessionBeta beta;  // the session's, where no key sets β
+    std::vector<double> times;
+    bool energies = false;
+    std::shared_ptr<AnimationGlb> glb;
+    std::vector<Eigen::VectorXf> vertex_energies;  // per frame (energies only)
+    std::size_t next = 0;
+  };
+  AnimationPlan animation_plan(const pb::ExportAnimationRequest& request) const;
+  void animation_frame(AnimationPlan& plan) const;
+  std::string animation_finish(AnimationPlan& plan) const;
+
+  struct Update {
+    std::int64_t sequence = 0;
+    const google::protobuf::RepeatedPtrField<pb::HandleTransform>* transforms = nullptr;
+    bool keep_transforms_if_empty = false;  // Deform: a β-only message
+    bool energies = false;
+    // More moves follow (DeformRequest.dragging): a drag-path frame (float32 factor, within
+    // kDragTolerance of the exact solve), with measures at most every kDragMeasuresPeriod.
+    bool dragging = false;
+    const pb::Beta* beta = nullptr;  // also change β
+    std::int64_t expected_version = 0;
+    // Which handles `transforms` are for (empty: all); the others keep their transforms.
+    const google::protobuf::RepeatedField<std::int32_t>* handles = nullptr;
+    std::string client_id;  // the sender (may move the handles it holds); empty: anonymous
+    // UpdateHandles: a positive `sequence` orders client_id's updates. Each one applied is
+    // recorded; a coalescing one (`coalesce`) no newer than the client's last applied update
+    // is stale: it commits no move (see Move::newer).
+    bool sequenced = false;
+    bool coalesce = false;
+  };
+  // Solves, commits the transforms (bumping the version) and sends the frame to every
+  // observer. Returns the frame. A stale update (Update::coalesce) moves nothing: it is
+  // answered superseded when the session's last frame is current, else it solves the frame
+  // of the client's newer update that was committed unsolved (so a drag's last frame comes).
+  std::shared_ptr<pb::Frame> update(const Update& update);
+  // A coalesced update whose turn came after a newer one: its moves are committed (so a
+  // partial update from another editor is never lost) without a solve; answers superseded.
+  pb::Frame supersede(const Update& update);
+  // A Sweep in steps, so it never holds the strand (edits go on between its βs): plan()
+  // checks the request and captures the session's state; row() solves one β transiently
+  // (no factorization enters the shared cache). Both may run on any thread.
+  struct SweepPlan {
+    std::shared_ptr<const ConstraintSet> cs;
+    std::vector<HandleTransform> transforms;
+    std::vector<Beta> betas;
+    Eigen::VectorXd local_max;  // the session's local entries in the sweep's units; empty: none
+  };
+  SweepPlan sweep_plan(const pb::SweepRequest& request) const;
+  void sweep_row(const SweepPlan& plan, const Beta& beta, pb::SweepRow* row) const;
+  // GetMesh's file (its `name` is not read). Throws InvalidInput for an unknown enum value and
+  // for a compression the format or the session's upload cannot take.
+  std::string mesh_file(const pb::GetMeshRequest& request);
+  // `version` (optional): the session version the snapshot shows (read under the same lock).
+  pb::Snapshot export_snapshot(bool include_mesh, std::int64_t* version = nullptr) const;
+  // Re-applies a snapshot's constraints, β and transforms (a fresh session only).
+  void restore(const pb::Snapshot& snapshot);
+
+  // A restored session (durable state): its stored version, tokens and times, after
+  // restore(). A fresh session only.
+  void adopt(std::int64_t version, const SessionTokens& tokens, std::int64_t create_ms,
+             std::int64_t update_ms);
+
+  // ---- non-blocking ----
+  pb::Session describe() const;
+
+  // Several editors (roster.h): watchers with a client identity, and handle grabs. Each
+  // change is sent to every watcher as a presence event. Throw ServiceError.
+  void join(const pb::Participant& who, bool editor);
+  void leave(const std::string& client_id);
+  pb::GrabHandlesResponse grab(const pb::GrabHandlesRequest& request, bool editor);
+  pb::GrabHandlesResponse release(const pb::ReleaseHandlesRequest& request);
+  void expire_leases();  // called periodically (SessionStore's sweeper)
+  pb::Presence presence() const;
+  // Φ_handle in base-GLB order (GetHandleWeights). Throws ServiceError.
+  pb::HandleWeights handle_weights(int handle) const;
+  // Capability tokens (access.h): what the presented token hashes grant, and new tokens
+  // (the old ones stop working at once).
+  Access grant(const std::vector<TokenHash>& token_hashes) const;
+  IssuedTokens rotate_tokens();
+  SessionTokens tokens() const;
+
+  // Bookkeeping of the durable copy (SessionStore): guarded by its own mutex so that saves
+  // of one session are ordered and never write an older state over a newer one.
+  struct Persisted {
+    std::mutex mutex;
+    std::int64_t saved_version = -1;    // version of the last record written
+    std::int64_t saved_ms = 0;          // when it was written (unix ms)
+    std::atomic<bool> dirty{false};     // changed since (coalesced handle moves)
+    std::string mesh_key;               // blob key of an uploaded mesh ("" for library)
+    std::atomic<std::int64_t> checked_ms{0};  // last compared with the store (revalidate)
+  };
+  Persisted& persisted() { return persisted_; }
+  void add_watcher(std::shared_ptr<EventSink> sink);  // also sends the current state
+  // Frames as the watchers asked for them, one encode per encoding (encoded_frames.h).
+  EncodedFrameCache& encoded_frames() { return encoded_frames_; }
+  void remove_watcher(const EventSink* sink);
+  int observers() const;
+  // MESHOPT_DELTA watchers (each encodes every frame for itself): false, and nothing taken,
+  // when `limit` are already watching so.
+  bool acquire_delta_watcher(std::size_t limit);
+  void release_delta_watcher() { delta_watchers_.fetch_sub(1); }
+  int delta_watchers() const { return delta_watchers_.load(); }
+  void stream_opened() { ++streams_; touch(); }
+  void stream_closed() { --streams_; touch(); }
+  bool busy() const { return streams_.load() > 0 || observers() > 0; }
+  void touch();
+  std::chrono::steady_clock::time_point last_used() const;
+  // Pipelined UpdateHandles (UpdateHandlesRequest.coalesce): each such update holds a
+  // ticket while it waits for the strand; only the newest ticket's update is solved.
+  class CoalesceTicket {
+   public:
+    CoalesceTicket(Session& s, std::uint64_t id) : session_(s), id_(id) {}
+    CoalesceTicket(const CoalesceTicket&) = delete;
+    CoalesceTicket& operator=(const CoalesceTicket&) = delete;
+    ~CoalesceTicket() { --session_.coalesce_waiting_; }
+    // A newer coalescing update arrived after this one: answer superseded, do not solve.
+    bool superseded() const { return id_ != session_.coalesce_newest_.load(); }
+
+   private:
+    Session& session_;
+    const std::uint64_t id_;
+  };
+  // RESOURCE_EXHAUSTED when `limit` coalescing updates already wait (--max-pending-updates).
+  std::unique_ptr<CoalesceTicket> coalesce_ticket(std::size_t limit);
+  // The answer to a superseded update: sequence, version, superseded; no buffers.
+  pb::Frame superseded_frame(std::int64_t sequence) const;
+
+  // The session was deleted or expired: observers get `deleted` and their streams end.
+  void close();
+  bool closed() const { return closed_.load(); }
+
+ private:
+  void check_version_locked(std::int64_t expected) const;
+  void check_config_version_locked(std::int64_t expected) const;
+  // The transforms an update leads to, checked (version, grabs); `moved` gets its handles.
+  struct Move {
+    std::shared_ptr<const ConstraintSet> cs;
+    SessionBeta beta;
+    std::string key;
+    std::vector<HandleTransform> transforms;
+    std::vector<int> moved;  // the handles the update changes
+    // Set when the update is stale: the client's newer update, already applied.
+    std::optional<ClientSequences::Applied> newer;
+  };
+  Move begin_move(const Update& u);
+  pb::Frame superseded_locked(const Update& u) const;  // the answer of an unsolved update
+  std::vector<int> handle_indices(const google::protobuf::RepeatedField<std::int32_t>& handles,
+                                  const char* op) const;
+  void broadcast_presence();
+  void broadcast_step(const pb::HistoryStep& step);
+  void broadcast_timeline();
+  // A frame of the current state to every watcher (after undo, redo, restore).
+  void broadcast_frame(const std::string& client_id);
+  EditState edit_state_locked() const;
+  // The constraint set `given` resolves to, from the cache or built; `key` gets its key.
+  std::shared_ptr<const ConstraintSet> constraint_set_of(const pb::Constraints& given,
+                                                         std::string* key);
+  // Makes `target` the session's state as one history step (`step`: kind, what changed,
+  // author): builds what it needs first (constraint set `cs`, or resolved when null and the
+  // key differs; the β factorization), then commits, records and tells the watchers.
+  pb::Session commit_edit(EditState target, std::shared_ptr<const ConstraintSet> cs, Step step,
+                          bool send_frame);
+  std::string author_of(const std::string& client_id) const;
+  void close_drag(const std::string& client_id);  // an open drag becomes its step
+  // Undo (undo = true) or Redo: the step's reverse or itself, as a new step.
+  pb::Session revert(const pb::UndoRequest& request, bool undo);
+  void describe_locked(pb::Session* out) const;
+  // A state change under the lock: new version, stale frame dropped, `out` describes it.
+  void changed_locked(pb::Session* out);
+  void broadcast(std::shared_ptr<const pb::SessionEvent> event);
+  void broadcast_state();
+  std::shared_ptr<const ConstraintSet> constraint_set_for(const Constraints& c,
+                                                          const std::string& key);
+  // Validates a proto β and resolves its local entries (automatic: value not yet picked).
+  // keep_automatic_value: a snapshot's automatic β keeps its pick instead of a new one.
+  SessionBeta parse_beta(const pb::Beta& beta, bool keep_automatic_value = false) const;
+  // Automatic β: runs select_beta at `transforms` and stores the pick in `beta`.
+  void pick_beta(SessionBeta& beta, const ConstraintSet& cs,
+                 const std::vector<HandleTransform>& transforms);
+  // Builds the factorization `beta` needs (for a local field: by one cheap solve).
+  void prepare_beta(const ConstraintSet& cs, const SessionBeta& beta);
+  hdeform::Frame solve(const ConstraintSet& cs, const std::vector<HandleTransform>& transforms,
+                       const SessionBeta& beta, const UpdateOptions& options) const;
+  // A move's frame, into a frame and buffers the session reuses (no allocation per move).
+  std::shared_ptr<hdeform::Frame> solve_move(const ConstraintSet& cs,
+                                             const std::vector<HandleTransform>& transforms,
+                                             const SessionBeta& beta, const Update& u);
+  Vertices deformed_positions();  // current deformation (solves if needed), engine order
+
+  const std::string id_, name_;
+  const std::shared_ptr<const MeshRef> mesh_;
+  const RequestLimits limits_;
+  Cache& cache_;
+  std::shared_ptr<Strand> strand_;
+  std::mutex arrival_mutex_;  // admit_and_post: ticket order == strand order
+
+  mutable std::mutex mutex_;  // guards everything below
+  std::shared_ptr<const ConstraintSet> cs_;
+  std::string cs_key_;
+  // Constraints as the client gave them (snapshots, history).
+  std::shared_ptr<const pb::Constraints> given_;
+  History history_;
+  std::map<std::string, pb::NamedSnapshot> snapshots_;  // by name
+  pb::Timeline timeline_;  // as set (checked against cs_), with version and author
+  SessionBeta beta_;
+  std::vector<HandleTransform> transforms_;
+  std::int64_t version_ = 1;
+  std::int64_t config_version_ = 1;  // bumped by constraint and β changes only
+
+ public:
+  std::int64_t version() const {
+    std::lock_guard lock(mutex_);
+    return version_;
+  }
+
+ private:
+  std::shared_ptr<const hdeform::Frame> last_frame_;  // engine frame at last_frame_version_
+  std::int64_t last_frame_version_ = 0;
+
+  // The buffers of this session's moves (guarded by move_mutex_; never take mutex_ under it): a
+  // move reuses the workspace and the frame before the last one once nobody holds it.
+  std::mutex move_mutex_;
+  hdeform::UpdateWorkspace workspace_;
+  std::shared_ptr<hdeform::Frame> spare_frame_;
+  std::chrono::steady_clock::time_point last_measured_{};
+  std::int64_t create_ms_ = 0, update_ms_ = 0;
+  std::vector<std::shared_ptr<EventSink>> watchers_;
+  SessionTokens tokens_;
+  Persisted persisted_;
+  Roster roster_;
+  ClientSequences sequences_;  // guarded by mutex_
+  EncodedFrameCache encoded_frames_;
+
+  std::atomic<int> streams_{0};
+  std::atomic<int> delta_watchers_{0};
+  std::atomic<std::size_t> coalesce_waiting_{0};
+  std::atomic<std::uint64_t> coalesce_newest_{0};
+  std::atomic<bool> closed_{false};
+  std::atomic<std::int64_t> last_used_ns_{0};
+};
+
+std::int64_t unix_ms_now();
+
+}  // namespace hdeform::service

@@ -1,0 +1,520 @@
+#include "service/session/session_store.h"
+
+#include "service/infra/service_error.h"
+#include "service/session/session_record.h"
+#include "service/state/state_keys.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <optional>
+
+namespace hdeform::service {
+
+SessionStore::SessionStore(const Limits& limits, WorkerPool& pool, Cache& cache)
+    : limits_(limits), pool_(pool), cache_(cache) {}
+
+SessionStore::~SessionStore() { shutdown(); }
+
+std::string SessionStore::id_of(const std::string& name) {
+  static const std::string kPrefix = "sessions/";
+  if (name.rfind(kPrefix, 0) == 0) return name.substr(kPrefix.size());
+  return name;
+}
+
+void SessionStore::check_capacity() const {
+  std::lock_guard lock(mutex_);
+  if (sessions_.size() >= limits_.max_sessions)
+    fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
+         "session limit reached (" + std::to_string(limits_.max_sessions) +
+             " sessions); delete one or wait for idle sessions to expire");
+}
+
+namespace {
+void check_id_format(const std::string& id) {
+  if (id.size() > 64)
+    fail(grpc::StatusCode::INVALID_ARGUMENT,
+         "session_id must be 1 to 64 characters of [A-Za-z0-9_-], got " +
+             std::to_string(id.size()) + " characters");
+  for (char c : id)
+    if (!is_session_id_char(c))
+      fail(grpc::StatusCode::INVALID_ARGUMENT,
+           "session_id '" + id + "' may only contain [A-Za-z0-9_-] (at most 64 characters)");
+}
+}  // namespace
+
+void SessionStore::check_id(const std::string& id) const {
+  if (id.empty()) return;
+  check_id_format(id);
+  {
+    std::lock_guard lock(mutex_);
+    if (sessions_.count(id))
+      fail(grpc::StatusCode::ALREADY_EXISTS, "session sessions/" + id + " already exists");
+  }
+  if (durable()) {
+    bool stored = false;
+    try {
+      stored = persistence_.backend->get_session(id).has_value();
+    } catch (const StateError& e) {
+      fail(grpc::StatusCode::UNAVAILABLE, std::string("session state: ") + e.what());
+    }
+    if (stored)
+      fail(grpc::StatusCode::ALREADY_EXISTS, "session sessions/" + id + " already exists");
+  }
+}
+
+std::shared_ptr<Session> SessionStore::create(std::shared_ptr<const MeshRef> mesh,
+                                              const std::string& requested,
+                                              const std::function<void(Session&)>& init,
+                                              IssuedTokens* tokens) {
+  if (!requested.empty()) check_id_format(requested);
+  auto check_locked = [&] {
+    if (!requested.empty() && sessions_.count(requested))
+      fail(grpc::StatusCode::ALREADY_EXISTS, "session sessions/" + requested + " already exists");
+    if (sessions_.size() >= limits_.max_sessions)
+      fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
+           "session limit reached (" + std::to_string(limits_.max_sessions) + " sessions)");
+  };
+  std::string id = requested;
+  {
+    std::lock_guard lock(mutex_);
+    check_locked();
+    while (id.empty() || sessions_.count(id)) id = random_hex64();
+  }
+  auto s = std::make_shared<Session>(id, std::move(mesh), pool_, cache_, limits_.request);
+  // Initialised before anyone can reach it (ImportSession's restore): no strand needed,
+  // and a failed restore leaves nothing behind.
+  if (init) init(*s);
+  const IssuedTokens issued = s->rotate_tokens();
+  if (tokens) *tokens = issued;
+  if (durable()) {
+    // Stored before it is published: an id another replica (or a stored session not in
+    // memory) owns is refused here, atomically in the backend.
+    auto& p = s->persisted();
+    std::lock_guard plock(p.mutex);
+    try {
+      if (s->mesh().library_name.empty() && s->mesh().file_bytes)
+        p.mesh_key = persistence_.backend->put_mesh(*s->mesh().file_bytes);
+      std::int64_t version = 0;
+      const auto record = make_record(*s, p.mesh_key, unix_ms_now(), &version);
+      if (!persistence_.backend->create_session(id, record.SerializeAsString()))
+        fail(grpc::StatusCode::ALREADY_EXISTS, "session sessions/" + id + " already exists");
+      p.saved_version = version;
+      p.saved_ms = unix_ms_now();
+    } catch (const StateError& e) {
+      fail(grpc::StatusCode::UNAVAILABLE, std::string("session state could not be saved: ") +
+                                              e.what());
+    }
+  }
+  try {
+    std::lock_guard lock(mutex_);
+    check_locked();  // the id or the last slot may have been taken meanwhile
+    if (sessions_.count(id)) fail(grpc::StatusCode::ABORTED, "session id collision; retry");
+    sessions_.emplace(id, s);
+  } catch (...) {
+    if (durable()) {
+      try {
+        persistence_.backend->delete_session(id);
+      } catch (const StateError& e) {
+        spdlog::error("{}: {}", s->name(), e.what());
+      }
+    }
+    throw;
+  }
+  spdlog::info("{}: created on mesh {} ({}, {} vertices)", s->name(), s->mesh().display_name(),
+               s->mesh().hash, s->mesh().layout->vertex_count());
+  return s;
+}
+
+std::shared_ptr<Session> SessionStore::find(const std::string& name) const {
+  const std::string id = id_of(name);
+  std::shared_ptr<Session> s;
+  {
+    std::lock_guard lock(mutex_);
+    auto it = sessions_.find(id);
+    if (it != sessions_.end()) s = it->second;
+  }
+  if (s) {
+    s->touch();
+    if (persistence_.revalidate.count() == 0 || still_current(*s)) return s;
+    drop(s);  // served elsewhere since (or deleted there): the store's copy wins
+  }
+  if (!durable() || id.empty() || id.size() > 64) return nullptr;
+  return restore(id);
+}
+
+bool SessionStore::still_current(Session& s) const {
+  auto& p = s.persisted();
+  const std::int64_t now = unix_ms_now();
+  if (now - p.checked_ms.load() < persistence_.revalidate.count()) return true;
+  p.checked_ms = now;
+  try {
+    auto bytes = persistence_.backend->get_session(s.id());
+    if (!bytes) {
+      spdlog::info("{}: deleted elsewhere; dropping this copy", s.name());
+      return false;
+    }
+    const auto record = parse_record(s.id(), *bytes);
+    std::lock_guard lock(p.mutex);
+    if (record.version() > p.saved_version && record.version() > s.version()) {
+      spdlog::info("{}: version {} in {} is newer than this copy's {}; restoring it", s.name(),
+                   record.version(), persistence_.backend->describe(), s.version());
+      return false;
+    }
+  } catch (const StateError& e) {
+    spdlog::warn("{}: cannot compare with the stored state: {}", s.name(), e.what());
+  }
+  return true;
+}
+
+void SessionStore::drop(const std::shared_ptr<Session>& s) const {
+  {
+    std::lock_guard lock(mutex_);
+    auto it = sessions_.find(s->id());
+    if (it == sessions_.end() || it->second != s) return;
+    sessions_.erase(it);
+  }
+  std::lock_guard plock(s->persisted().mutex);
+  s->persisted().saved_version = INT64_MAX;  // this copy never writes again
+  s->close();
+}
+
+std::shared_ptr<Session> SessionStore::restore(const std::string& id) const {
+  std::lock_guard restoring(restore_mutex_);
+  {
+    std::lock_guard lock(mutex_);  // restored by another caller meanwhile?
+    auto it = sessions_.find(id);
+    if (it != sessions_.end()) return it->second;
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  hdeform::state::StoredSession record;
+  try {
+    auto bytes = persistence_.backend->get_session(id);
+    if (!bytes) return nullptr;
+    record = parse_record(id, *bytes);
+  } catch (const StateError& e) {
+    spdlog::error("restoring sessions/{}: {}", id, e.what());
+    fail(grpc::StatusCode::UNAVAILABLE, std::string("session state: ") + e.what());
+  }
+  std::shared_ptr<Session> s;
+  try {
+    auto mesh = persistence_.load_mesh(record.snapshot(), record.mesh_key());
+    s = std::make_shared<Session>(id, std::move(mesh), pool_, cache_, limits_.request);
+    s->restore(record.snapshot());
+    s->adopt_snapshots(record.snapshots());
+  } catch (const StateError& e) {
+    spdlog::error("restoring sessions/{}: {}", id, e.what());
+    fail(grpc::StatusCode::UNAVAILABLE, "sessions/" + id + " cannot be restored: " + e.what());
+  } catch (const ServiceError& e) {
+    spdlog::error("restoring sessions/{}: {}", id, e.what());
+    fail(grpc::StatusCode::FAILED_PRECONDITION,
+         "sessions/" + id + " cannot be restored from its stored state: " + e.what());
+  } catch (const std::exception& e) {
+    spdlog::error("restoring sessions/{}: {}", id, e.what());
+    fail(grpc::StatusCode::FAILED_PRECONDITION,
+         "sessions/" + id + " cannot be restored from its stored state: " + e.what());
+  }
+  s->adopt(record.version(), tokens_of(record), record.create_time_unix_ms(),
+           record.update_time_unix_ms());
+  {
+    auto& p = s->persisted();
+    std::lock_guard plock(p.mutex);
+    p.mesh_key = record.mesh_key();
+    p.saved_version = record.version();
+    p.saved_ms = unix_ms_now();
+  }
+  {
+    std::lock_guard lock(mutex_);
+    if (sessions_.size() >= limits_.max_sessions)
+      fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
+           "session limit reached (" + std::to_string(limits_.max_sessions) +
+               " sessions in memory): sessions/" + id + " cannot be restored now");
+    sessions_.emplace(id, s);
+  }
+  spdlog::info("{}: restored from {} at version {} ({:.0f} ms)", s->name(),
+               persistence_.backend->describe(), record.version(),
+               std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
+                   .count());
+  return s;
+}
+
+std::shared_ptr<Session> SessionStore::get(const std::string& name) const {
+  auto s = find(name);
+  if (!s) fail(grpc::StatusCode::NOT_FOUND, "no session '" + name + "'");
+  return s;
+}
+
+bool SessionStore::remove(const std::string& name) {
+  std::shared_ptr<Session> s;
+  {
+    std::lock_guard lock(mutex_);
+    auto it = sessions_.find(id_of(name));
+    if (it == sessions_.end()) return false;
+    s = std::move(it->second);
+    sessions_.erase(it);
+  }
+  if (durable()) {
+    std::lock_guard plock(s->persisted().mutex);  // no save of it may follow the delete
+    s->persisted().saved_version = INT64_MAX;
+    try {
+      persistence_.backend->delete_session(s->id());
+    } catch (const StateError& e) {
+      spdlog::error("{}: deleting its stored state: {}", s->name(), e.what());
+    }
+  }
+  s->close();
+  spdlog::info("{}: deleted", s->name());
+  return true;
+}
+
+std::vector<std::shared_ptr<Session>> SessionStore::list() const {
+  std::lock_guard lock(mutex_);
+  std::vector<std::shared_ptr<Session>> out;
+  out.reserve(sessions_.size());
+  for (auto& [id, s] : sessions_) out.push_back(s);
+  return out;
+}
+
+std::size_t SessionStore::size() const {
+  std::lock_guard lock(mutex_);
+  return sessions_.size();
+}
+
+std::shared_ptr<const MeshRef> SessionStore::find_mesh(const std::string& hash,
+                                                       const std::vector<TokenHash>& token_hashes,
+                                                       bool any) const {
+  std::lock_guard lock(mutex_);
+  for (auto& [id, s] : sessions_)
+    if (s->mesh().hash == hash && (any || s->grant(token_hashes) == Access::kEdit))
+      return s->mesh_ref();
+  return nullptr;
+}
+
+std::size_t SessionStore::expire_idle() {
+  const auto now = std::chrono::steady_clock::now();
+  if (durable() && now - last_purge_ > std::chrono::minutes(10)) {
+    last_purge_ = now;  // stored sessions nobody restored expire too (meshes: at start only)
+    try {
+      purge_stored(false);
+    } catch (const StateError& e) {
+      spdlog::error("session state: {}", e.what());
+    }
+  }
+  std::vector<std::shared_ptr<Session>> expired;
+  {
+    std::lock_guard lock(mutex_);
+    for (auto it = sessions_.begin(); it != sessions_.end();) {
+      auto& s = it->second;
+      if (s->busy()) {
+        s->touch();
+        ++it;
+      } else if (now - s->last_used() > limits_.session_ttl) {
+        expired.push_back(std::move(s));
+        it = sessions_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+  }
+  for (auto& s : expired) {
+    spdlog::info("{}: expired after {} ms idle", s->name(), limits_.session_ttl.count());
+    if (durable()) {
+      std::lock_guard plock(s->persisted().mutex);
+      s->persisted().saved_version = INT64_MAX;
+      try {
+        persistence_.backend->delete_session(s->id());
+      } catch (const StateError& e) {
+        spdlog::error("{}: deleting its stored state: {}", s->name(), e.what());
+      }
+    }
+    s->close();
+  }
+  return expired.size();
+}
+
+void SessionStore::start_sweeper() {
+  if (durable() && !flusher_.joinable()) {
+    flusher_ = std::thread([this] {
+      std::unique_lock lock(sweeper_mutex_);
+      while (!stopping_) {
+        sweeper_cv_.wait_for(lock, persistence_.flush_period, [this] { return stopping_; });
+        if (stopping_) break;
+        lock.unlock();
+        flush();
+        lock.lock();
+      }
+    });
+  }
+  if (sweeper_.joinable()) return;
+  const auto period = std::clamp<std::chrono::milliseconds>(
+      limits_.session_ttl / 4, std::chrono::milliseconds(50), std::chrono::milliseconds(1'000));
+  sweeper_ = std::thread([this, period] {
+    std::unique_lock lock(sweeper_mutex_);
+    while (!stopping_) {
+      sweeper_cv_.wait_for(lock, period, [this] { return stopping_; });
+      if (stopping_) break;
+      lock.unlock();
+      try {
+        expire_idle();
+        // Handle grabs of clients that stopped renewing end within a second of their lease.
+        for (auto& s : list()) s->expire_leases();
+      } catch (const std::exception& e) {
+        spdlog::error("session sweeper: {}", e.what());
+      }
+      lock.lock();
+    }
+  });
+}
+
+void SessionStore::shutdown() {
+  {
+    std::lock_guard lock(sweeper_mutex_);
+    stopping_ = true;
+  }
+  sweeper_cv_.notify_all();
+  if (sweeper_.joinable()) sweeper_.join();
+  if (flusher_.joinable()) flusher_.join();
+  if (durable()) flush();  // the last moves of a drag survive a clean stop
+  std::map<std::string, std::shared_ptr<Session>> all;
+  {
+    std::lock_guard lock(mutex_);
+    all.swap(sessions_);
+  }
+  for (auto& [id, s] : all) s->close();
+}
+
+std::vector<SessionStore::StoredEntry> SessionStore::list_stored() const {
+  std::vector<StoredEntry> out;
+  if (!durable()) return out;
+  std::vector<std::string> ids;
+  try {
+    ids = persistence_.backend->list_sessions();
+  } catch (const StateError& e) {
+    fail(grpc::StatusCode::UNAVAILABLE, std::string("session state: ") + e.what());
+  }
+  for (const auto& id : ids) {
+    {
+      std::lock_guard lock(mutex_);
+      if (sessions_.count(id)) continue;  // listed from memory
+    }
+    try {
+      auto bytes = persistence_.backend->get_session(id);
+      if (!bytes) continue;  // deleted meanwhile
+      const auto record = parse_record(id, *bytes);
+      out.push_back({record.described(), tokens_of(record)});
+    } catch (const StateError& e) {
+      spdlog::warn("listing stored sessions: {}", e.what());
+    }
+  }
+  return out;
+}
+
+void SessionStore::attach(Persistence persistence) {
+  persistence_ = std::move(persistence);
+  if (!durable()) return;
+  purge_stored(persistence_.purge_meshes);
+}
+
+// Expired records go; records that cannot be read are reported and kept (never
+// overwritten: an operator may want them back).
+void SessionStore::purge_stored(bool meshes_too) {
+  const auto ids = persistence_.backend->list_sessions();
+  const std::int64_t now = unix_ms_now();
+  std::size_t kept = 0, expired = 0, unreadable = 0;
+  std::vector<std::string> mesh_keys;
+  for (const auto& id : ids) {
+    std::optional<std::string> bytes = persistence_.backend->get_session(id);
+    if (!bytes) continue;
+    try {
+      const auto record = parse_record(id, *bytes);
+      if (now - record.last_used_unix_ms() > limits_.session_ttl.count()) {
+        persistence_.backend->delete_session(id);
+        ++expired;
+        continue;
+      }
+      if (!record.mesh_key().empty()) mesh_keys.push_back(record.mesh_key());
+      ++kept;
+    } catch (const StateError& e) {
+      spdlog::error("{} (left as it is)", e.what());
+      ++unreadable;
+    }
+  }
+  std::size_t meshes = 0;
+  // An unreadable record may refer to any mesh: then no mesh is dropped.
+  if (meshes_too && unreadable == 0)
+    meshes = persistence_.backend->purge_meshes(mesh_keys);
+  if (meshes_too)
+    spdlog::info("session state {}: {} stored sessions (restored on first use), {} expired, {} "
+                 "unreadable, {} unused meshes dropped",
+                 persistence_.backend->describe(), kept, expired, unreadable, meshes);
+  else if (expired > 0)
+    spdlog::info("session state: {} stored sessions expired", expired);
+}
+
+void SessionStore::save_locked(Session& s, Session::Persisted& p) const {
+  p.dirty = false;
+  std::int64_t version = 0;
+  const std::int64_t now = unix_ms_now();
+  const auto last_used =
+      now - std::chrono::duration_cast<std::chrono::milliseconds>(
+                std::chrono::steady_clock::now() - s.last_used())
+                .count();
+  const auto record = make_record(s, p.mesh_key, last_used, &version);
+  if (version < p.saved_version) return;  // deleted (INT64_MAX), or a newer one is stored
+  persistence_.backend->put_session(s.id(), record.SerializeAsString());
+  p.saved_version = version;
+  p.saved_ms = now;
+}
+
+void SessionStore::save(Session& s) const {
+  if (!durable()) return;
+  auto& p = s.persisted();
+  std::lock_guard lock(p.mutex);
+  try {
+    save_locked(s, p);
+  } catch (const StateError& e) {
+    p.dirty = true;  // the flusher tries again
+    spdlog::error("{}: {}", s.name(), e.what());
+    fail(grpc::StatusCode::UNAVAILABLE,
+         "the change was applied but could not be saved (it may be lost on a restart): " +
+             std::string(e.what()));
+  }
+}
+
+void SessionStore::moved(Session& s) const {
+  if (!durable()) return;
+  s.persisted().dirty = true;
+  if (!persistence_.save_every_move) return;
+  auto& p = s.persisted();
+  std::lock_guard lock(p.mutex);
+  try {
+    save_locked(s, p);
+  } catch (const StateError& e) {
+    p.dirty = true;
+    spdlog::error("{}: saving its state: {}", s.name(), e.what());
+  }
+}
+
+void SessionStore::flush() {
+  if (!durable()) return;
+  const std::int64_t now = unix_ms_now();
+  for (auto& s : list()) {
+    auto& p = s->persisted();
+    std::lock_guard lock(p.mutex);
+    // A session in use has its record refreshed now and then: its idle clock is what
+    // expires it where it is not in memory (after a restart, on another replica).
+    const bool refresh =
+        now - p.saved_ms > persistence_.refresh_period.count() &&
+        std::chrono::steady_clock::now() - s->last_used() < persistence_.refresh_period;
+    if (!p.dirty && !refresh) continue;
+    try {
+      save_locked(*s, p);
+    } catch (const StateError& e) {
+      p.dirty = true;
+      spdlog::error("{}: saving its state: {}", s->name(), e.what());
+    }
+  }
+}
+
+}  // namespace hdeform::service

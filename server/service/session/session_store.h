@@ -1,0 +1,141 @@
+// The registry of live sessions: limits, lookup by name, idle-TTL expiry, and (optionally)
+// their durable copy in a StateBackend (docs/deployment.md "State"): a session not in memory
+// is restored from its record on first use (after a restart, or on another replica).
+#pragma once
+
+#include "service/infra/request_limits.h"
+#include "service/session/session.h"
+#include "service/state/state_backend.h"
+
+#include <chrono>
+#include <condition_variable>
+#include <cstddef>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <functional>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace hdeform::service {
+
+struct Limits {
+  std::size_t max_sessions = 64;
+  std::size_t max_vertices = 2'000'000;
+  std::size_t max_upload_bytes = 256u << 20;
+  std::chrono::milliseconds session_ttl{std::chrono::hours(1)};
+  RequestLimits request;
+};
+
+// Durable state for a SessionStore.
+struct Persistence {
+  std::shared_ptr<StateBackend> backend;
+  // The mesh of a stored session: by library name, or the upload stored under mesh_key.
+  std::function<std::shared_ptr<const MeshRef>(const pb::Snapshot& snapshot,
+                                               const std::string& mesh_key)>
+      load_mesh;
+  // Handle moves are saved at most this late (a drag's last moves lost on kill -9)...
+  std::chrono::milliseconds flush_period{100};
+  // ... or each before its frame is answered (Redis: a write costs ~0.1 ms, and a replica
+  // taking over must find the pose the client last saw).
+  bool save_every_move = false;
+  // A used session's record is refreshed this often (its idle clock, for expiry elsewhere).
+  std::chrono::milliseconds refresh_period{30'000};
+  // Drop stored meshes no record refers to (one server per store: SQLite, not Redis).
+  bool purge_meshes = false;
+  // Shared stores (Redis): another replica may have served a session meanwhile. A session
+  // in memory is checked against its record at most this often; 0 = never (one owner).
+  std::chrono::milliseconds revalidate{0};
+};
+
+class SessionStore {
+ public:
+  SessionStore(const Limits& limits, WorkerPool& pool, Cache& cache);
+  ~SessionStore();
+
+  const Limits& limits() const { return limits_; }
+  // RESOURCE_EXHAUSTED when no session can be added.
+  void check_capacity() const;
+  // `id` (the {id} of sessions/{id}): empty → the server picks one; else it must be
+  // [A-Za-z0-9_-]{1,64} (INVALID_ARGUMENT) and free (ALREADY_EXISTS).
+  // `init` (optional) runs on the new session before it is published: on a throw the
+  // session is never reachable.
+  // The new session gets fresh capability tokens (`tokens`, optional, receives them) and,
+  // with durable state, is stored (with its uploaded mesh) before it is published.
+  std::shared_ptr<Session> create(std::shared_ptr<const MeshRef> mesh, const std::string& id = "",
+                                  const std::function<void(Session&)>& init = {},
+                                  IssuedTokens* tokens = nullptr);
+  // Early checks of a client-chosen id (format, and not taken right now); "" passes.
+  void check_id(const std::string& id) const;
+  // "sessions/{id}" or "{id}"; nullptr when unknown. With durable state a session that is
+  // stored but not in memory is restored first (ServiceError UNAVAILABLE / FAILED_PRECONDITION
+  // when its record or mesh cannot be read: the record is left as it is).
+  std::shared_ptr<Session> find(const std::string& name) const;
+  std::shared_ptr<Session> get(const std::string& name) const;  // NOT_FOUND
+  // Deletes the session and its durable record.
+  bool remove(const std::string& name);
+  std::vector<std::shared_ptr<Session>> list() const;
+  // Stored sessions not in memory, as their records describe them (durable state only),
+  // with their token hashes. Unreadable records are skipped (and logged).
+  struct StoredEntry {
+    pb::Session described;
+    SessionTokens tokens;
+  };
+  std::vector<StoredEntry> list_stored() const;
+  std::size_t size() const;
+  // A mesh a live session uses, by content hash, provided `token_hashes` hold the edit
+  // token of a session on it (or `any`: the operator).
+  std::shared_ptr<const MeshRef> find_mesh(const std::string& hash,
+                                           const std::vector<TokenHash>& token_hashes,
+                                           bool any) const;
+
+  // ---- durable state ----
+  // Before start_sweeper(): reads the stored ids and purges expired records (and, when
+  // asked, unreferenced meshes). Sessions are restored lazily, on first use.
+  void attach(Persistence persistence);
+  bool durable() const { return persistence_.backend != nullptr; }
+  // Writes the session's record now (an accepted change: durable before it is answered).
+  // Throws ServiceError UNAVAILABLE when the store fails.
+  void save(Session& session) const;
+  // The session's handles moved: saved now (save_every_move) or within flush_period. Never
+  // throws: a failed save is logged and retried by the flusher.
+  void moved(Session& session) const;
+  // Writes every dirty session's record (the flusher's job; also at shutdown).
+  void flush();
+
+  // Removes sessions idle for longer than the TTL (observed or streaming sessions are
+  // never idle). Returns how many expired.
+  std::size_t expire_idle();
+  void start_sweeper();
+  // Stops the sweeper and closes every session (observers get `deleted`).
+  void shutdown();
+
+ private:
+  static std::string id_of(const std::string& name);
+
+  std::shared_ptr<Session> restore(const std::string& id) const;
+  // False when the store holds a newer version of `s` (or none): the copy must go.
+  bool still_current(Session& s) const;
+  void drop(const std::shared_ptr<Session>& s) const;
+  void save_locked(Session& session, Session::Persisted& p) const;
+  void purge_stored(bool meshes_too);
+
+  Limits limits_;
+  WorkerPool& pool_;
+  Cache& cache_;
+  mutable std::mutex mutex_;
+  // by id; mutable: find() publishes sessions it restores
+  mutable std::map<std::string, std::shared_ptr<Session>> sessions_;
+  Persistence persistence_;
+  mutable std::mutex restore_mutex_;  // one restore at a time (each is rare and heavy)
+  std::thread flusher_;
+  std::chrono::steady_clock::time_point last_purge_ = std::chrono::steady_clock::now();
+
+  std::mutex sweeper_mutex_;
+  std::condition_variable sweeper_cv_;
+  bool stopping_ = false;
+  std::thread sweeper_;
+};
+
+}  // namespace hdeform::service

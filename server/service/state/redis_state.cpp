@@ -1,0 +1,390 @@
+// StateBackend on Redis (hiredis, one blocking connection): shared by replicas.
+#include "service/state/state_backend.h"
+#include "service/state/state_keys.h"
+
+#include "service/infra/cache.h"  // Sha256
+
+#include <hiredis/hiredis.h>
+#include <pthread.h>
+#include <signal.h>
+#include <spdlog/spdlog.h>
+#include <sys/time.h>
+
+#include <cctype>
+#include <charconv>
+#include <cstring>
+#include <initializer_list>
+#include <mutex>
+#include <string_view>
+#include <unordered_set>
+
+namespace hdeform::service {
+namespace {
+
+constexpr int kTimeoutSeconds = 2;
+constexpr std::string_view kSessionPrefix = "hdeform:session:";
+constexpr std::string_view kSessionSet = "hdeform:sessions";
+constexpr std::string_view kMeshPrefix = "hdeform:mesh:";
+
+// SET NX and SADD in one script so the id set never disagrees with the records.
+constexpr std::string_view kCreateScript =
+    "if redis.call('SET', KEYS[1], ARGV[1], 'NX') then "
+    "redis.call('SADD', KEYS[2], ARGV[2]) return 1 end return 0";
+constexpr std::string_view kPutScript =
+    "redis.call('SET', KEYS[1], ARGV[1]) redis.call('SADD', KEYS[2], ARGV[2]) return 1";
+constexpr std::string_view kDeleteScript =
+    "redis.call('DEL', KEYS[1]) redis.call('SREM', KEYS[2], ARGV[1]) return 1";
+
+struct RedisUrl {
+  std::string host;
+  int port = 6379;
+  std::string user;      // Redis 6 ACL user; empty: the default user
+  std::string password;  // empty: no AUTH
+  int db = 0;
+};
+
+// The URL with everything up to the last '@' masked, so an error never shows a password.
+std::string redact(const std::string& url) {
+  const auto at = url.rfind('@');
+  if (at == std::string::npos) return url;
+  const auto scheme = url.find("://");
+  const std::size_t start = scheme == std::string::npos ? 0 : scheme + 3;
+  return url.substr(0, start) + "***" + url.substr(at);
+}
+
+bool parse_int(std::string_view text, int lo, int hi, int* out) {
+  if (text.empty()) return false;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), *out);
+  return ec == std::errc() && end == text.data() + text.size() && *out >= lo && *out <= hi;
+}
+
+// %XX escapes, so a password may hold '@', '/' or ':'.
+bool percent_decode(std::string_view in, std::string* out) {
+  out->clear();
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    if (in[i] != '%') {
+      *out += in[i];
+      continue;
+    }
+    unsigned value = 0;
+    if (i + 2 >= in.size()) return false;
+    const auto [end, ec] = std::from_chars(in.data() + i + 1, in.data() + i + 3, value, 16);
+    if (ec != std::errc() || end != in.data() + i + 3) return false;
+    *out += static_cast<char>(value);
+    i += 2;
+  }
+  return true;
+}
+
+// redis://[[USER]:PASSWORD@]HOST[:PORT][/DB]; HOST may be a bracketed IPv6 address.
+RedisUrl parse_url(const std::string& url) {
+  auto bad = [&](const std::string& why) {
+    return StateError("invalid redis URL '" + redact(url) + "' (" + why +
+                      "; expected redis://[:PASSWORD@]HOST[:PORT][/DB])");
+  };
+  constexpr std::string_view kScheme = "redis://";
+  if (url.compare(0, kScheme.size(), kScheme) != 0) throw bad("it must start with redis://");
+  std::string_view rest(url);
+  rest.remove_prefix(kScheme.size());
+
+  RedisUrl out;
+  if (const auto at = rest.rfind('@'); at != std::string_view::npos) {
+    const std::string_view userinfo = rest.substr(0, at);
+    rest.remove_prefix(at + 1);
+    const auto colon = userinfo.find(':');
+    if (colon == std::string_view::npos) throw bad("user name without a password");
+    if (!percent_decode(userinfo.substr(0, colon), &out.user) ||
+        !percent_decode(userinfo.substr(colon + 1), &out.password))
+      throw bad("bad %-escape in the credentials");
+  }
+
+  const auto slash = rest.find('/');
+  std::string_view hostport = rest.substr(0, slash);
+  if (slash != std::string_view::npos) {
+    const std::string_view db = rest.substr(slash + 1);
+    if (!db.empty() && !parse_int(db, 0, 1 << 20, &out.db))
+      throw bad("the database must be a number");
+  }
+
+  std::string_view port;
+  if (!hostport.empty() && hostport.front() == '[') {
+    const auto close = hostport.find(']');
+    if (close == std::string_view::npos) throw bad("unclosed '[' in the host");
+    out.host = std::string(hostport.substr(1, close - 1));
+    const std::string_view after = hostport.substr(close + 1);
+    if (!after.empty() && after.front() != ':') throw bad("junk after the host");
+    if (!after.empty()) port = after.substr(1);
+    if (after == ":") throw bad("empty port");
+  } else {
+    const auto colon = hostport.find(':');
+    out.host = std::string(hostport.substr(0, colon));
+    if (colon != std::string_view::npos) {
+      port = hostport.substr(colon + 1);
+      if (port.empty()) throw bad("empty port");
+    }
+  }
+  if (out.host.empty()) throw bad("no host");
+  for (char c : out.host)
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '-' || c == ':' ||
+          c == '_'))
+      throw bad("bad character in the host");
+  if (!port.empty() && !parse_int(port, 1, 65535, &out.port))
+    throw bad("the port must be a number in 1..65535");
+  return out;
+}
+
+// hiredis writes with write(2): on a socket the server has closed that raises SIGPIPE, which
+// would kill the process. Block it on this thread for the call and swallow one it caused.
+class SigpipeGuard {
+ public:
+  SigpipeGuard() {
+    sigemptyset(&pipe_);
+    sigaddset(&pipe_, SIGPIPE);
+    pthread_sigmask(SIG_BLOCK, &pipe_, &old_);
+    sigset_t pending;
+    sigpending(&pending);
+    pending_before_ = sigismember(&pending, SIGPIPE) == 1;
+  }
+  ~SigpipeGuard() {
+    sigset_t pending;
+    sigpending(&pending);
+    if (!pending_before_ && sigismember(&pending, SIGPIPE) == 1) {
+      const timespec zero{0, 0};
+      sigtimedwait(&pipe_, nullptr, &zero);
+    }
+    pthread_sigmask(SIG_SETMASK, &old_, nullptr);
+  }
+  SigpipeGuard(const SigpipeGuard&) = delete;
+  SigpipeGuard& operator=(const SigpipeGuard&) = delete;
+
+ private:
+  sigset_t pipe_, old_;
+  bool pending_before_ = false;
+};
+
+struct ContextFree {
+  void operator()(redisContext* c) const { redisFree(c); }
+};
+using Context = std::unique_ptr<redisContext, ContextFree>;
+
+struct ReplyFree {
+  void operator()(redisReply* r) const { freeReplyObject(r); }
+};
+using Reply = std::unique_ptr<redisReply, ReplyFree>;
+
+std::string lower_first(std::string s) {
+  if (!s.empty()) s[0] = static_cast<char>(std::tolower(static_cast<unsigned char>(s[0])));
+  return s;
+}
+
+// Sends one command on `c` (binary-safe arguments); nullptr when the connection failed.
+Reply send(redisContext* c, std::initializer_list<std::string_view> args) {
+  std::vector<const char*> argv;
+  std::vector<std::size_t> lens;
+  argv.reserve(args.size());
+  lens.reserve(args.size());
+  for (std::string_view a : args) {
+    argv.push_back(a.data());
+    lens.push_back(a.size());
+  }
+  return Reply(static_cast<redisReply*>(
+      redisCommandArgv(c, static_cast<int>(argv.size()), argv.data(), lens.data())));
+}
+
+class RedisState final : public StateBackend {
+ public:
+  explicit RedisState(const std::string& url) : url_(parse_url(url)) {
+    where_ = url_.host.find(':') != std::string::npos ? "[" + url_.host + "]" : url_.host;
+    where_ += ":" + std::to_string(url_.port);
+    if (url_.db != 0) where_ += "/" + std::to_string(url_.db);
+    std::lock_guard lock(mu_);
+    SigpipeGuard guard;
+    connect_locked();
+    spdlog::info("state: {}", describe());
+  }
+
+  std::string describe() const override { return "redis " + where_; }
+
+  bool create_session(const std::string& id, const std::string& record) override {
+    check_session_id(id);
+    const std::string key = session_key(id);
+    bool retried = false;
+    Reply r = call("create session", {"EVAL", kCreateScript, "2", key, kSessionSet, record, id},
+                   &retried);
+    if (integer(r, "create session") == 1) return true;
+    // The first attempt may have been applied before the connection broke: then the stored
+    // record is ours, and the id is ours too.
+    return retried && get_session(id) == record;
+  }
+
+  void put_session(const std::string& id, const std::string& record) override {
+    check_session_id(id);
+    Reply r = call("put session", {"EVAL", kPutScript, "2", session_key(id), kSessionSet, record, id});
+    integer(r, "put session");
+  }
+
+  std::optional<std::string> get_session(const std::string& id) override {
+    check_session_id(id);
+    return string_or_nil(call("get session", {"GET", session_key(id)}), "get session");
+  }
+
+  void delete_session(const std::string& id) override {
+    check_session_id(id);
+    Reply r = call("delete session", {"EVAL", kDeleteScript, "2", session_key(id), kSessionSet, id});
+    integer(r, "delete session");
+  }
+
+  std::vector<std::string> list_sessions() override {
+    Reply r = call("list sessions", {"SMEMBERS", kSessionSet});
+    if (r->type != REDIS_REPLY_ARRAY) throw unexpected("list sessions");
+    std::vector<std::string> ids;
+    ids.reserve(r->elements);
+    for (std::size_t i = 0; i < r->elements; ++i) {
+      const redisReply* e = r->element[i];
+      if (e->type != REDIS_REPLY_STRING) throw unexpected("list sessions");
+      ids.emplace_back(e->str, e->len);
+    }
+    return ids;
+  }
+
+  std::string put_mesh(const std::string& bytes) override {
+    const std::string key = Sha256().add(bytes).hex();
+    // NX: a second put of the same bytes leaves the stored copy alone.
+    call("put mesh", {"SET", mesh_key(key), bytes, "NX"});
+    return key;
+  }
+
+  std::optional<std::string> get_mesh(const std::string& key) override {
+    check_mesh_key(key);
+    auto bytes = string_or_nil(call("get mesh", {"GET", mesh_key(key)}), "get mesh");
+    if (bytes && Sha256().add(*bytes).hex() != key)
+      throw StateError(describe() + ": mesh " + key +
+                       " is corrupt (its SHA-256 does not match its key)");
+    return bytes;
+  }
+
+  std::size_t purge_meshes(const std::vector<std::string>& keep) override {
+    const std::unordered_set<std::string> kept(keep.begin(), keep.end());
+    const std::string pattern = std::string(kMeshPrefix) + "*";
+    std::unordered_set<std::string> doomed;  // SCAN may return a key twice
+    std::string cursor = "0";
+    do {
+      Reply r = call("purge meshes", {"SCAN", cursor, "MATCH", pattern, "COUNT", "1000"});
+      if (r->type != REDIS_REPLY_ARRAY || r->elements != 2 ||
+          r->element[0]->type != REDIS_REPLY_STRING || r->element[1]->type != REDIS_REPLY_ARRAY)
+        throw unexpected("purge meshes");
+      cursor.assign(r->element[0]->str, r->element[0]->len);
+      const redisReply* keys = r->element[1];
+      for (std::size_t i = 0; i < keys->elements; ++i) {
+        std::string name(keys->element[i]->str, keys->element[i]->len);
+        if (!kept.count(name.substr(kMeshPrefix.size()))) doomed.insert(std::move(name));
+      }
+    } while (cursor != "0");
+
+    std::size_t dropped = 0;
+    for (const auto& name : doomed)
+      dropped += static_cast<std::size_t>(integer(call("purge meshes", {"DEL", name}), "purge"));
+    return dropped;
+  }
+
+ private:
+  static std::string session_key(const std::string& id) {
+    return std::string(kSessionPrefix) + id;
+  }
+  static std::string mesh_key(const std::string& key) { return std::string(kMeshPrefix) + key; }
+
+  void check_session_id(const std::string& id) const {
+    if (!is_session_id(id))
+      throw StateError(describe() + ": invalid session id (expected [A-Za-z0-9_-]{1,64})");
+  }
+
+  void check_mesh_key(const std::string& key) const {
+    if (!is_mesh_key(key))
+      throw StateError(describe() + ": invalid mesh key (expected 64 lower-case hex digits)");
+  }
+
+  StateError unexpected(const char* what) const {
+    return StateError(describe() + ": " + what + ": unexpected reply");
+  }
+
+  long long integer(const Reply& r, const char* what) const {
+    if (r->type != REDIS_REPLY_INTEGER) throw unexpected(what);
+    return r->integer;
+  }
+
+  std::optional<std::string> string_or_nil(const Reply& r, const char* what) const {
+    if (r->type == REDIS_REPLY_NIL) return std::nullopt;
+    if (r->type != REDIS_REPLY_STRING) throw unexpected(what);
+    return std::string(r->str, r->len);
+  }
+
+  // A fresh connection with AUTH and SELECT done; replaces ctx_ only when all succeeded.
+  void connect_locked() {
+    const timeval timeout{kTimeoutSeconds, 0};
+    Context c(redisConnectWithTimeout(url_.host.c_str(), url_.port, timeout));
+    if (!c) throw StateError(describe() + ": cannot allocate a connection");
+    if (c->err) throw StateError(describe() + ": cannot connect: " + lower_first(c->errstr));
+    if (redisSetTimeout(c.get(), timeout) != REDIS_OK)
+      throw StateError(describe() + ": cannot set the timeout: " + lower_first(c->errstr));
+    if (!url_.password.empty()) {
+      // The reply text never contains the password, so it is safe to show.
+      Reply r = url_.user.empty() ? send(c.get(), {"AUTH", url_.password})
+                                  : send(c.get(), {"AUTH", url_.user, url_.password});
+      check_setup_reply(c.get(), r, "AUTH");
+    }
+    if (url_.db != 0) {
+      const std::string db = std::to_string(url_.db);
+      Reply r = send(c.get(), {"SELECT", db});
+      check_setup_reply(c.get(), r, "SELECT");
+    }
+    // Proves at once that a Redis server (and one that accepts us) is at the other end.
+    check_setup_reply(c.get(), send(c.get(), {"PING"}), "PING");
+    ctx_ = std::move(c);
+  }
+
+  void check_setup_reply(redisContext* c, const Reply& r, const char* what) const {
+    if (!r) throw StateError(describe() + ": " + what + ": " + lower_first(c->errstr));
+    if (r->type == REDIS_REPLY_ERROR)
+      throw StateError(describe() + ": " + what + " failed: " + std::string(r->str, r->len));
+  }
+
+  // Runs one command. A broken connection is dropped, reconnected once and the command
+  // retried once (`retried` says so). A timeout is not retried: the server may have run it.
+  Reply call(const char* what, std::initializer_list<std::string_view> args,
+             bool* retried = nullptr) {
+    std::lock_guard lock(mu_);
+    SigpipeGuard guard;
+    for (int attempt = 0;; ++attempt) {
+      if (!ctx_) connect_locked();
+      Reply r = send(ctx_.get(), args);
+      if (r) {
+        if (r->type == REDIS_REPLY_ERROR)
+          throw StateError(describe() + ": " + what + ": " + std::string(r->str, r->len));
+        return r;
+      }
+      const std::string err = ctx_->errstr;
+      const bool timed_out = ctx_->err == REDIS_ERR_IO && (err == std::strerror(EAGAIN) ||
+                                                           err == std::strerror(EWOULDBLOCK));
+      ctx_.reset();  // broken or out of step with its replies: never reused
+      if (timed_out)
+        throw StateError(describe() + ": " + what + ": no reply within " +
+                         std::to_string(kTimeoutSeconds) + " s");
+      if (attempt > 0) throw StateError(describe() + ": " + what + ": " + lower_first(err));
+      spdlog::warn("state: {}: connection lost ({}); reconnecting", describe(), err);
+      if (retried) *retried = true;
+    }
+  }
+
+  RedisUrl url_;
+  std::string where_;  // host:port[/db], for messages
+  std::mutex mu_;      // guards ctx_: hiredis contexts are not thread-safe
+  Context ctx_;        // null after a failure until the next call reconnects
+};
+
+}  // namespace
+
+std::unique_ptr<StateBackend> open_redis_state(const std::string& url) {
+  return std::make_unique<RedisState>(url);
+}
+
+}  // namespace hdeform::service

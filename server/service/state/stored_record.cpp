@@ -1,0 +1,34 @@
+#include "service/state/stored_record.h"
+
+#include "service/state/state_backend.h"
+
+#include <cstring>
+
+namespace hdeform::service {
+
+hdeform::state::StoredSession parse_record(const std::string& id, const std::string& bytes) {
+  hdeform::state::StoredSession r;
+  if (!r.ParseFromString(bytes))
+    throw StateError("stored session " + id + ": not a session record (" +
+                     std::to_string(bytes.size()) + " bytes that do not parse)");
+  if (r.format() != kRecordFormat)
+    throw StateError("stored session " + id + ": record format " + std::to_string(r.format()) +
+                     " is not one this server reads (" + std::to_string(kRecordFormat) + ")");
+  if (r.id() != id)
+    throw StateError("stored session " + id + ": the record is of session '" + r.id() + "'");
+  if (r.edit_token_sha256().size() != 32 || r.view_token_sha256().size() != 32)
+    throw StateError("stored session " + id + ": token hashes are not SHA-256 digests");
+  if (!r.snapshot().mesh_bytes().empty())
+    throw StateError("stored session " + id + ": a record never embeds mesh bytes");
+  return r;
+}
+
+SessionTokens tokens_of(const hdeform::state::StoredSession& r) {
+  SessionTokens t;
+  std::memcpy(t.edit.data(), r.edit_token_sha256().data(), t.edit.size());
+  std::memcpy(t.view.data(), r.view_token_sha256().data(), t.view.size());
+  t.set = true;
+  return t;
+}
+
+}  // namespace hdeform::service

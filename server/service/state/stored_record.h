@@ -1,0 +1,22 @@
+// Reading a stored session record (stored_session.proto) back: the checks that make a
+// record from a state store (input like any other) safe to restore. session_record.h makes
+// records; this part needs no Session and is fuzzed on its own (tests/fuzz).
+#pragma once
+
+#include "service/access/access.h"
+#include "stored_session.pb.h"
+
+#include <cstdint>
+#include <string>
+
+namespace hdeform::service {
+
+inline constexpr std::uint32_t kRecordFormat = 1;
+
+// Parses and checks a stored record (StateError naming the id and the problem: not a record,
+// an unknown format, another id, token hashes of the wrong size, embedded mesh bytes).
+hdeform::state::StoredSession parse_record(const std::string& id, const std::string& bytes);
+
+SessionTokens tokens_of(const hdeform::state::StoredSession& record);
+
+}  // namespace hdeform::service
