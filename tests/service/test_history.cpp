@@ -2,8 +2,11 @@
 // undo and redo are new visible steps that never silently lose another editor's later
 // change, snapshots are kept with the session (durably). Real server over loopback.
 #include "editors_fixture.h"
+#include "service/session/history.h"
 
+#include <chrono>
 #include <filesystem>
+#include <thread>
 
 using namespace hdeform::testing;
 namespace fs = std::filesystem;
@@ -154,6 +157,45 @@ TEST(History, BetaAndConstraintChangesUndo) {
   ASSERT_TRUE(alice.redo(&out).ok());
   EXPECT_TRUE(out.constrained());
   EXPECT_EQ(out.constraints().handles_size(), 2);
+}
+
+// A β slider drag is one step (History::kGestureMs): undone in one Undo back to the β
+// before the drag; a β set to what it is already is no step and no new version.
+TEST(History, ASliderDragIsOneStep) {
+  TwoHandles e;
+  Editor alice{e, "alice"};
+  auto set_beta = [&](const std::string& client, double v, pb::Session* out) {
+    pb::SetBetaRequest b;
+    b.set_name(e.s.name());
+    b.mutable_beta()->set_value(v);
+    b.set_client_id(client);
+    return e.t.bare_stub->SetBeta(as(e.s.edit_token()).get(), b, out);
+  };
+  pb::Session out;
+  ASSERT_TRUE(set_beta("alice", 0.1, &out).ok());  // a step of its own, then the drag
+  std::this_thread::sleep_for(
+      std::chrono::milliseconds(hdeform::service::History::kGestureMs + 100));
+  const std::int64_t steps_before = history(e).total();
+  for (int k = 2; k <= 27; ++k) ASSERT_TRUE(set_beta("alice", 0.01 * k * 3.5, &out).ok());
+  const std::int64_t version = out.version();
+  ASSERT_TRUE(set_beta("alice", 0.01 * 27 * 3.5, &out).ok());  // the last value again
+  EXPECT_EQ(out.version(), version);
+  const auto h = history(e);
+  EXPECT_EQ(h.total(), steps_before + 1) << "26 values, one step";
+  EXPECT_EQ(h.steps(0).kind(), pb::STEP_KIND_BETA);
+  EXPECT_NE(h.steps(0).summary().find("beta 0.1 -> 0.945"), std::string::npos)
+      << h.steps(0).summary();
+  ASSERT_TRUE(alice.undo(&out).ok());
+  EXPECT_DOUBLE_EQ(out.beta().value(), 0.1) << "one Undo: the beta before the drag";
+
+  // Another client's value in between starts a step of its own.
+  ASSERT_TRUE(set_beta("alice", 0.2, &out).ok());
+  ASSERT_TRUE(set_beta("bob", 0.3, &out).ok());
+  ASSERT_TRUE(set_beta("alice", 0.4, &out).ok());
+  const auto h2 = history(e);
+  EXPECT_EQ(h2.steps(0).client_id(), "alice");
+  EXPECT_EQ(h2.steps(1).client_id(), "bob");
+  EXPECT_EQ(h2.steps(2).client_id(), "alice");
 }
 
 TEST(History, WatchersSeeStepsAndTheUndoneFrame) {

@@ -268,7 +268,7 @@ std::size_t PreparedMesh::memory_bytes() const {
 }
 
 // ---------------------------------------------------------------------------------------
-struct BetaSystem {
+struct BetaSystem : FactorBudget::Item {
   std::shared_ptr<const Factorization> factor;
   SparseMatrix K_FF;  // full symmetric: the drag path's residual (K_FFᵀ x = K_FF x, row-wise)
   SparseMatrix K_FC;
@@ -369,19 +369,64 @@ ConstraintSet::~ConstraintSet() = default;
 Eigen::Vector3d ConstraintSet::centroid(int handle) const { return centroids_.at(handle); }
 
 std::shared_ptr<const BetaSystem> ConstraintSet::system(double raw_beta) const {
+  auto hit = [&]() -> std::shared_ptr<const BetaSystem> {
+    std::lock_guard lock(mutex_);
+    if (auto it = by_beta_.find(raw_beta); it != by_beta_.end()) {
+      FactorBudget::touch(*it->second);
+      return it->second;
+    }
+    return nullptr;
+  };
+  if (auto sys = hit()) return sys;
+  std::shared_ptr<const BetaSystem> sys;
+  {
+    std::lock_guard build(build_mutex_);
+    if (auto again = hit()) return again;  // another thread built it meanwhile
+    sys = build_system_locked(raw_beta);
+    std::lock_guard lock(mutex_);
+    by_beta_[raw_beta] = sys;
+  }
+  charge(sys, /*pinned=*/raw_beta == 0.0);
+  return sys;
+}
+
+void ConstraintSet::charge(const std::shared_ptr<const BetaSystem>& sys, bool pinned) const {
+  std::shared_ptr<FactorBudget> budget;
   {
     std::lock_guard lock(mutex_);
-    if (auto it = by_beta_.find(raw_beta); it != by_beta_.end()) return it->second;
+    budget = budget_;
   }
-  std::lock_guard build(build_mutex_);
+  if (budget) budget->charge(weak_from_this(), sys, sys->memory_bytes(), pinned);
+}
+
+void ConstraintSet::charge_to(std::shared_ptr<FactorBudget> budget) const {
+  if (weak_from_this().expired())
+    throw std::logic_error("ConstraintSet::charge_to: the set is not owned by a shared_ptr");
+  std::vector<std::pair<std::shared_ptr<const BetaSystem>, bool>> systems;
   {
-    std::lock_guard lock(mutex_);  // another thread may have built it meanwhile
-    if (auto it = by_beta_.find(raw_beta); it != by_beta_.end()) return it->second;
+    std::lock_guard lock(mutex_);
+    budget_ = std::move(budget);
+    for (const auto& [b, sys] : by_beta_) systems.emplace_back(sys, b == 0.0);
+    for (const auto& [key, fs] : by_field_) systems.emplace_back(fs.system, false);
   }
-  auto sys = build_system_locked(raw_beta);
+  for (const auto& [sys, pinned] : systems) charge(sys, pinned);
+}
+
+void ConstraintSet::evict(const FactorBudget::Item& item) const {
+  std::shared_ptr<const BetaSystem> dropped;  // freed after the lock is released
   std::lock_guard lock(mutex_);
-  by_beta_[raw_beta] = sys;
-  return sys;
+  for (auto it = by_beta_.begin(); it != by_beta_.end(); ++it)
+    if (it->second.get() == &item && it->first != 0.0) {
+      dropped = std::move(it->second);
+      by_beta_.erase(it);
+      return;
+    }
+  for (auto it = by_field_.begin(); it != by_field_.end(); ++it)
+    if (it->second.system.get() == &item) {
+      dropped = std::move(it->second.system);
+      by_field_.erase(it);
+      return;
+    }
 }
 
 std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_beta) const {
@@ -515,18 +560,30 @@ std::shared_ptr<const BetaSystem> ConstraintSet::local_system(const LocalBeta& f
   auto find = [&]() -> std::shared_ptr<const BetaSystem> {
     const auto [lo, hi] = by_field_.equal_range(key);
     for (auto it = lo; it != hi; ++it)
-      if (it->second.units == field.units && it->second.beta == field.beta)
+      if (it->second.units == field.units && it->second.beta == field.beta) {
+        FactorBudget::touch(*it->second.system);
         return it->second.system;
+      }
     return nullptr;
   };
   {
     std::lock_guard lock(mutex_);
     if (auto hit = find()) return hit;
   }
+  auto sys = build_field_system(field, key, find);
+  if (sys.second) charge(sys.first, /*pinned=*/false);
+  return sys.first;
+}
+
+// local_system's build: {the system, whether it was built here (not found meanwhile)}.
+template <class Find>
+std::pair<std::shared_ptr<const BetaSystem>, bool> ConstraintSet::build_field_system(
+    const LocalBeta& field, std::uint64_t key, const Find& find) const {
+  const PreparedMesh& pm = *mesh_;
   std::lock_guard build(build_mutex_);
   {
     std::lock_guard lock(mutex_);  // another thread may have built it meanwhile
-    if (auto hit = find()) return hit;
+    if (auto hit = find()) return {hit, false};
   }
 
   // Area units: the unit-area problem is the raw one with edge weights β_e / s.
@@ -566,7 +623,7 @@ std::shared_ptr<const BetaSystem> ConstraintSet::local_system(const LocalBeta& f
     by_field_.erase(oldest);
   }
   by_field_.emplace(key, FieldSystem{field.beta, field.units, sys, field_serial_++});
-  return sys;
+  return {sys, true};
 }
 
 void ConstraintSet::prepare(Beta beta) const { system(mesh_->raw_beta(beta)); }
@@ -605,8 +662,11 @@ Frame ConstraintSet::update_transient(std::span<const HandleTransform> transform
     if (auto it = by_beta_.find(raw); it != by_beta_.end()) sys = it->second;
   }
   if (!sys) {
-    std::lock_guard build(build_mutex_);
-    sys = build_system_locked(raw);
+    {
+      std::lock_guard build(build_mutex_);
+      sys = build_system_locked(raw);
+    }
+    charge(sys, /*pinned=*/true);  // counted while this call holds it
   }
   return solve(sys, transforms, options);  // a transient sys is freed on return
 }
@@ -805,9 +865,28 @@ std::size_t ConstraintSet::memory_bytes() const {
   return bytes;
 }
 
+std::size_t ConstraintSet::base_bytes() const {
+  std::size_t cached = 0;
+  {
+    std::lock_guard lock(mutex_);
+    for (const auto& [b, sys] : by_beta_) cached += sys->memory_bytes();
+    for (const auto& [key, fs] : by_field_)
+      cached += fs.system->memory_bytes() +
+                static_cast<std::size_t>(fs.beta.size()) * sizeof(double);
+  }
+  const std::size_t all = memory_bytes();  // the maps may change between the two reads
+  return all > cached ? all - cached : 0;
+}
+
 std::size_t ConstraintSet::num_cached_factorizations() const {
   std::lock_guard lock(mutex_);
   return by_beta_.size();
+}
+
+bool ConstraintSet::is_cached(Beta beta) const {
+  const double raw = mesh_->raw_beta(beta);
+  std::lock_guard lock(mutex_);
+  return by_beta_.count(raw) > 0;
 }
 
 void ConstraintSet::drop_factorization(Beta beta) {

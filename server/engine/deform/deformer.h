@@ -2,6 +2,7 @@
 // sessions, a ConstraintSet that owns its factorizations, and a cheap update().
 #pragma once
 
+#include "engine/deform/factor_budget.h"
 #include "engine/deform/guidance.h"
 #include "engine/deform/measures.h"
 #include "engine/mesh/mesh.h"
@@ -186,8 +187,10 @@ inline constexpr double kMaxCoordinate = 1e30;
 
 // One constraint set on one mesh: validates it, solves the harmonic basis fields once,
 // and caches the factorization of K_FF per β. Thread-safe: update() may be called
-// concurrently (factorizations are built once under a lock).
-class ConstraintSet {
+// concurrently (factorizations are built once under a lock). Charged to a FactorBudget
+// (charge_to), its cached systems are evicted least recently used and rebuilt on demand.
+class ConstraintSet : public std::enable_shared_from_this<ConstraintSet>,
+                      public FactorBudget::Owner {
  public:
   // Throws InvalidInput: ids out of range, overlapping or empty regions, a single handle
   // with no fixed vertex, a component without a constrained vertex.
@@ -236,8 +239,19 @@ class ConstraintSet {
   void guidance(std::span<const HandleTransform> transforms, GuidanceField& g, Vertices* Rn,
                 GuidanceScratch& scratch) const;
 
+  // Charges every cached system to `budget` (β = 0 pinned: the harmonic basis came from
+  // it), and every later one as it is built. The set must be owned by a shared_ptr.
+  void charge_to(std::shared_ptr<FactorBudget> budget) const;
+  // FactorBudget::Owner: drops a cached per-β or per-field system (never β = 0).
+  void evict(const FactorBudget::Item& item) const override;
+
   std::size_t memory_bytes() const;
+  // memory_bytes() without the cached per-β and per-field systems (what a FactorBudget
+  // charges): the basis, indices and the β > 0 blocks.
+  std::size_t base_bytes() const;
   std::size_t num_cached_factorizations() const;
+  // Whether β's system is cached now (not evicted, not yet built).
+  bool is_cached(Beta beta) const;
   // Drops a cached β factorization (β = 0 stays: the harmonic basis came from it). Only
   // for benchmarks and tests: a shared set's other users would have to rebuild it.
   void drop_factorization(Beta beta);
@@ -265,6 +279,9 @@ class ConstraintSet {
   // wide_symbolic_, which this may create).
   std::shared_ptr<const BetaSystem> build_system_locked(double raw_beta) const;
   std::shared_ptr<const BetaSystem> local_system(const LocalBeta& beta) const;
+  template <class Find>
+  std::pair<std::shared_ptr<const BetaSystem>, bool> build_field_system(
+      const LocalBeta& field, std::uint64_t key, const Find& find) const;
   // The mesh's order (wide: β > 0's) restricted to F; its two times go into timings.
   std::vector<int> free_order(bool wide, BuildTimings& timings) const;
   // Numeric factorization of a K_FF on the β > 0 pattern, sharing its symbolic analysis.
@@ -311,6 +328,9 @@ class ConstraintSet {
   mutable std::shared_ptr<const WideBlocks> wide_;                 // built on first β > 0
   mutable std::shared_ptr<const Factorization> wide_symbolic_;  // analysis shared by β > 0
   mutable BuildTimings last_build_;  // guarded by mutex_
+  mutable std::shared_ptr<FactorBudget> budget_;  // guarded by mutex_; null: unbounded
+  // Charges a system just built (no lock of this set held).
+  void charge(const std::shared_ptr<const BetaSystem>& sys, bool pinned) const;
 };
 
 }  // namespace hdeform

@@ -1,5 +1,7 @@
 #include "service/infra/cache.h"
 
+#include "service/infra/release_memory.h"
+
 #include <openssl/evp.h>
 #include <openssl/rand.h>
 #include <spdlog/spdlog.h>
@@ -86,6 +88,7 @@ void Cache::insert_locked(const std::string& key, Slot& slot, std::shared_ptr<co
   slot.lru = lru_.begin();
   bytes_ += bytes;
   evict_locked(key);
+  bytes_now_->store(bytes_, std::memory_order_relaxed);
 }
 
 void Cache::evict_locked(const std::string& keep) {
@@ -162,10 +165,19 @@ void Cache::update_size(const std::string& key, std::size_t bytes) {
     bytes_ = bytes_ - s.bytes + bytes;
     s.bytes = bytes;
     evict_locked(key);
+    bytes_now_->store(bytes_, std::memory_order_relaxed);
   } else {
     s.bytes = bytes;
   }
 }
+
+Cache::Cache(std::size_t budget_bytes)
+    : budget_(budget_bytes),
+      bytes_now_(std::make_shared<std::atomic<std::size_t>>(0)),
+      // The budget may outlive the cache (a session holds its sets): it reads the mirror.
+      factors_(std::make_shared<FactorBudget>(
+          budget_bytes, [now = bytes_now_] { return now->load(std::memory_order_relaxed); },
+          release_freed_memory)) {}
 
 Cache::Stats Cache::stats() const {
   std::lock_guard lock(mutex_);

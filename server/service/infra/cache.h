@@ -6,6 +6,7 @@
 
 #include "engine/deform/deformer.h"
 
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -48,7 +49,9 @@ class Cache {
     std::uint64_t hits = 0, misses = 0, evictions = 0;
   };
 
-  explicit Cache(std::size_t budget_bytes) : budget_(budget_bytes) {}
+  // budget_bytes bounds the cache's own entries and, together with them, every
+  // factorization charged to factor_budget() (those are evicted first).
+  explicit Cache(std::size_t budget_bytes);
 
   // The object for `key`, built by `make` on a miss (outside the cache lock; concurrent
   // callers for one key wait for a single build). Exceptions from `make` propagate and
@@ -68,9 +71,11 @@ class Cache {
     return std::static_pointer_cast<const T>(find_erased(key));
   }
 
-  // Re-account an entry whose size changed (a constraint set that gained a factorization).
+  // Re-account an entry whose size changed (a constraint set that built its β > 0 blocks).
   void update_size(const std::string& key, std::size_t bytes);
   Stats stats() const;
+  // The budget the constraint sets' factorizations are charged to (ConstraintSet::charge_to).
+  const std::shared_ptr<FactorBudget>& factor_budget() const { return factors_; }
 
  private:
   struct Slot {
@@ -97,6 +102,8 @@ class Cache {
   std::list<std::string> lru_;  // front = most recent
   std::unordered_map<std::string, std::shared_ptr<Slot>> slots_;
   Stats counters_;
+  std::shared_ptr<std::atomic<std::size_t>> bytes_now_;  // bytes_, for the factor budget
+  std::shared_ptr<FactorBudget> factors_;
 };
 
 }  // namespace hdeform::service

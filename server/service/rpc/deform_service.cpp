@@ -2,11 +2,11 @@
 
 #include "service/frames/frame_delta.h"
 #include "service/frames/frame_encoding.h"
+#include "service/infra/release_memory.h"
 #include "service/infra/service_error.h"
 #include "service/session/convert.h"
 #include "service/session/handle_update.h"
 
-#include <malloc.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -29,10 +29,6 @@ Limits limits_from(const ServerOptions& o) {
 }
 
 constexpr std::size_t kMeshChunkBytes = 1u << 20;
-
-// Transient factorizations are large and glibc keeps freed heap memory: hand it back so a
-// finished sweep does not leave its peak as the server's resident size.
-void malloc_trim_after_sweep() { ::malloc_trim(0); }
 
 // ---------------------------------------------------------------------------------------
 // CreateSession: header, then upload chunks. Bounded: the byte limit per upload (as chunks
@@ -311,7 +307,7 @@ class AnimationWriter final : public ChunkWriter {
     }
     plan_ = {};  // the frames' memory goes before the bytes are streamed
     --svc_->running_sweeps();
-    malloc_trim_after_sweep();
+    release_freed_memory();  // a finished sweep must not leave its peak resident
     produced(status, std::move(data));
   }
 
@@ -329,13 +325,16 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
 
  public:
   // `client_id`: the watcher joined the session's presence under it (empty: anonymous).
+  // `authorize` fills the sink's tokens (DeformService::bind_stream) before it is added.
   WatchReactor(std::shared_ptr<Session> session, const v1::FrameFormat& format,
-               std::string client_id, WorkerPool& pool)
+               std::string client_id, WorkerPool& pool,
+               const std::function<void(AuthorizedStream&)>& authorize)
       : session_(std::move(session)),
         format_(format),
         client_id_(std::move(client_id)),
         pool_(pool) {
     sink_ = std::make_shared<Sink>(this);
+    authorize(*sink_);
     session_->add_watcher(sink_);
   }
 
@@ -382,9 +381,18 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
       std::lock_guard lock(mutex);
       if (reactor) reactor->end();
     }
+    void revoke(const grpc::Status& why) override {
+      std::lock_guard lock(mutex);
+      if (reactor) reactor->revoked(why);
+    }
     std::mutex mutex;
     WatchReactor* reactor;
   };
+
+  void revoked(const grpc::Status& why) {
+    std::lock_guard lock(mutex_);
+    finish_locked(why);  // what waits is dropped: the client may no longer see it
+  }
 
   void enqueue(std::shared_ptr<const v1::SessionEvent> event) {
     std::lock_guard lock(mutex_);
@@ -532,6 +540,9 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
         return;
       }
       session_->stream_opened();
+      auth_ = std::make_shared<Revocation>(this);
+      svc_->bind_stream(*ctx_, *auth_, Access::kEdit);
+      session_->add_stream(auth_);
     }
     if (finished_) return;
     if (in_.has_format()) {
@@ -576,6 +587,10 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
   }
 
   void OnDone() override {
+    if (auth_) {
+      std::lock_guard lock(auth_->mutex);
+      auth_->reactor = nullptr;
+    }
     std::unique_lock lock(mutex_);
     done_ = true;
     if (session_) {
@@ -682,8 +697,23 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
     Finish(status);
   }
 
+  // The session's handle on this stream: ends it when its token is rotated away or the
+  // session is deleted. Outlives the reactor (the session holds it weakly).
+  struct Revocation final : AuthorizedStream {
+    explicit Revocation(DeformReactor* r) : reactor(r) {}
+    void revoke(const grpc::Status& why) override {
+      std::lock_guard lock(mutex);
+      if (!reactor) return;
+      std::lock_guard reactor_lock(reactor->mutex_);
+      reactor->finish_locked(why);
+    }
+    std::mutex mutex;
+    DeformReactor* reactor;
+  };
+
   DeformService* svc_;
   grpc::CallbackServerContext* ctx_;
+  std::shared_ptr<Revocation> auth_;
   std::mutex mutex_;
   v1::DeformRequest in_;
   std::optional<v1::DeformRequest> pending_;
@@ -801,6 +831,13 @@ void DeformService::authorize(const grpc::ServerContextBase& ctx, const Session&
   fail(grpc::StatusCode::PERMISSION_DENIED,
        got == Access::kView ? what + "; the token presented is its view token (read-only)"
                             : what + "; the token presented is not one of this session's");
+}
+
+void DeformService::bind_stream(const grpc::ServerContextBase& ctx, AuthorizedStream& stream,
+                                Access needed) const {
+  auto hashes = presented_token_hashes(ctx);
+  stream.needed = needed;
+  stream.token_hashes = is_admin(hashes) ? std::vector<TokenHash>{} : std::move(hashes);
 }
 
 bool DeformService::can_edit(const grpc::ServerContextBase& ctx, const Session& session) const {
@@ -1009,7 +1046,7 @@ struct SweepJob {
 void sweep_step(const std::shared_ptr<SweepJob>& job) {
   auto finish = [&](const grpc::Status& status) {
     --job->svc->running_sweeps();
-    malloc_trim_after_sweep();
+    release_freed_memory();  // a finished sweep must not leave its peak resident
     job->reactor->Finish(status);
   };
   const auto status = guarded(
@@ -1106,7 +1143,8 @@ grpc::ServerWriteReactor<v1::SessionEvent>* DeformService::WatchSession(
     }
     client_id = request->client().client_id();
   }
-  return new WatchReactor(std::move(session), request->format(), std::move(client_id), *pool_);
+  return new WatchReactor(std::move(session), request->format(), std::move(client_id), *pool_,
+                          [&](AuthorizedStream& a) { bind_stream(*ctx, a, Access::kView); });
 }
 
 grpc::ServerUnaryReactor* DeformService::ExportSession(grpc::CallbackServerContext* ctx,

@@ -128,6 +128,10 @@ class DeformService final : public v1::Deformation::CallbackService {
                  const char* op) const;
   // The presented tokens include the operator token.
   bool is_admin(const std::vector<TokenHash>& token_hashes) const;
+  // A stream's authorization for `needed` on `session` (AuthorizedStream): the session
+  // tokens it presented, none when it presented the operator token (never revoked).
+  void bind_stream(const grpc::ServerContextBase& ctx, AuthorizedStream& stream,
+                   Access needed) const;
   // The named session (restored from durable state if needed), authorized for `needed`.
   std::shared_ptr<Session> session_for(const grpc::ServerContextBase& ctx,
                                        const std::string& name, Access needed, const char* op);

@@ -90,6 +90,13 @@ Server::~Server() {
 
 int Server::port() const { return impl_->port; }
 
+Server::MemoryStats Server::memory_stats() const {
+  Cache& cache = impl_->service->cache();
+  const Cache::Stats c = cache.stats();
+  const FactorBudget::Stats f = cache.factor_budget()->stats();
+  return {c.budget, c.bytes, f.charged, f.pinned, f.evictions};
+}
+
 std::shared_ptr<grpc::Channel> Server::in_process_channel() {
   grpc::ChannelArguments args;
   args.SetMaxReceiveMessageSize(-1);

@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <string>
 
@@ -52,6 +53,13 @@ class Server {
   Server& operator=(const Server&) = delete;
 
   int port() const;  // bound TCP port, or 0 when in-process only
+  // What --cache-mb accounts now: the cache's own entries (prepared meshes, constraint sets
+  // without their factorizations) and the factorizations charged to it.
+  struct MemoryStats {
+    std::size_t limit = 0, cache_bytes = 0, factor_bytes = 0, factor_pinned_bytes = 0;
+    std::uint64_t factor_evictions = 0;
+  };
+  MemoryStats memory_stats() const;
   std::shared_ptr<grpc::Channel> in_process_channel();
   void shutdown(std::chrono::milliseconds deadline = std::chrono::milliseconds(2000));
   void wait();

@@ -32,7 +32,33 @@ std::string describe(const pb::HistoryStep& s) {
 
 }  // namespace
 
+namespace {
+
+bool beta_only(const Step& s) {
+  return s.info.kind() == pb::STEP_KIND_BETA && s.beta && !s.constraints && s.handles.empty();
+}
+
+}  // namespace
+
 const pb::HistoryStep& History::record(Step step) {
+  if (!steps_.empty() && beta_only(step) && !step.info.client_id().empty()) {
+    Step& last = steps_.back();
+    if (beta_only(last) && last.info.client_id() == step.info.client_id() &&
+        !last.info.undone() &&
+        step.info.time_unix_ms() - last.info.time_unix_ms() <= kGestureMs &&
+        step.info.time_unix_ms() >= last.info.time_unix_ms()) {
+      // "beta A -> B (units)" + "beta B -> C (units)" = "beta A -> C (units)".
+      const std::string& first = last.info.summary();
+      const std::string& next = step.info.summary();
+      const auto arrow_first = first.find(" -> "), arrow_next = next.find(" -> ");
+      if (arrow_first != std::string::npos && arrow_next != std::string::npos)
+        last.info.set_summary(first.substr(0, arrow_first) + next.substr(arrow_next));
+      last.after = std::move(step.after);
+      last.info.set_version(step.info.version());
+      last.info.set_time_unix_ms(step.info.time_unix_ms());
+      return last.info;
+    }
+  }
   step.info.set_id(next_id_++);
   if (step.info.kind() != pb::STEP_KIND_UNDO && step.info.kind() != pb::STEP_KIND_REDO)
     redo_.erase(step.info.client_id());

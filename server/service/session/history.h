@@ -47,7 +47,12 @@ class History {
 
   // Appends `step` (its id, version and time set by the caller), dropping the oldest beyond
   // the limits. A new change (not UNDO / REDO) clears its author's redo list.
+  // A continuous gesture is one step: a β-only step that follows the same client's β-only
+  // step within kGestureMs, with no other step between and that one not undone, extends it
+  // (its `before` stays, `after`, version and time are the new step's; the same id), so a
+  // β slider drag is undone in one Undo. Returns the recorded (or extended) step.
   const pb::HistoryStep& record(Step step);
+  static constexpr std::int64_t kGestureMs = 1000;
 
   // Drags: the first frame of a client's drag remembers the moved handles' transforms before
   // it; the frame that ends it (or a release) closes one MOVE step. Returns the handles and

@@ -114,6 +114,7 @@ std::shared_ptr<const ConstraintSet> Session::constraint_set_for(const Constrain
   auto make = [&]() -> std::shared_ptr<const ConstraintSet> {
         const auto t0 = std::chrono::steady_clock::now();
         auto cs = std::make_shared<ConstraintSet>(mesh_->prepared, c);  // non-const: prepare()
+        cs->charge_to(cache_.factor_budget());
         spdlog::info("{}: constraint set {} built in {:.1f} ms ({} fixed, {} handle(s))", name_,
                      key,
                      std::chrono::duration<double, std::milli>(
@@ -123,7 +124,7 @@ std::shared_ptr<const ConstraintSet> Session::constraint_set_for(const Constrain
         return cs;
   };
   auto cs = cache_.get_or_create<ConstraintSet>(
-      key, make, [](const ConstraintSet& cs) { return cs.memory_bytes(); });
+      key, make, [](const ConstraintSet& cs) { return cs.base_bytes(); });
   // A hit is verified: the set is shared with other sessions and must be exactly ours.
   if (&cs->mesh() != mesh_->prepared.get() || cs->constraints().fixed != c.fixed ||
       cs->constraints().handles != c.handles) {
@@ -284,7 +285,7 @@ pb::Session Session::commit_edit(EditState target, std::shared_ptr<const Constra
   // β keeps its pick.
   if (cs) {
     prepare_beta(*cs, target.beta);
-    cache_.update_size(target.cs_key, cs->memory_bytes());
+    cache_.update_size(target.cs_key, cs->base_bytes());
   }
   const bool constraints_changed = target.cs_key != current_key;
   pb::Session out;
@@ -351,6 +352,12 @@ pb::Session Session::set_beta(const pb::Beta& beta_msg, std::int64_t expected_ve
            "automatic beta is picked at the session's handle transforms: call SetConstraints "
            "first");
     pick_beta(beta, *cs, target.transforms);
+  }
+  if (beta.same_as(target.beta)) {  // nothing changes: no step, no new version
+    std::lock_guard lock(mutex_);
+    pb::Session out;
+    describe_locked(&out);
+    return out;
   }
   Step step;
   step.info.set_kind(pb::STEP_KIND_BETA);
@@ -463,7 +470,7 @@ std::shared_ptr<pb::Frame> Session::update(const Update& given) {
     beta = std::move(b);
   }
   std::shared_ptr<hdeform::Frame> frame = solve_move(*cs, transforms, beta, u);
-  if (beta_changed) cache_.update_size(key, cs->memory_bytes());
+  if (beta_changed) cache_.update_size(key, cs->base_bytes());
 
   auto out = std::make_shared<pb::Frame>();
   pb::HistoryStep recorded;
@@ -735,8 +742,46 @@ Access Session::grant(const std::vector<TokenHash>& token_hashes) const {
 }
 
 IssuedTokens Session::rotate_tokens() {
+  IssuedTokens issued;
+  std::vector<std::shared_ptr<AuthorizedStream>> revoked;
+  {
+    std::lock_guard lock(mutex_);
+    issued = tokens_.issue();
+    // Every stream opened with a token that no longer grants what it needs ends now.
+    auto lost = [&](const AuthorizedStream& a) {
+      return !a.token_hashes.empty() &&
+             static_cast<int>(tokens_.grant(a.token_hashes)) < static_cast<int>(a.needed);
+    };
+    for (auto it = watchers_.begin(); it != watchers_.end();)
+      if (lost(**it)) {
+        revoked.push_back(std::move(*it));
+        it = watchers_.erase(it);
+      } else {
+        ++it;
+      }
+    for (auto it = streams_auth_.begin(); it != streams_auth_.end();) {
+      auto live = it->lock();
+      if (!live || lost(*live)) {
+        if (live) revoked.push_back(std::move(live));
+        it = streams_auth_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+  }
+  const grpc::Status why(grpc::StatusCode::UNAUTHENTICATED,
+                         "the tokens of " + name_ +
+                             " were rotated (RotateTokens): the token this stream was opened "
+                             "with no longer grants access; reconnect with a new token");
+  for (auto& r : revoked) r->revoke(why);
+  if (!revoked.empty()) broadcast_state();  // the observer count changed
+  return issued;
+}
+
+void Session::add_stream(std::weak_ptr<AuthorizedStream> stream) {
   std::lock_guard lock(mutex_);
-  return tokens_.issue();
+  std::erase_if(streams_auth_, [](const auto& w) { return w.expired(); });
+  streams_auth_.push_back(std::move(stream));
 }
 
 SessionTokens Session::tokens() const {
@@ -1199,12 +1244,20 @@ void Session::close() {
     std::lock_guard lock(mutex_);
     sinks.swap(watchers_);
   }
+  std::vector<std::weak_ptr<AuthorizedStream>> streams;
+  {
+    std::lock_guard lock(mutex_);
+    streams.swap(streams_auth_);
+  }
   auto event = std::make_shared<pb::SessionEvent>();
   event->set_deleted(name_);
   for (auto& s : sinks) {
     s->push(event);
     s->close();
   }
+  const grpc::Status gone(grpc::StatusCode::NOT_FOUND, name_ + " was deleted");
+  for (auto& w : streams)
+    if (auto s = w.lock()) s->revoke(gone);
 }
 
 }  // namespace hdeform::service

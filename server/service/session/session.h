@@ -19,6 +19,7 @@
 #include "service/session/timeline.h"
 
 #include <google/protobuf/repeated_field.h>
+#include <grpcpp/support/status.h>
 
 #include <atomic>
 #include <chrono>
@@ -37,10 +38,20 @@ namespace pb = ::hdeform::v1;
 // While a drag goes on, a frame carries measures only if the last measured one is this old.
 inline constexpr std::chrono::milliseconds kDragMeasuresPeriod{100};
 
-// A WatchSession stream as the session sees it. push() never blocks.
-class EventSink {
+// An open stream as its session sees it, with the tokens it was authorized with: it ends
+// (revoke) as soon as they stop granting what it needs — RotateTokens, or the session's
+// deletion for a Deform stream. Empty token_hashes: the operator's token (never revoked).
+class AuthorizedStream {
  public:
-  virtual ~EventSink() = default;
+  virtual ~AuthorizedStream() = default;
+  virtual void revoke(const grpc::Status& why) = 0;  // never blocks
+  std::vector<TokenHash> token_hashes;
+  Access needed = Access::kView;
+};
+
+// A WatchSession stream as the session sees it. push() never blocks.
+class EventSink : public AuthorizedStream {
+ public:
   virtual void push(std::shared_ptr<const pb::SessionEvent> event) = 0;
   virtual void close() = 0;  // the session is gone (after a `deleted` event)
 };
@@ -197,6 +208,9 @@ class Session : public std::enable_shared_from_this<Session> {
   // Frames as the watchers asked for them, one encode per encoding (encoded_frames.h).
   EncodedFrameCache& encoded_frames() { return encoded_frames_; }
   void remove_watcher(const EventSink* sink);
+  // A Deform stream: revoked when its tokens are rotated away or the session is deleted.
+  // Held weakly (the stream unregisters by going away).
+  void add_stream(std::weak_ptr<AuthorizedStream> stream);
   int observers() const;
   // MESHOPT_DELTA watchers (each encodes every frame for itself): false, and nothing taken,
   // when `limit` are already watching so.
@@ -328,6 +342,7 @@ class Session : public std::enable_shared_from_this<Session> {
   std::chrono::steady_clock::time_point last_measured_{};
   std::int64_t create_ms_ = 0, update_ms_ = 0;
   std::vector<std::shared_ptr<EventSink>> watchers_;
+  std::vector<std::weak_ptr<AuthorizedStream>> streams_auth_;  // Deform streams
   SessionTokens tokens_;
   Persisted persisted_;
   Roster roster_;

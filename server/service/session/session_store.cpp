@@ -1,5 +1,6 @@
 #include "service/session/session_store.h"
 
+#include "service/infra/release_memory.h"
 #include "service/infra/service_error.h"
 #include "service/session/session_record.h"
 #include "service/state/state_keys.h"
@@ -265,6 +266,8 @@ bool SessionStore::remove(const std::string& name) {
   }
   s->close();
   spdlog::info("{}: deleted", s->name());
+  s.reset();
+  release_freed_memory();  // a no-op while a stream still holds the session
   return true;
 }
 
@@ -330,7 +333,10 @@ std::size_t SessionStore::expire_idle() {
     }
     s->close();
   }
-  return expired.size();
+  const std::size_t n = expired.size();
+  expired.clear();
+  if (n > 0) release_freed_memory();
+  return n;
 }
 
 void SessionStore::start_sweeper() {
