@@ -1,14 +1,11 @@
 #include "engine/io/animation_glb.h"
 
-#include "engine/io/mesh_writers.h"
-
-#include <tiny_gltf.h>
+#include "engine/io/glb_builder.h"
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
+#include <cstdint>
 #include <limits>
-#include <sstream>
 #include <stdexcept>
 
 namespace hdeform {
@@ -38,11 +35,13 @@ AnimationGlb::AnimationGlb(Triangles F, Eigen::Index vertices, std::vector<doubl
   hi_.assign(times_.size(), std::vector<double>(3, -std::numeric_limits<double>::infinity()));
 }
 
+std::size_t AnimationGlb::offset(std::size_t frame, int attribute) const {
+  return (frame * static_cast<std::size_t>(attributes()) + static_cast<std::size_t>(attribute)) *
+         n_ * 12;
+}
+
 float* AnimationGlb::block(std::size_t frame, int attribute) {
-  const std::size_t offset =
-      (frame * static_cast<std::size_t>(attributes()) + static_cast<std::size_t>(attribute)) *
-      n_ * 12;
-  return reinterpret_cast<float*>(data_.data() + offset);
+  return reinterpret_cast<float*>(data_.data() + offset(frame, attribute));
 }
 
 void AnimationGlb::write(std::size_t k, int a, const Eigen::Ref<const Eigen::MatrixXd>& X) {
@@ -88,107 +87,63 @@ void AnimationGlb::set_colors(std::size_t frame, const Eigen::MatrixXf& C) {
 std::string AnimationGlb::finish() {
   if (added_ != times_.size() || (colors_ && colored_ != added_))
     throw std::logic_error("AnimationGlb: frames or colours missing");
+  using detail::GlbBuilder;
+  using json = GlbBuilder::json;
   const std::size_t K = times_.size(), m = static_cast<std::size_t>(F_.rows());
-  const std::size_t frames_bytes = data_.size();
-  const std::size_t index_offset = frames_bytes;
-  const std::size_t times_offset = index_offset + m * 12;
-  const std::size_t weights_offset = times_offset + K * 4;
-  data_.resize(weights_offset + K * (K - 1) * 4);
-  auto* ind = reinterpret_cast<std::uint32_t*>(data_.data() + index_offset);
+  // Buffer 0: the frames as add_frame laid them out, the indices, then (animated) the sample
+  // times and the weights.
+  GlbBuilder glb(GlbBuilder::ZeroOffset::omitted, std::move(data_));
+  static const char* const names[] = {"POSITION", "NORMAL", "COLOR_0"};
+  json base, targets = json::array();  // frame 0's attributes, the others'
+  for (std::size_t k = 0; k < K; ++k) {
+    json attrs = json::object();
+    for (int a = 0; a < attributes(); ++a) {
+      const bool bounds = a == 0 && n_ > 0;
+      attrs[names[a]] = glb.add_accessor(
+          glb.add_view(offset(k, a), n_ * 12, detail::kTargetArrayBuffer), detail::kComponentFloat,
+          n_, "VEC3", bounds ? json(lo_[k]) : nullptr, bounds ? json(hi_[k]) : nullptr);
+    }
+    if (k == 0)
+      base = std::move(attrs);
+    else
+      targets.push_back(std::move(attrs));
+  }
+  const std::size_t index_at = glb.grow(m * 12);
+  auto* ind = reinterpret_cast<std::uint32_t*>(glb.data() + index_at);
   for (std::size_t t = 0; t < m; ++t)
     for (int c = 0; c < 3; ++c)
       ind[3 * t + static_cast<std::size_t>(c)] =
           static_cast<std::uint32_t>(F_(static_cast<Eigen::Index>(t), c));
-  auto* tf = reinterpret_cast<float*>(data_.data() + times_offset);
-  for (std::size_t k = 0; k < K; ++k) tf[k] = static_cast<float>(times_[k]);
-  // Sample k shows frame k: all weights 0 at k = 0, target k − 1 alone after.
-  auto* w = reinterpret_cast<float*>(data_.data() + weights_offset);
-  std::fill(w, w + K * (K - 1), 0.0f);
-  for (std::size_t k = 1; k < K; ++k) w[k * (K - 1) + (k - 1)] = 1.0f;
-
-  tinygltf::Model model;
-  model.asset.version = "2.0";
-  model.asset.generator = "hdeform";
-  auto view = [&](std::size_t offset, std::size_t length, int target) {
-    tinygltf::BufferView bv;
-    bv.buffer = 0;
-    bv.byteOffset = offset;
-    bv.byteLength = length;
-    bv.target = target;
-    model.bufferViews.push_back(bv);
-    return static_cast<int>(model.bufferViews.size() - 1);
-  };
-  auto accessor = [&](int view_index, std::size_t count, int type, int component) {
-    tinygltf::Accessor a;
-    a.bufferView = view_index;
-    a.componentType = component;
-    a.count = count;
-    a.type = type;
-    model.accessors.push_back(a);
-    return static_cast<int>(model.accessors.size() - 1);
-  };
-  tinygltf::Primitive prim;
-  prim.mode = TINYGLTF_MODE_TRIANGLES;
-  static const char* const names[] = {"POSITION", "NORMAL", "COLOR_0"};
-  for (std::size_t k = 0; k < K; ++k) {
-    std::map<std::string, int> attrs;
-    for (int a = 0; a < attributes(); ++a) {
-      const std::size_t offset =
-          reinterpret_cast<unsigned char*>(block(k, a)) - data_.data();
-      const int v = view(offset, n_ * 12, TINYGLTF_TARGET_ARRAY_BUFFER);
-      const int acc = accessor(v, n_, TINYGLTF_TYPE_VEC3, TINYGLTF_COMPONENT_TYPE_FLOAT);
-      if (a == 0 && n_ > 0) {
-        model.accessors[static_cast<std::size_t>(acc)].minValues = lo_[k];
-        model.accessors[static_cast<std::size_t>(acc)].maxValues = hi_[k];
-      }
-      attrs[names[a]] = acc;
-    }
-    if (k == 0)
-      prim.attributes = attrs;
-    else
-      prim.targets.push_back(attrs);
-  }
-  prim.indices = accessor(view(index_offset, m * 12, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER), 3 * m,
-                          TINYGLTF_TYPE_SCALAR, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT);
-  tinygltf::Mesh mesh;
-  mesh.name = "deformation";
-  mesh.primitives.push_back(prim);
-  mesh.weights.assign(K - 1, 0.0);
-  model.meshes.push_back(mesh);
-  tinygltf::Node node;
-  node.name = "deformed";
-  node.mesh = 0;
-  model.nodes.push_back(node);
-  detail::add_scene(model, up_z_);
-
+  json primitive = detail::triangles(
+      std::move(base),
+      glb.add_accessor(glb.add_view(index_at, m * 12, detail::kTargetElementArrayBuffer),
+                       detail::kComponentUnsignedInt, 3 * m, "SCALAR"));
+  json mesh = {{"name", "deformation"}};
   if (K > 1) {
-    const int input = accessor(view(times_offset, K * 4, 0), K, TINYGLTF_TYPE_SCALAR,
-                               TINYGLTF_COMPONENT_TYPE_FLOAT);
-    model.accessors[static_cast<std::size_t>(input)].minValues = {static_cast<double>(tf[0])};
-    model.accessors[static_cast<std::size_t>(input)].maxValues = {static_cast<double>(tf[K - 1])};
-    const int output = accessor(view(weights_offset, K * (K - 1) * 4, 0), K * (K - 1),
-                                TINYGLTF_TYPE_SCALAR, TINYGLTF_COMPONENT_TYPE_FLOAT);
-    tinygltf::Animation anim;
-    anim.name = "timeline";
-    tinygltf::AnimationSampler sampler;
-    sampler.input = input;
-    sampler.output = output;
-    sampler.interpolation = "LINEAR";
-    anim.samplers.push_back(sampler);
-    tinygltf::AnimationChannel channel;
-    channel.sampler = 0;
-    channel.target_node = 0;
-    channel.target_path = "weights";
-    anim.channels.push_back(channel);
-    model.animations.push_back(anim);
-  } else {
-    data_.resize(times_offset);  // a still: no animation data
+    primitive["targets"] = std::move(targets);
+    mesh["weights"] = std::vector<double>(K - 1, 0.0);
   }
+  glb.set_mesh(std::move(primitive), up_z_, std::move(mesh), {{"name", "deformed"}});
+  if (K == 1) return glb.finish("AnimationGlb");  // a still: no animation
 
-  tinygltf::Buffer buffer;
-  buffer.data = std::move(data_);
-  model.buffers.push_back(std::move(buffer));
-  return detail::serialise_glb(model, "AnimationGlb");
+  const std::size_t times_at = glb.grow(K * 4);
+  auto* tf = reinterpret_cast<float*>(glb.data() + times_at);
+  for (std::size_t k = 0; k < K; ++k) tf[k] = static_cast<float>(times_[k]);
+  const int input = glb.add_accessor(glb.add_view(times_at, K * 4, 0), detail::kComponentFloat, K,
+                                     "SCALAR", json::array({static_cast<double>(tf[0])}),
+                                     json::array({static_cast<double>(tf[K - 1])}));
+  // Sample k shows frame k: all weights 0 at k = 0, target k − 1 alone after.
+  const std::size_t weights_at = glb.grow(K * (K - 1) * 4);
+  auto* w = reinterpret_cast<float*>(glb.data() + weights_at);
+  for (std::size_t k = 1; k < K; ++k) w[k * (K - 1) + (k - 1)] = 1.0f;
+  const int output = glb.add_accessor(glb.add_view(weights_at, K * (K - 1) * 4, 0),
+                                      detail::kComponentFloat, K * (K - 1), "SCALAR");
+  const json sampler = {{"input", input}, {"interpolation", "LINEAR"}, {"output", output}};
+  const json channel = {{"sampler", 0}, {"target", {{"node", 0}, {"path", "weights"}}}};
+  glb.doc()["animations"] = json::array({json{{"name", "timeline"},
+                                              {"channels", json::array({channel})},
+                                              {"samplers", json::array({sampler})}}});
+  return glb.finish("AnimationGlb");
 }
 
 Eigen::Vector3f energy_color(double e, double scale) {

@@ -39,6 +39,7 @@ class AnimationGlb {
   std::string finish();
 
  private:
+  std::size_t offset(std::size_t frame, int attribute) const;  // of a block in data_
   float* block(std::size_t frame, int attribute);
   void write(std::size_t frame, int attribute, const Eigen::Ref<const Eigen::MatrixXd>& X);  // attribute: 0 POSITION, 1 NORMAL, 2 COLOR_0
   int attributes() const { return colors_ ? 3 : 2; }
@@ -48,7 +49,7 @@ class AnimationGlb {
   std::vector<double> times_;
   bool colors_, up_z_;
   std::size_t added_ = 0, colored_ = 0;
-  std::vector<unsigned char> data_;  // [frame 0 attributes | indices | frames 1.. | anim]
+  std::string data_;  // [frame 0 | frame 1 | …], a frame's attributes in turn, n×12 B each
   std::vector<std::vector<double>> lo_, hi_;  // per frame: POSITION min/max (deltas for k ≥ 1)
 };
 

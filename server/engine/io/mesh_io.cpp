@@ -125,11 +125,15 @@ std::string write_mesh_bytes(MeshFileFormat format, const Vertices& V, const Tri
                              const Vertices* N, const WriteOptions& options) {
   check_write_input(V, F, N);
   switch (format) {
-    case MeshFileFormat::glb:
+    case MeshFileFormat::glb: {
+      // A GLB always carries normals: vertex_normals() when none are given.
+      const Vertices computed = N ? Vertices() : vertex_normals(V, F);
+      const Vertices& normals = N ? *N : computed;
       if (options.glb_compression == GlbCompression::none)
-        return detail::write_glb(V, F, N, options.up_z);
-      return detail::write_glb_compressed(V, F, N, options.up_z,
+        return detail::write_glb(V, F, normals, options.up_z);
+      return detail::write_glb_compressed(V, F, normals, options.up_z,
                                           options.glb_compression == GlbCompression::meshopt);
+    }
     case MeshFileFormat::obj: return detail::write_obj(V, F, N);
     case MeshFileFormat::off: return detail::write_off(V, F, N);
     case MeshFileFormat::ply:

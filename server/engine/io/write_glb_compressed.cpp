@@ -1,33 +1,28 @@
 // Compressed GLB: KHR_mesh_quantization, optionally through EXT_meshopt_compression
 // (GlbCompression in mesh_io.h says what is stored and its error).
 //
-// Written with nlohmann::json rather than tinygltf: EXT_meshopt_compression's views point into
-// a fallback buffer that has a byteLength and no data, which tinygltf cannot emit (it writes
-// every buffer after the first as a data URI of its bytes).
+// Built with glb_builder.h like the other GLB writers. With meshopt, the compressed views
+// point into a fallback buffer 1 that has a byteLength and no data (tinygltf cannot write
+// such a buffer: it writes every buffer after the first as a data URI of its bytes).
 
 #include "engine/io/mesh_writers.h"
 
+#include "engine/io/glb_builder.h"
 #include "engine/io/mesh_io.h"
 
 #include <meshoptimizer.h>
-#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-#include <limits>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 namespace hdeform::detail {
 namespace {
-
-using json = nlohmann::json;
-
-constexpr int kComponentByte = 5120, kComponentUnsignedShort = 5123, kComponentUnsignedInt = 5125;
-constexpr int kTargetArrayBuffer = 34962, kTargetElementArrayBuffer = 34963;
 
 // One buffer view's bytes, as a renderer sees them after any decompression.
 struct Stream {
@@ -123,137 +118,69 @@ std::string meshopt_compress(const Stream& s, const Triangles& F, std::size_t ve
   return out;
 }
 
-void pad4(std::string& s, char with) { s.resize((s.size() + 3) & ~std::size_t{3}, with); }
-
-void append_u32(std::string& out, std::uint32_t v) {
-  char b[4];
-  std::memcpy(b, &v, 4);
-  out.append(b, 4);
-}
-
-// The GLB container: 12-byte header, JSON chunk (space-padded), BIN chunk (zero-padded).
-std::string glb_container(const json& doc, std::string bin) {
-  std::string text = doc.dump();
-  pad4(text, ' ');
-  pad4(bin, '\0');
-  const std::size_t total = 12 + 8 + text.size() + (bin.empty() ? 0 : 8 + bin.size());
-  if (total > std::numeric_limits<std::uint32_t>::max())
-    throw std::runtime_error("write_mesh: the GLB would exceed 4 GiB");
-  std::string out;
-  out.reserve(total);
-  out += "glTF";
-  append_u32(out, 2);
-  append_u32(out, static_cast<std::uint32_t>(total));
-  append_u32(out, static_cast<std::uint32_t>(text.size()));
-  out += "JSON";
-  out += text;
-  if (!bin.empty()) {
-    append_u32(out, static_cast<std::uint32_t>(bin.size()));
-    out += std::string("BIN\0", 4);
-    out += bin;
-  }
-  return out;
-}
-
 }  // namespace
 
-std::string write_glb_compressed(const Vertices& V, const Triangles& F, const Vertices* N,
+std::string write_glb_compressed(const Vertices& V, const Triangles& F, const Vertices& N,
                                  bool up_z, bool meshopt) {
-  Vertices computed;
-  if (!N) {
-    computed = vertex_normals(V, F);
-    N = &computed;
-  }
   Grid grid;
-  const std::array<Stream, 3> streams = {quantize_positions(V, grid), quantize_normals(*N),
+  const std::array<Stream, 3> streams = {quantize_positions(V, grid), quantize_normals(N),
                                          index_stream(F, V.rows())};
 
   // Buffer 0 is the GLB's BIN chunk: the streams themselves, or their compressed forms while
   // buffer 1 (the fallback, no data) gives the compressed views their decoded layout.
-  std::string bin;
+  GlbBuilder glb(GlbBuilder::ZeroOffset::written);
   std::size_t raw_offset = 0;  // in the fallback buffer
-  json views = json::array();
-  for (const Stream& s : streams) {
+  std::array<int, 3> views{};
+  for (std::size_t i = 0; i < streams.size(); ++i) {
+    const Stream& s = streams[i];
     // A stream the codec would not shrink (an index buffer without triangle locality, e.g. the
     // cactus: 65,680 bytes for 63,108) stays raw in buffer 0: views may mix, the file stays
     // the same to a reader.
     const std::string packed = meshopt ? meshopt_compress(s, F, static_cast<std::size_t>(V.rows()))
                                        : std::string();
     const bool compress = meshopt && packed.size() < s.bytes.size();
-    json view = {{"buffer", compress ? 1 : 0},
-                 {"byteOffset", compress ? raw_offset : bin.size()},
-                 {"byteLength", s.bytes.size()},
-                 {"target", s.indices ? kTargetElementArrayBuffer : kTargetArrayBuffer}};
-    if (!s.indices) view["byteStride"] = s.stride;
-    if (compress) {
-      view["extensions"]["EXT_meshopt_compression"] = {
-          {"buffer", 0},
-          {"byteOffset", bin.size()},
-          {"byteLength", packed.size()},
-          {"byteStride", s.stride},
-          {"count", s.count},
-          {"mode", s.indices ? "TRIANGLES" : "ATTRIBUTES"}};
-      bin += packed;
-      raw_offset += (s.bytes.size() + 3) & ~std::size_t{3};
-    } else {
-      bin += s.bytes;
+    const int target = s.indices ? kTargetElementArrayBuffer : kTargetArrayBuffer;
+    const int stride = s.indices ? 0 : s.stride;  // an index view has none
+    if (!compress) {
+      views[i] = glb.append_view(s.bytes, target, stride);
+      continue;
     }
-    pad4(bin, '\0');
-    views.push_back(std::move(view));
+    views[i] = glb.add_view(raw_offset, s.bytes.size(), target, stride, 1);
+    const std::size_t packed_at = glb.append(packed);
+    glb.view(views[i])["extensions"]["EXT_meshopt_compression"] = {
+        {"buffer", 0},
+        {"byteOffset", packed_at},
+        {"byteLength", packed.size()},
+        {"byteStride", s.stride},
+        {"count", s.count},
+        {"mode", s.indices ? "TRIANGLES" : "ATTRIBUTES"}};
+    raw_offset += (s.bytes.size() + 3) & ~std::size_t{3};
   }
 
+  using json = GlbBuilder::json;
   json extensions = {"KHR_mesh_quantization"};
   if (meshopt) extensions.push_back("EXT_meshopt_compression");
-  json buffers = json::array();
-  buffers.push_back({{"byteLength", bin.size()}});
+  glb.doc()["extensionsUsed"] = extensions;
+  glb.doc()["extensionsRequired"] = extensions;
   if (meshopt)
-    buffers.push_back({{"byteLength", raw_offset},
-                       {"extensions", {{"EXT_meshopt_compression", {{"fallback", true}}}}}});
+    glb.doc()["buffers"].push_back(
+        {{"byteLength", raw_offset},
+         {"extensions", {{"EXT_meshopt_compression", {{"fallback", true}}}}}});
 
   const std::size_t n = static_cast<std::size_t>(V.rows());
-  json position = {{"bufferView", 0},
-                   {"componentType", kComponentUnsignedShort},
-                   {"count", n},
-                   {"type", "VEC3"}};
-  if (n > 0) {
-    position["min"] = grid.qmin;
-    position["max"] = grid.qmax;
-  }
-  const json normal = {{"bufferView", 1}, {"componentType", kComponentByte},
-                       {"normalized", true}, {"count", n}, {"type", "VEC3"}};
-  const json index = {
-      {"bufferView", 2},
-      {"componentType", streams[2].stride == 2 ? kComponentUnsignedShort : kComponentUnsignedInt},
-      {"count", streams[2].count},
-      {"type", "SCALAR"}};
-  const json accessors = json::array({position, normal, index});
-
+  const int position =
+      glb.add_accessor(views[0], kComponentUnsignedShort, n, "VEC3",
+                       n > 0 ? json(grid.qmin) : nullptr, n > 0 ? json(grid.qmax) : nullptr);
+  const int normal = glb.add_accessor(views[1], kComponentByte, n, "VEC3");
+  glb.accessor(normal)["normalized"] = true;
+  const int indices = glb.add_accessor(
+      views[2], streams[2].stride == 2 ? kComponentUnsignedShort : kComponentUnsignedInt,
+      streams[2].count, "SCALAR");
   // The mesh node dequantizes: model = origin + step · q (uniform, so normals stay right).
-  json nodes = json::array({{{"mesh", 0},
-                             {"translation", grid.origin},
-                             {"scale", {grid.step, grid.step, grid.step}}}});
-  json scene_nodes = json::array({0});
-  if (up_z) {
-    nodes.push_back({{"name", "z-up to y-up"},
-                     {"rotation", kZUpToYUp},
-                     {"children", json::array({0})}});
-    scene_nodes = json::array({1});
-  }
-  json primitive = {{"attributes", {{"POSITION", 0}, {"NORMAL", 1}}}, {"indices", 2}, {"mode", 4}};
-  json mesh = {{"primitives", json::array({primitive})}};
-  json scene = {{"nodes", scene_nodes}};
-  json doc = {
-      {"asset", {{"version", "2.0"}, {"generator", "hdeform"}}},
-      {"extensionsUsed", extensions},
-      {"extensionsRequired", extensions},
-      {"buffers", buffers},
-      {"bufferViews", views},
-      {"accessors", accessors},
-      {"meshes", json::array({mesh})},
-      {"nodes", nodes},
-      {"scenes", json::array({scene})},
-      {"scene", 0}};
-  return glb_container(doc, std::move(bin));
+  glb.set_mesh(triangles({{"POSITION", position}, {"NORMAL", normal}}, indices), up_z,
+               json::object(),
+               {{"translation", grid.origin}, {"scale", {grid.step, grid.step, grid.step}}});
+  return glb.finish("write_mesh");
 }
 
 }  // namespace hdeform::detail

@@ -2,14 +2,13 @@
 //
 // Text formats print doubles with std::to_chars (shortest representation that reads back to
 // the same double, i.e. round-trips exactly like %.17g but stays readable).
-// GLB: one buffer [POSITION float32 n×3 | NORMAL float32 n×3 | indices uint32 m×3], three
-// buffer views in that order, one mesh with one TRIANGLES primitive, one node, one scene.
+// GLB (glb_builder.h): one buffer [POSITION float32 n×3 | NORMAL float32 n×3 | indices uint32
+// m×3], three buffer views in that order, one mesh with one TRIANGLES primitive, one node, one
+// scene.
 
 #include "engine/io/mesh_writers.h"
 
-#include "engine/io/mesh_io.h"
-
-#include <tiny_gltf.h>
+#include "engine/io/glb_builder.h"
 
 #include <algorithm>
 #include <bit>
@@ -17,10 +16,7 @@
 #include <cmath>
 #include <cstring>
 #include <cstdint>
-#include <iterator>
 #include <limits>
-#include <sstream>
-#include <stdexcept>
 #include <vector>
 
 namespace hdeform::detail {
@@ -160,106 +156,37 @@ std::string write_ply_binary(const Vertices& V, const Triangles& F, const Vertic
   return out;
 }
 
-std::string write_glb(const Vertices& V, const Triangles& F, const Vertices* N, bool up_z) {
-  Vertices computed;
-  if (!N) {
-    computed = vertex_normals(V, F);
-    N = &computed;
-  }
+std::string write_glb(const Vertices& V, const Triangles& F, const Vertices& N, bool up_z) {
   const size_t n = static_cast<size_t>(V.rows());
   const size_t m = static_cast<size_t>(F.rows());
-  tinygltf::Model model;
-  model.asset.version = "2.0";
-  model.asset.generator = "hdeform";
-  tinygltf::Buffer buffer;
-  buffer.data.resize(n * 24 + m * 12);
-  float* pos = reinterpret_cast<float*>(buffer.data.data());
-  float* nrm = pos + 3 * n;
+  GlbBuilder glb(GlbBuilder::ZeroOffset::omitted);
+  const size_t pos_at = glb.grow(n * 12), nrm_at = glb.grow(n * 12), ind_at = glb.grow(m * 12);
+  float* pos = reinterpret_cast<float*>(glb.data() + pos_at);
+  float* nrm = reinterpret_cast<float*>(glb.data() + nrm_at);
   std::vector<double> lo(3, std::numeric_limits<double>::infinity());
   std::vector<double> hi(3, -std::numeric_limits<double>::infinity());
   for (size_t i = 0; i < n; ++i)
     for (int k = 0; k < 3; ++k) {
       const float p = static_cast<float>(V(static_cast<Eigen::Index>(i), k));
       pos[3 * i + k] = p;
-      nrm[3 * i + k] = static_cast<float>((*N)(static_cast<Eigen::Index>(i), k));
+      nrm[3 * i + k] = static_cast<float>(N(static_cast<Eigen::Index>(i), k));
       lo[k] = std::min(lo[k], static_cast<double>(p));
       hi[k] = std::max(hi[k], static_cast<double>(p));
     }
-  uint32_t* ind = reinterpret_cast<uint32_t*>(buffer.data.data() + n * 24);
+  uint32_t* ind = reinterpret_cast<uint32_t*>(glb.data() + ind_at);
   for (size_t t = 0; t < m; ++t)
     for (int k = 0; k < 3; ++k) ind[3 * t + k] = static_cast<uint32_t>(F(static_cast<Eigen::Index>(t), k));
-  model.buffers.push_back(std::move(buffer));
 
-  auto view = [&](size_t offset, size_t length, int target) {
-    tinygltf::BufferView bv;
-    bv.buffer = 0;
-    bv.byteOffset = offset;
-    bv.byteLength = length;
-    bv.target = target;
-    model.bufferViews.push_back(bv);
-  };
-  view(0, n * 12, TINYGLTF_TARGET_ARRAY_BUFFER);
-  view(n * 12, n * 12, TINYGLTF_TARGET_ARRAY_BUFFER);
-  view(n * 24, m * 12, TINYGLTF_TARGET_ELEMENT_ARRAY_BUFFER);
-
-  tinygltf::Accessor ap;
-  ap.bufferView = 0;
-  ap.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
-  ap.count = n;
-  ap.type = TINYGLTF_TYPE_VEC3;
-  if (n > 0) {
-    ap.minValues = lo;
-    ap.maxValues = hi;
-  }
-  tinygltf::Accessor an = ap;
-  an.bufferView = 1;
-  an.minValues.clear();
-  an.maxValues.clear();
-  tinygltf::Accessor ai;
-  ai.bufferView = 2;
-  ai.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
-  ai.count = 3 * m;
-  ai.type = TINYGLTF_TYPE_SCALAR;
-  model.accessors = {ap, an, ai};
-
-  tinygltf::Primitive prim;
-  prim.attributes["POSITION"] = 0;
-  prim.attributes["NORMAL"] = 1;
-  prim.indices = 2;
-  prim.mode = TINYGLTF_MODE_TRIANGLES;
-  tinygltf::Mesh mesh;
-  mesh.primitives.push_back(prim);
-  model.meshes.push_back(mesh);
-  tinygltf::Node node;
-  node.mesh = 0;
-  model.nodes.push_back(node);
-  add_scene(model, up_z);
-  return serialise_glb(model, "write_mesh");
-}
-
-void add_scene(tinygltf::Model& model, bool up_z) {
-  tinygltf::Scene scene;
-  if (up_z) {
-    // −90° about x: (x, y, z) → (x, z, −y). On a parent, so the mesh node stays plain.
-    tinygltf::Node up;
-    up.name = "z-up to y-up";
-    up.rotation.assign(std::begin(kZUpToYUp), std::end(kZUpToYUp));
-    up.children.push_back(0);
-    model.nodes.push_back(up);
-    scene.nodes.push_back(static_cast<int>(model.nodes.size() - 1));
-  } else {
-    scene.nodes.push_back(0);
-  }
-  model.scenes.push_back(scene);
-  model.defaultScene = 0;
-}
-
-std::string serialise_glb(tinygltf::Model& model, const char* who) {
-  tinygltf::TinyGLTF writer;
-  std::ostringstream os;
-  if (!writer.WriteGltfSceneToStream(&model, os, false, true))
-    throw std::runtime_error(std::string(who) + ": tinygltf failed to serialise the GLB");
-  return os.str();
+  using json = GlbBuilder::json;
+  const int position = glb.add_accessor(glb.add_view(pos_at, n * 12, kTargetArrayBuffer),
+                                        kComponentFloat, n, "VEC3", n > 0 ? json(lo) : nullptr,
+                                        n > 0 ? json(hi) : nullptr);
+  const int normal = glb.add_accessor(glb.add_view(nrm_at, n * 12, kTargetArrayBuffer),
+                                      kComponentFloat, n, "VEC3");
+  const int indices = glb.add_accessor(glb.add_view(ind_at, m * 12, kTargetElementArrayBuffer),
+                                       kComponentUnsignedInt, 3 * m, "SCALAR");
+  glb.set_mesh(triangles({{"POSITION", position}, {"NORMAL", normal}}, indices), up_z);
+  return glb.finish("write_mesh");
 }
 
 }  // namespace hdeform::detail
