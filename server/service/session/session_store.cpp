@@ -169,6 +169,19 @@ bool SessionStore::still_current(Session& s) const {
   return true;
 }
 
+void SessionStore::forget(Session& s) {
+  if (durable()) {
+    std::lock_guard plock(s.persisted().mutex);  // no save of it may follow the delete
+    s.persisted().saved_version = INT64_MAX;
+    try {
+      persistence_.backend->delete_session(s.id());
+    } catch (const StateError& e) {
+      spdlog::error("{}: deleting its stored state: {}", s.name(), e.what());
+    }
+  }
+  s.close();
+}
+
 void SessionStore::drop(const std::shared_ptr<Session>& s) const {
   {
     std::lock_guard lock(mutex_);
@@ -255,16 +268,7 @@ bool SessionStore::remove(const std::string& name) {
     s = std::move(it->second);
     sessions_.erase(it);
   }
-  if (durable()) {
-    std::lock_guard plock(s->persisted().mutex);  // no save of it may follow the delete
-    s->persisted().saved_version = INT64_MAX;
-    try {
-      persistence_.backend->delete_session(s->id());
-    } catch (const StateError& e) {
-      spdlog::error("{}: deleting its stored state: {}", s->name(), e.what());
-    }
-  }
-  s->close();
+  forget(*s);
   spdlog::info("{}: deleted", s->name());
   s.reset();
   release_freed_memory();  // a no-op while a stream still holds the session
@@ -322,16 +326,7 @@ std::size_t SessionStore::expire_idle() {
   }
   for (auto& s : expired) {
     spdlog::info("{}: expired after {} ms idle", s->name(), limits_.session_ttl.count());
-    if (durable()) {
-      std::lock_guard plock(s->persisted().mutex);
-      s->persisted().saved_version = INT64_MAX;
-      try {
-        persistence_.backend->delete_session(s->id());
-      } catch (const StateError& e) {
-        spdlog::error("{}: deleting its stored state: {}", s->name(), e.what());
-      }
-    }
-    s->close();
+    forget(*s);
   }
   const std::size_t n = expired.size();
   expired.clear();

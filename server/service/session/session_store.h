@@ -118,6 +118,9 @@ class SessionStore {
   // False when the store holds a newer version of `s` (or none): the copy must go.
   bool still_current(Session& s) const;
   void drop(const std::shared_ptr<Session>& s) const;
+  // A session taken out of the registry (deleted, expired): its stored state is deleted and
+  // its streams end.
+  void forget(Session& s);
   void save_locked(Session& session, Session::Persisted& p) const;
   void purge_stored(bool meshes_too);
 
