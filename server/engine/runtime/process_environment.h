@@ -2,10 +2,9 @@
 // (docs/architecture.md "Threads", docs/benchmarks.md "Huge pages").
 //
 // OMP_WAIT_POLICY=PASSIVE: libgomp's idle threads spin after every parallel loop (≈ 300,000
-// polls when the variable is unset). On two cores that spinning thread holds the core the
-// move's next step needs: the two-thread supernodal solve runs on its own helper thread
-// (supernodal_solve.cpp), so guidance → solve → normals made three runnable threads fight for
-// two cores. Passive waiting sleeps instead (a futex wake, microseconds, per loop).
+// polls when the variable is unset). On two cores a spinning thread holds the core that a
+// frame's helper thread (two_threads.h) needs; passive waiting sleeps instead (a futex wake,
+// microseconds, per loop).
 //
 // GLIBC_TUNABLES=glibc.malloc.hugetlb=1: glibc asks for transparent huge pages
 // (madvise(MADV_HUGEPAGE)) on the large blocks it maps and on its heap. A first touch of a 4 KiB

@@ -26,13 +26,13 @@ void run_guarded(const WorkerPool::Task& task) {
 }
 }  // namespace
 
-// The engine's OpenMP loops run inside each worker. When OpenMP waits passively (the
-// server sets that up: process_environment.h), every worker's team gets all the cores: a lone move
-// then uses both (100K drag frame 13.6 vs 17.7 ms with one thread per worker, docs/benchmarks.md
-// "Threads"), and two concurrent moves share them with sleeping, not spinning, threads.
-// With spinning waits, oversubscribed teams only fight each other: then the workers split
-// the cores. OpenBLAS (CHOLMOD's BLAS) gets one thread: its pthread pool spins beside
-// OpenMP's and costs more than it gives on the small supernodes of these systems.
+// A frame runs on its worker and the engine's one helper thread (two_threads.h), with no
+// OpenMP region; what still uses OpenMP (the operators' assembly at an open, the frame
+// encodings) runs inside the workers. When OpenMP waits passively (the server sets that up:
+// process_environment.h), every worker's team gets all the cores and idle teams sleep;
+// with spinning waits, oversubscribed teams only fight each other, so the workers split the
+// cores. OpenBLAS (the factorization's large blocks) gets one thread: its pthread pool spins
+// and costs more than it gives on the blocks of these systems.
 static bool openmp_waits_passively() {
   const char* policy = std::getenv("OMP_WAIT_POLICY");
   return policy != nullptr && ::strcasecmp(policy, "passive") == 0;
