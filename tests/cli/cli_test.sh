@@ -493,9 +493,17 @@ restart)
   wait_for "^state $SESSION " "$TMP/watch"
   v1=$(sed -n "s|^state $SESSION version=\([0-9]*\) .*|\1|p" "$TMP/watch" | head -1)
   # 1. kill -9 with no call in flight; restart; a later run finds the session restored
+  sleep 0.3  # the opening stream's state lines (its state, then the observer count)
+  n0=$(grep -c "^state $SESSION " "$TMP/watch")
   kill -9 "$SERVER_PID"; wait "$SERVER_PID" 2>/dev/null; SERVER_PID=""
   start_server --state-dir "$STATE"
   echo "restarted on $ADDR"
+  # The watcher reopens its stream (one retry after 200 ms): a new state line. The move below
+  # must come after it, or its frame goes out while nobody watches.
+  for _ in $(seq 1 100); do
+    [ "$(grep -c "^state $SESSION " "$TMP/watch")" -gt "$n0" ] && break
+    sleep 0.1
+  done
   "$HDEFORM" --server "$ADDR" --token "$EDIT" deform --session "$SESSION" --translate 0,0.01,0 \
     >"$TMP/out" 2>"$TMP/err" || { cat "$TMP/err" "$TMP/server.err" >&2; fail "deform --session after the restart: exited $?"; }
   cat "$TMP/out"
@@ -504,8 +512,8 @@ restart)
   check_measures "$TMP/out"
   # the watcher reopened its stream: a second state line (same version as before the kill,
   # or later), then the new frame
-  wait_for "^frame seq=1 " "$TMP/watch"
-  [ "$(grep -c "^state $SESSION " "$TMP/watch")" -ge 2 ] || { cat "$TMP/watch" >&2; fail "watch did not reopen"; }
+  wait_for "^frame seq=1 " "$TMP/watch" || true; cat "$TMP/watch.err" >&2; cat "$TMP/watch" >&2
+  [ "$(grep -c "^state $SESSION " "$TMP/watch")" -gt "$n0" ] || { cat "$TMP/watch" >&2; fail "watch did not reopen"; }
   grep -q 'WatchSession: the server is unavailable; retrying once' "$TMP/watch.err" \
     || { cat "$TMP/watch.err" >&2; fail "watch: no retry logged"; }
   v2=$(sed -n "s|^state $SESSION version=\([0-9]*\) .*|\1|p" "$TMP/watch" | sed -n 2p)
@@ -517,7 +525,9 @@ restart)
   "$HDEFORM" --server "$ADDR" --token "$EDIT" --log-level info sweep --session "$SESSION" \
     --betas "$betas" --csv - >"$TMP/sweep.csv" 2>"$TMP/sweep.err" &
   SWEEP_PID=$!
-  sleep 0.5
+  # The kill must land mid-sweep: 64 transient factorizations of the cactus take ≈ 0.5 s on
+  # a quiet machine, the CLI's start ≈ 0.05 s.
+  sleep 0.15
   kill -0 "$SWEEP_PID" 2>/dev/null || { cat "$TMP/sweep.err" >&2; fail "the sweep ended before the kill (too fast for this test)"; }
   kill -9 "$SERVER_PID"; wait "$SERVER_PID" 2>/dev/null; SERVER_PID=""
   sleep 0.5

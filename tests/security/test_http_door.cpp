@@ -10,8 +10,11 @@
 #include <boost/beast/core.hpp>
 #include <boost/beast/http.hpp>
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <future>
+#include <thread>
 
 using namespace hdeform::testing;
 namespace fs = std::filesystem;
@@ -129,3 +132,60 @@ TEST(SecurityHttp, IdleSocketsDoNotLockOutClientsOrSessions) {
   pb::Frame f;
   EXPECT_TRUE(d.t.update(s.name(), 1, {cactus_transform()}, &f).ok());
 }
+
+namespace {
+
+// A gRPC-Web request body: one uncompressed message frame.
+std::string grpc_web_body(const google::protobuf::Message& m) {
+  const std::string bytes = m.SerializeAsString();
+  const auto n = static_cast<std::uint32_t>(bytes.size());
+  std::string out(1, '\0');
+  for (int shift = 24; shift >= 0; shift -= 8) out += static_cast<char>((n >> shift) & 0xff);
+  return out + bytes;
+}
+
+// RotateTokens reaches a browser's watch stream: the door relays the server's end of it
+// (UNAUTHENTICATED in the trailers) at once, and other sessions keep being served.
+TEST(SecurityHttp, RotatingEndsAWatchStreamThroughTheDoor) {
+  Door d;
+  const pb::Session s = d.t.library_session("cactus");
+  const pb::Session other = d.t.library_session("bar");
+  pb::WatchSessionRequest w;
+  w.set_name(s.name());
+  const std::string self = "http://127.0.0.1:" + std::to_string(d.gateway->port());
+  auto watch = std::async(std::launch::async, [&] {
+    return d.request(http::verb::post, "/hdeform.v1.Deformation/WatchSession",
+                     {{"Origin", self},
+                      {"Content-Type", "application/grpc-web+proto"},
+                      // Ends by itself in any case: a failing test must not hang.
+                      {"grpc-timeout", "10S"},
+                      {"Authorization", "Bearer " + s.view_token()}},
+                     grpc_web_body(w));
+  });
+  // Open once the session counts the watcher.
+  pb::Session now;
+  for (int i = 0; i < 200; ++i) {
+    ASSERT_TRUE(d.t.get_session(s.name(), &now).ok());
+    if (now.observers() > 0) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_GT(now.observers(), 0);
+
+  grpc::ClientContext ctx;
+  ctx.AddMetadata("authorization", "Bearer " + s.edit_token());
+  pb::RotateTokensRequest r;
+  r.set_name(s.name());
+  pb::Session rotated;
+  ASSERT_TRUE(d.t.bare_stub->RotateTokens(&ctx, r, &rotated).ok());
+  ASSERT_EQ(watch.wait_for(std::chrono::seconds(5)), std::future_status::ready)
+      << "the watch stream did not end after the rotation";
+  const auto [status, body] = watch.get();
+  EXPECT_EQ(status, 200);
+  EXPECT_NE(body.find("grpc-status:16"), std::string::npos)
+      << body.substr(body.size() > 300 ? body.size() - 300 : 0);
+  EXPECT_NE(body.find("rotated"), std::string::npos);
+  pb::Session got;
+  EXPECT_TRUE(d.t.get_session(other.name(), &got).ok());
+}
+
+}  // namespace

@@ -5,6 +5,7 @@
 
 #include <sqlite3.h>
 
+#include <atomic>
 #include <filesystem>
 #include <thread>
 
@@ -117,6 +118,40 @@ TEST(Durable, ARestartKeepsIdTokensVersionPoseAndBeta) {
   grpc::Status denied;
   get(b, after.name(), "not-a-token", &denied);
   EXPECT_EQ(denied.error_code(), StatusCode::PERMISSION_DENIED);
+}
+
+// A clean stop in the middle of a drag: the server stops accepting, ends the streams, drains
+// the calls in flight, then flushes, so the last move it answered is what a restart finds.
+TEST(Durable, AStopMidDragKeepsTheLastAnsweredMove) {
+  TempDir dir;
+  pb::Session created, s;
+  double last_answered = -1;
+  {
+    TestServer a(durable(dir.path));
+    ASSERT_TRUE(a.create_library("cactus", &created, "dragged").ok());
+    ASSERT_TRUE(a.set_constraints(created.name(), cactus_constraints(), &s).ok());
+    std::atomic<bool> go{true};
+    std::thread drag([&] {
+      for (int i = 1; go; ++i) {
+        pb::Frame f;
+        const double z = 0.001 * i;
+        if (!a.update(created.name(), i, {translation(0, 0, z)}, &f, false, /*dragging=*/true)
+                 .ok())
+          break;  // the server stopped accepting
+        last_answered = z;
+      }
+    });
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    a.server->shutdown(std::chrono::milliseconds(2000));
+    go = false;
+    drag.join();
+  }
+  ASSERT_GT(last_answered, 0);
+  TestServer b(durable(dir.path));
+  const pb::Session after = get(b, "sessions/dragged", created.view_token());
+  ASSERT_EQ(after.transforms_size(), 1);
+  EXPECT_DOUBLE_EQ(after.transforms(0).translation().z(), last_answered)
+      << "a move answered before the stop was lost";
 }
 
 TEST(Durable, UploadedMeshesAndRotatedTokensSurvive) {

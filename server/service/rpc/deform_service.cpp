@@ -746,12 +746,18 @@ DeformService::DeformService(const ServerOptions& options)
 }
 
 DeformService::~DeformService() {
-  close_sessions();
+  begin_shutdown();
   stop_workers();
+  close_sessions();
+}
+
+void DeformService::begin_shutdown() {
+  stopping_ = true;  // long loops (parsing, sweeps, automatic β) stop at their next check
+  store_.end_streams();
 }
 
 void DeformService::close_sessions() {
-  stopping_ = true;  // long loops (parsing, sweeps, automatic β) stop at their next check
+  stopping_ = true;
   store_.shutdown();
 }
 void DeformService::stop_workers() { pool_->stop(); }

@@ -24,7 +24,12 @@ class DeformService final : public v1::Deformation::CallbackService {
   explicit DeformService(const ServerOptions& options);
   ~DeformService() override;
 
-  // Ends every WatchSession stream (sessions are closed) and stops the TTL sweeper.
+  // A clean stop, in this order (Server::shutdown): begin_shutdown ends every open stream
+  // (UNAVAILABLE) and stops long loops; grpc::Server::Shutdown stops accepting and drains the
+  // calls in flight; stop_workers drains the pool; close_sessions flushes the durable state
+  // and closes the sessions. So every change that was answered is stored.
+  void begin_shutdown();
+  // Flushes the durable state, closes every session, stops the TTL sweeper.
   void close_sessions();
   // Drains and joins the worker pool (after the gRPC server has shut down).
   void stop_workers();

@@ -113,9 +113,10 @@ void Server::shutdown(std::chrono::milliseconds deadline) {
   spdlog::info("gRPC service shutting down");
   if (impl_->server->GetHealthCheckService())
     impl_->server->GetHealthCheckService()->SetServingStatus(false);
-  impl_->service->close_sessions();  // ends WatchSession streams
-  impl_->server->Shutdown(std::chrono::system_clock::now() + deadline);
+  impl_->service->begin_shutdown();  // open streams end: Shutdown need not wait for them
+  impl_->server->Shutdown(std::chrono::system_clock::now() + deadline);  // drains the calls
   impl_->service->stop_workers();
+  impl_->service->close_sessions();  // flushes what the drained calls answered
 }
 
 void Server::wait() { impl_->server->Wait(); }

@@ -778,6 +778,19 @@ IssuedTokens Session::rotate_tokens() {
   return issued;
 }
 
+void Session::end_streams(const grpc::Status& why) {
+  std::vector<std::shared_ptr<EventSink>> sinks;
+  std::vector<std::weak_ptr<AuthorizedStream>> streams;
+  {
+    std::lock_guard lock(mutex_);
+    sinks.swap(watchers_);
+    streams.swap(streams_auth_);
+  }
+  for (auto& s : sinks) s->revoke(why);
+  for (auto& w : streams)
+    if (auto s = w.lock()) s->revoke(why);
+}
+
 void Session::add_stream(std::weak_ptr<AuthorizedStream> stream) {
   std::lock_guard lock(mutex_);
   std::erase_if(streams_auth_, [](const auto& w) { return w.expired(); });

@@ -211,6 +211,8 @@ class Session : public std::enable_shared_from_this<Session> {
   // A Deform stream: revoked when its tokens are rotated away or the session is deleted.
   // Held weakly (the stream unregisters by going away).
   void add_stream(std::weak_ptr<AuthorizedStream> stream);
+  // Ends every open stream with `why` (the server is stopping); the session stays usable.
+  void end_streams(const grpc::Status& why);
   int observers() const;
   // MESHOPT_DELTA watchers (each encodes every frame for itself): false, and nothing taken,
   // when `limit` are already watching so.

@@ -368,6 +368,12 @@ void SessionStore::start_sweeper() {
   });
 }
 
+void SessionStore::end_streams() {
+  const grpc::Status stopping(grpc::StatusCode::UNAVAILABLE,
+                              "hdeform-server is shutting down; reconnect to resume the session");
+  for (auto& s : list()) s->end_streams(stopping);
+}
+
 void SessionStore::shutdown() {
   {
     std::lock_guard lock(sweeper_mutex_);

@@ -108,7 +108,10 @@ class SessionStore {
   // never idle). Returns how many expired.
   std::size_t expire_idle();
   void start_sweeper();
-  // Stops the sweeper and closes every session (observers get `deleted`).
+  // Ends every session's open streams (UNAVAILABLE: the server is stopping); the sessions
+  // stay, so what is still in flight commits and is flushed by shutdown().
+  void end_streams();
+  // Stops the sweeper, flushes the durable state and closes every session.
   void shutdown();
 
  private:
