@@ -2,7 +2,10 @@
 
 #include <unistd.h>
 
+#include <charconv>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 
 namespace hdeform::cli {
 
@@ -12,8 +15,23 @@ bool progress_enabled() {
 }
 
 namespace {
-constexpr auto kDelay = std::chrono::milliseconds(500);   // quick calls draw nothing
 constexpr auto kPeriod = std::chrono::milliseconds(200);
+
+// Quick calls draw nothing: 500 ms, or HDEFORM_PROGRESS_DELAY_MS (0–60000; the test of the
+// status line sets 0, since how fast a call is depends on the machine).
+std::chrono::milliseconds delay() {
+  static const std::chrono::milliseconds d = [] {
+    const char* v = std::getenv("HDEFORM_PROGRESS_DELAY_MS");
+    int ms = 500;
+    if (v && *v) {
+      int parsed = 0;
+      const auto [end, ec] = std::from_chars(v, v + std::strlen(v), parsed);
+      if (ec == std::errc() && *end == '\0' && parsed >= 0 && parsed <= 60000) ms = parsed;
+    }
+    return std::chrono::milliseconds(ms);
+  }();
+  return d;
+}
 }  // namespace
 
 Activity::Activity(std::string what)
@@ -38,7 +56,7 @@ void Activity::set(std::string what) {
 
 void Activity::loop() {
   std::unique_lock lock(mu_);
-  if (cv_.wait_for(lock, kDelay, [this] { return done_; })) return;
+  if (cv_.wait_for(lock, delay(), [this] { return done_; })) return;
   while (!done_) {
     const double s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();

@@ -688,8 +688,10 @@ progress)
   fi
   grep -qx "wrote $TMP/p.csv ([0-9]* bytes)" "$TMP/err" || fail "no 'wrote' line"
   if command -v script >/dev/null; then
-    # script(1) gives the command a terminal; the plane's 3 factorizations take > 0.5 s.
-    script -qec "$(printf '%q ' "$HDEFORM" "${PLANE[@]}" --csv "$TMP/q.csv")" /dev/null \
+    # script(1) gives the command a terminal; no delay before the first draw (a quiet machine
+    # sweeps the plane's 3 βs in well under the default 0.5 s).
+    HDEFORM_PROGRESS_DELAY_MS=0 \
+      script -qec "$(printf '%q ' "$HDEFORM" "${PLANE[@]}" --csv "$TMP/q.csv")" /dev/null \
       >"$TMP/tty" 2>&1 || { cat "$TMP/tty" >&2; fail "sweep on a terminal exited $?"; }
     grep -q 'hdeform: Sweep: 3 beta value(s), a factorization each … [0-9.]* s' "$TMP/tty" \
       || { cat -A "$TMP/tty" | head -20 >&2; fail "no status line on a terminal"; }
