@@ -308,16 +308,18 @@ class Session:
             f.write(data)
 
     # --- editing --------------------------------------------------------------------------
-    def constrain(self, fixed=None, handles=(), expected_version=0):
+    def constrain(self, fixed=None, handles=(), expected_version=0, discard_timeline=False):
         """Set the fixed region and the handle regions. A region: a selector (hdeform.ids,
         box, sphere, half_space, sel_file, …), a dict ({"box": (min, max)}), an id array, or
-        a list of selectors (their union). Resets every handle transform to identity."""
+        a list of selectors (their union). Resets every handle transform to identity.
+        New constraints drop the timeline's keys (undo() brings them back); keys another
+        client set are dropped only with discard_timeline=True (else hdeform.Error ABORTED)."""
         c = pb.Constraints(handles=[region(h) for h in handles])
         if fixed is not None:
             c.fixed.CopyFrom(region(fixed))
         self.info = self._call("SetConstraints", pb.SetConstraintsRequest(
             name=self.name, constraints=c, expected_version=expected_version,
-            client_id=self.client_id))
+            client_id=self.client_id, discard_timeline=discard_timeline))
         return self
 
     @property
@@ -392,17 +394,21 @@ class Session:
                            for row in r.rows)
 
     # --- history and snapshots (docs/api.md "History and snapshots") --------------------
-    def undo(self, step=0):
-        """Revert this script's latest change (or history step `step`, any author). Refused
-        (hdeform.Error, code ABORTED) when a later change touched what it would revert."""
+    def undo(self, step=0, discard_timeline=False):
+        """Revert this script's latest change (or history step `step`, any author): a move,
+        β, constraints, the timeline, a snapshot save or delete. Refused (hdeform.Error, code
+        ABORTED) when a later change touched what it would revert. discard_timeline: as in
+        constrain(), for a step that changed the constraints."""
         self.info = self._call("Undo", pb.UndoRequest(name=self.name, client_id=self.client_id,
-                                                      step=step))
+                                                      step=step,
+                                                      discard_timeline=discard_timeline))
         return self
 
-    def redo(self, step=0):
+    def redo(self, step=0, discard_timeline=False):
         """Re-apply this script's latest undone change (or undone step `step`)."""
         self.info = self._call("Redo", pb.UndoRequest(name=self.name, client_id=self.client_id,
-                                                      step=step))
+                                                      step=step,
+                                                      discard_timeline=discard_timeline))
         return self
 
     def history(self, limit=None):
@@ -429,14 +435,18 @@ class Session:
         r = self._call("ListSnapshots", pb.ListSnapshotsRequest(name=self.name))
         return {s.name: s for s in r.snapshots}
 
-    def restore_snapshot(self, name):
-        """Make snapshot `name` the session's state (an undoable history step)."""
+    def restore_snapshot(self, name, discard_timeline=False):
+        """Make snapshot `name` the session's state (an undoable history step).
+        discard_timeline: as in constrain(), when its constraints differ."""
         self.info = self._call("RestoreSnapshot", pb.RestoreSnapshotRequest(
-            name=self.name, snapshot=name, client_id=self.client_id))
+            name=self.name, snapshot=name, client_id=self.client_id,
+            discard_timeline=discard_timeline))
         return self
 
     def delete_snapshot(self, name):
-        self._call("DeleteSnapshot", pb.DeleteSnapshotRequest(name=self.name, snapshot=name))
+        """Remove snapshot `name` (an undoable history step: undo() brings it back)."""
+        self._call("DeleteSnapshot", pb.DeleteSnapshotRequest(name=self.name, snapshot=name,
+                                                              client_id=self.client_id))
 
     # --- timeline and animation (docs/api.md "Timeline and animation") ------------------
     def set_timeline(self, keys, easing="linear"):

@@ -233,6 +233,26 @@ def test_undo_redo_history_and_snapshots(cactus):
     assert cactus.info.transforms[0].translation.y == 0
     cactus.delete_snapshot("moved")
     assert cactus.snapshots() == {}
+    assert cactus.history(limit=1)[0].kind == pb.STEP_KIND_SNAPSHOT_DELETE
+    cactus.undo()  # a delete is a step: the snapshot comes back
+    assert set(cactus.snapshots()) == {"moved"}
+
+
+def test_new_constraints_keep_another_clients_keys_unless_asked(cactus):
+    from hdeform._proto import pb
+    cactus.set_timeline([(0, [None]), (1, [dict(translate=(0, 0, 0.2))])])
+    other = cactus.client.session(cactus.name, token=cactus.edit_token)  # another script
+    fixed, handle = cactus.fixed, cactus.handles[0]
+    split = [hdeform.ids(handle[:3]), hdeform.ids(handle[3:])]  # two handles now
+    with pytest.raises(hdeform.Error) as e:
+        other.constrain(fixed=fixed, handles=split)
+    assert e.value.code.name == "ABORTED" and "2 key(s)" in str(e.value)
+    assert len(cactus.timeline().keys) == 2
+    other.constrain(fixed=fixed, handles=split, discard_timeline=True)
+    assert len(cactus.timeline().keys) == 0
+    other.undo()
+    assert len(cactus.timeline().keys) == 2
+    assert cactus.history(limit=1)[0].kind == pb.STEP_KIND_UNDO
 
 
 def test_timeline_pose_and_animated_glb(cactus, tmp_path):

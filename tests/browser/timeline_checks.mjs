@@ -11,7 +11,8 @@
 //     server's exact frame of PoseAt(t_k) (UpdateHandles), in between the linear blend of the
 //     two neighbouring samples;
 //   play — Play shows the animation (two canvas shots differ), Stop returns to the live mesh;
-//   clear — new constraints empty the strip on both pages, with a note;
+//   clear — a second editor's new constraints ask before dropping the keys, then empty the strip on
+//     both pages, with a note; his Ctrl+Z brings the keys back, Ctrl+Shift+Z drops them again;
 //   bad input — fps 500 and 721 frames (> --max-animation-frames 600) show the server's message.
 // Screenshots `timeline-*.png`. Against a server without GetTimeline: SKIP, nothing checked.
 import { readFileSync } from "node:fs";
@@ -298,15 +299,31 @@ export async function timelineChecks({ context, base, log, check, sleep, shot, w
   check(!stopped.playing && stopped.liveMeshShown && (await page.textContent("#tl-play")) === "Play" && maxDiff(liveShape, serverShape) < 1e-6, "Stop returns to the live mesh (shown again, the server's current shape)");
   await shot(page, "timeline-05-stopped");
 
-  // ---- new constraints clear the strip (both pages) ------------------------------------------------------------
-  await hook(([a, b]) => window.hdeform.selectBox(a, b, 2), slab(0.35, 0.65, true));
-  await page.click("#apply");
-  await waitIdle(page);
+  // ---- Bob's new constraints: asked first (Tia's keys), then the strip clears on both pages; his Ctrl+Z
+  // brings the keys back, Ctrl+Shift+Z drops them again ---------------------------------------------------------
+  const dialogs = [];
+  bob.on("dialog", (d) => {
+    dialogs.push(d.message());
+    void d.accept();
+  });
+  await bob.evaluate(([a, b]) => window.hdeform.selectBox(a, b, 2), slab(0.35, 0.65, true));
+  await bob.click("#apply");
+  await waitIdle(bob);
   const cleared = await page.waitForFunction(() => window.hdeform.timeline().keys.length === 0, null, { timeout: 10_000 }).then(() => true, () => false);
   const bobCleared = await bob.waitForFunction(() => window.hdeform.timeline().keys.length === 0, null, { timeout: 10_000 }).then(() => true, () => false);
   const notes = [(await tl()).note, await bob.evaluate(() => window.hdeform.timeline().note)];
-  check(cleared && bobCleared && notes.every((n) => /cleared/.test(n) && /constraints/.test(n)), `new constraints clear the strip on both pages, with a note ("${notes[1]}")`);
+  check(dialogs.length === 1 && /3 key/.test(dialogs[0]) && /Undo brings them back/.test(dialogs[0]), `Bob's Apply asks before dropping Tia's keys ("${(dialogs[0] ?? "no dialog").split("\n")[0]}")`);
+  check(cleared && bobCleared && notes.every((n) => /cleared/.test(n) && /constraints/.test(n)), `new constraints clear the strip on both pages, with a note ("${notes[0]}")`);
   await shot(bob, "timeline-06-cleared");
+  await bob.keyboard.press("Control+z");
+  const keysBack = await page.waitForFunction(() => window.hdeform.timeline().keys.length === 3, null, { timeout: 10_000 }).then(() => true, () => false);
+  const bobKeysBack = await bob.waitForFunction(() => window.hdeform.timeline().keys.length === 3, null, { timeout: 10_000 }).then(() => true, () => false);
+  const bobError = await bob.evaluate(() => window.hdeform.lastError);
+  check(keysBack && bobKeysBack, `Bob's Ctrl+Z undoes his constraints and brings Tia's 3 keys back on both pages${keysBack ? "" : ` (Bob's page: "${bobError}")`}`);
+  await bob.keyboard.press("Control+Shift+z");
+  const clearedAgain = await page.waitForFunction(() => window.hdeform.timeline().keys.length === 0, null, { timeout: 10_000 }).then(() => true, () => false);
+  check(clearedAgain && dialogs.length === 1, "Ctrl+Shift+Z redoes them (the keys go again, nothing asked: they were Bob's to drop once)");
+  await waitIdle(page);
   await bob.close();
 
   // ---- bad input: the server's message inline -------------------------------------------------------------------

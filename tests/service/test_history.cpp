@@ -340,8 +340,94 @@ TEST(Snapshots, AreDurableWithTheSession) {
 TEST(History, AnUpdateThatChangesNothingIsNoStep) {
   TwoHandles e;
   ASSERT_TRUE(e.update("alice", {0}, {translation(0, 0, 0)}).ok());  // a frame refresh
+  // The viewer's refresh after Apply: identity with an explicit pivot (its centroid) moves
+  // nothing either.
+  pb::HandleTransform pivoted = translation(0, 0, 0);
+  pivoted.mutable_pivot()->set_x(0.3);
+  pivoted.mutable_pivot()->set_y(-2);
+  ASSERT_TRUE(e.update("alice", {0, 1}, {pivoted, pivoted}).ok());
   Editor alice{e, "alice"};
   alice.drag(1, 0.0);  // a drag that ends where it began
   EXPECT_EQ(history(e).total(), 1);  // only the constraints
   EXPECT_EQ(alice.undo().error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+}
+
+// Everything a user can change is a step: timeline edits, snapshot saves and deletes undo
+// and redo like moves; one that changes nothing is no step.
+TEST(History, TimelineEditsAndSnapshotSavesAndDeletesAreUndoable) {
+  TwoHandles e;
+  Editor alice{e, "alice"};
+  auto set_timeline = [&](int keys) {
+    pb::SetTimelineRequest r;
+    r.set_name(e.s.name());
+    r.set_client_id("alice");
+    for (int k = 0; k < keys; ++k) {
+      auto* key = r.mutable_timeline()->add_keys();
+      key->set_time_s(k);
+      for (int h = 0; h < 2; ++h) *key->add_transforms() = translation(0, 0, 0.1 * k);
+    }
+    pb::Timeline out;
+    return e.t.bare_stub->SetTimeline(as(e.s.edit_token()).get(), r, &out);
+  };
+  auto keys = [&] {
+    pb::GetTimelineRequest r;
+    r.set_name(e.s.name());
+    pb::Timeline out;
+    EXPECT_TRUE(e.t.bare_stub->GetTimeline(as(e.s.view_token()).get(), r, &out).ok());
+    return out.keys_size();
+  };
+  auto snapshots = [&] {
+    pb::ListSnapshotsRequest r;
+    r.set_name(e.s.name());
+    pb::ListSnapshotsResponse out;
+    EXPECT_TRUE(e.t.bare_stub->ListSnapshots(as(e.s.view_token()).get(), r, &out).ok());
+    std::vector<std::string> names;
+    for (const auto& s : out.snapshots()) names.push_back(s.name() + "@" + std::to_string(s.version()));
+    return names;
+  };
+  const auto version = e.state().version();
+  ASSERT_TRUE(set_timeline(2).ok());
+  ASSERT_TRUE(set_timeline(3).ok());
+  const auto steps = history(e).total();
+  ASSERT_TRUE(set_timeline(3).ok());  // the same keys: no step
+  EXPECT_EQ(history(e).total(), steps);
+  EXPECT_EQ(history(e).steps(0).kind(), pb::STEP_KIND_TIMELINE);
+  EXPECT_TRUE(history(e).steps(0).timeline_changed());
+  EXPECT_EQ(e.state().version(), version);  // the pose did not change
+  ASSERT_TRUE(alice.undo().ok());
+  EXPECT_EQ(keys(), 2);
+  ASSERT_TRUE(alice.undo().ok());
+  EXPECT_EQ(keys(), 0);
+  ASSERT_TRUE(alice.redo().ok());
+  EXPECT_EQ(keys(), 2);
+
+  ASSERT_TRUE(save(e, "pose A").ok());
+  const auto saved = snapshots();
+  ASSERT_EQ(saved.size(), 1u);
+  pb::DeleteSnapshotRequest d;
+  d.set_name(e.s.name());
+  d.set_snapshot("pose A");
+  d.set_client_id("alice");
+  pb::DeleteSnapshotResponse dr;
+  ASSERT_TRUE(e.t.bare_stub->DeleteSnapshot(as(e.s.edit_token()).get(), d, &dr).ok());
+  EXPECT_TRUE(snapshots().empty());
+  EXPECT_EQ(history(e).steps(0).kind(), pb::STEP_KIND_SNAPSHOT_DELETE);
+  EXPECT_EQ(history(e).steps(0).snapshot(), "pose A");
+  ASSERT_TRUE(alice.undo().ok());
+  EXPECT_EQ(snapshots(), saved);  // the very snapshot, back
+  ASSERT_TRUE(restore(e, "pose A").ok());
+  // Undo of the save by id: gone again; a save under the name since refuses it.
+  const auto h = history(e, 500);
+  std::int64_t save_step = 0;
+  for (const auto& s : h.steps())
+    if (s.kind() == pb::STEP_KIND_SNAPSHOT_SAVE) save_step = s.id();
+  ASSERT_NE(save_step, 0);
+  ASSERT_TRUE(save(e, "pose A").ok());  // replaced since
+  auto st = alice.undo(nullptr, save_step);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::ABORTED);
+  EXPECT_NE(st.error_message().find("snapshot 'pose A'"), std::string::npos) << st.error_message();
+  ASSERT_TRUE(alice.undo().ok());  // the replacing save: the first one is back
+  EXPECT_EQ(snapshots(), saved);
+  ASSERT_TRUE(alice.undo(nullptr, save_step).ok());
+  EXPECT_TRUE(snapshots().empty());
 }

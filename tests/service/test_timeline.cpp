@@ -320,34 +320,61 @@ TEST(Timeline, FrameAndByteLimitsComeFromTheFlags) {
   EXPECT_TRUE(g.export_animation(r, &glb).ok());
 }
 
-TEST(Timeline, NewConstraintsClearItAndWatchersSeeBoth) {
+// New constraints renumber the handles, so the keys go with them — but never silently
+// another editor's: refused naming them unless discard_timeline, and Undo brings them back.
+TEST(Timeline, NewConstraintsDropItOnlyWhenAskedAndUndoBringsItBack) {
   Timeline f;
-  ASSERT_TRUE(f.set(three_keys()).ok());
+  ASSERT_TRUE(f.set(three_keys()).ok());  // set by client "a1"
   auto ctx = as(f.s.view_token());
   ctx->set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(20));
   pb::WatchSessionRequest w;
   w.set_name(f.s.name());
   auto reader = f.t.bare_stub->WatchSession(ctx.get(), w);
   pb::SessionEvent e;
-  int seen_keys = -1;
-  while (reader->Read(&e))  // the timeline comes on join
-    if (e.has_timeline()) {
-      seen_keys = e.timeline().keys_size();
-      break;
-    }
-  EXPECT_EQ(seen_keys, 3);
-  pb::Constraints c;
-  *c.mutable_fixed()->add_selectors() = box(-1, -0.01, 4, 0.01);
-  *c.add_handles()->add_selectors() = box(2.9, 2.6, 3.2, 3);
+  auto next_keys = [&] {
+    while (reader->Read(&e))
+      if (e.has_timeline()) return e.timeline().keys_size();
+    return -1;
+  };
+  EXPECT_EQ(next_keys(), 3);  // the timeline comes on join
+  pb::SetConstraintsRequest c;
+  c.set_name(f.s.name());
+  c.set_client_id("b2");
+  *c.mutable_constraints()->mutable_fixed()->add_selectors() = box(-1, -0.01, 4, 0.01);
+  *c.mutable_constraints()->add_handles()->add_selectors() = box(2.9, 2.6, 3.2, 3);
   pb::Session out;
-  ASSERT_TRUE(f.t.set_constraints(f.s.name(), c, &out).ok());
-  seen_keys = -1;
-  while (reader->Read(&e))
-    if (e.has_timeline()) {
-      seen_keys = e.timeline().keys_size();
-      break;
-    }
-  EXPECT_EQ(seen_keys, 0);
+  auto st = f.t.bare_stub->SetConstraints(as(f.s.edit_token()).get(), c, &out);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::ABORTED);
+  EXPECT_NE(st.error_message().find("3 key(s)"), std::string::npos) << st.error_message();
+  EXPECT_NE(st.error_message().find("discard_timeline"), std::string::npos) << st.error_message();
+  EXPECT_EQ(f.get().keys_size(), 3);
+  EXPECT_EQ(f.state().constraints().handles_size(), 2);  // nothing applied
+
+  c.set_discard_timeline(true);
+  st = f.t.bare_stub->SetConstraints(as(f.s.edit_token()).get(), c, &out);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_EQ(next_keys(), 0);
+  EXPECT_EQ(f.get().keys_size(), 0);
+  EXPECT_EQ(out.constraints().handles_size(), 1);
+
+  pb::UndoRequest u;
+  u.set_name(f.s.name());
+  u.set_client_id("b2");
+  st = f.t.bare_stub->Undo(as(f.s.edit_token()).get(), u, &out);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_EQ(next_keys(), 3);
+  const pb::Timeline back = f.get();
+  ASSERT_EQ(back.keys_size(), 3);
+  EXPECT_EQ(back.keys(1).transforms(1).translation().z(), 0.2);
+  EXPECT_EQ(out.constraints().handles_size(), 2);
+  pb::Keyframe mid;
+  EXPECT_TRUE(f.pose(0.5, &mid).ok());  // usable again: the keys match the handles
+
+  // The same client's own keys go without asking (Undo still brings them back).
+  c.set_discard_timeline(false);
+  c.set_client_id("a1");
+  st = f.t.bare_stub->SetConstraints(as(f.s.edit_token()).get(), c, &out);
+  ASSERT_TRUE(st.ok()) << st.error_message();
   EXPECT_EQ(f.get().keys_size(), 0);
   ctx->TryCancel();
   reader->Finish();

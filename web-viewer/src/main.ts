@@ -149,7 +149,7 @@ const myId = () => editors.identity.clientId;
 const undoRedo = setupUndoRedo(app, sync, myId);
 setupUndoShortcuts(undoRedo);
 const history = setupHistoryPanel(app, sync, undoRedo);
-const snapshots = setupSnapshotsPanel(app, undoRedo, myId);
+const snapshots = setupSnapshotsPanel(app, sync, undoRedo, myId);
 setupLibraryPanel(app, loader, regions.applyConstraints);
 
 // One render per change; handle updates coalesced to the display frame rate.

@@ -912,6 +912,15 @@ grpc::ServerUnaryReactor* DeformService::finish_on_session(grpc::CallbackServerC
   return reactor;
 }
 
+grpc::ServerUnaryReactor* DeformService::finish_change(grpc::CallbackServerContext* ctx,
+                                                       const char* op, const std::string& name,
+                                                       std::function<void(Session&)> fn) {
+  return finish_on_session(ctx, op, name, Access::kEdit, [this, fn = std::move(fn)](Session& s) {
+    fn(s);
+    store_.save(s);
+  });
+}
+
 grpc::ServerReadReactor<v1::CreateSessionRequest>* DeformService::CreateSession(
     grpc::CallbackServerContext* ctx, v1::Session* response) {
   return new CreateSessionReactor(this, ctx, response);
@@ -965,25 +974,24 @@ grpc::ServerUnaryReactor* DeformService::ListMeshes(grpc::CallbackServerContext*
 grpc::ServerUnaryReactor* DeformService::SetConstraints(grpc::CallbackServerContext* ctx,
                                                         const v1::SetConstraintsRequest* request,
                                                         v1::Session* response) {
-  return finish_on_session(ctx, "SetConstraints", request->name(), Access::kEdit,
-                           [this, request, response](Session& s) {
-                             *response = s.set_constraints(
-                                 request->constraints(), request->expected_version(),
-                                 request->expected_config_version(), request->client_id());
-                             store_.save(s);
-                           });
+  return finish_change(ctx, "SetConstraints", request->name(),
+                       [this, request, response](Session& s) {
+                         *response = s.set_constraints(
+                             request->constraints(), request->expected_version(),
+                             request->expected_config_version(), request->client_id(),
+                             request->discard_timeline());
+                       });
 }
 
 grpc::ServerUnaryReactor* DeformService::SetBeta(grpc::CallbackServerContext* ctx,
                                                  const v1::SetBetaRequest* request,
                                                  v1::Session* response) {
-  return finish_on_session(ctx, "SetBeta", request->name(), Access::kEdit,
-                           [this, request, response](Session& s) {
-                             *response = s.set_beta(request->beta(), request->expected_version(),
-                                                    request->expected_config_version(),
-                                                    request->client_id());
-                             store_.save(s);
-                           });
+  return finish_change(ctx, "SetBeta", request->name(),
+                       [this, request, response](Session& s) {
+                         *response = s.set_beta(request->beta(), request->expected_version(),
+                                                request->expected_config_version(),
+                                                request->client_id());
+                       });
 }
 
 grpc::ServerUnaryReactor* DeformService::UpdateHandles(grpc::CallbackServerContext* ctx,
@@ -1217,21 +1225,19 @@ grpc::ServerUnaryReactor* DeformService::ImportSession(grpc::CallbackServerConte
 grpc::ServerUnaryReactor* DeformService::Undo(grpc::CallbackServerContext* ctx,
                                               const v1::UndoRequest* request,
                                               v1::Session* response) {
-  return finish_on_session(ctx, "Undo", request->name(), Access::kEdit,
-                           [this, request, response](Session& s) {
-                             *response = s.undo(*request);
-                             store_.save(s);
-                           });
+  return finish_change(ctx, "Undo", request->name(),
+                       [this, request, response](Session& s) {
+                         *response = s.undo(*request);
+                       });
 }
 
 grpc::ServerUnaryReactor* DeformService::Redo(grpc::CallbackServerContext* ctx,
                                               const v1::UndoRequest* request,
                                               v1::Session* response) {
-  return finish_on_session(ctx, "Redo", request->name(), Access::kEdit,
-                           [this, request, response](Session& s) {
-                             *response = s.redo(*request);
-                             store_.save(s);
-                           });
+  return finish_change(ctx, "Redo", request->name(),
+                       [this, request, response](Session& s) {
+                         *response = s.redo(*request);
+                       });
 }
 
 grpc::ServerUnaryReactor* DeformService::ListHistory(grpc::CallbackServerContext* ctx,
@@ -1246,11 +1252,10 @@ grpc::ServerUnaryReactor* DeformService::ListHistory(grpc::CallbackServerContext
 grpc::ServerUnaryReactor* DeformService::SaveSnapshot(grpc::CallbackServerContext* ctx,
                                                       const v1::SaveSnapshotRequest* request,
                                                       v1::NamedSnapshot* response) {
-  return finish_on_session(ctx, "SaveSnapshot", request->name(), Access::kEdit,
-                           [this, request, response](Session& s) {
-                             *response = s.save_snapshot(*request);
-                             store_.save(s);
-                           });
+  return finish_change(ctx, "SaveSnapshot", request->name(),
+                       [this, request, response](Session& s) {
+                         *response = s.save_snapshot(*request);
+                       });
 }
 
 grpc::ServerUnaryReactor* DeformService::ListSnapshots(grpc::CallbackServerContext* ctx,
@@ -1265,21 +1270,19 @@ grpc::ServerUnaryReactor* DeformService::ListSnapshots(grpc::CallbackServerConte
 grpc::ServerUnaryReactor* DeformService::RestoreSnapshot(
     grpc::CallbackServerContext* ctx, const v1::RestoreSnapshotRequest* request,
     v1::Session* response) {
-  return finish_on_session(ctx, "RestoreSnapshot", request->name(), Access::kEdit,
-                           [this, request, response](Session& s) {
-                             *response = s.restore_snapshot(*request);
-                             store_.save(s);
-                           });
+  return finish_change(ctx, "RestoreSnapshot", request->name(),
+                       [this, request, response](Session& s) {
+                         *response = s.restore_snapshot(*request);
+                       });
 }
 
 grpc::ServerUnaryReactor* DeformService::DeleteSnapshot(grpc::CallbackServerContext* ctx,
                                                         const v1::DeleteSnapshotRequest* request,
                                                         v1::DeleteSnapshotResponse*) {
-  return finish_on_session(ctx, "DeleteSnapshot", request->name(), Access::kEdit,
-                           [this, request](Session& s) {
-                             s.delete_snapshot(request->snapshot());
-                             store_.save(s);
-                           });
+  return finish_change(ctx, "DeleteSnapshot", request->name(),
+                       [this, request](Session& s) {
+                         s.delete_snapshot(request->snapshot(), request->client_id());
+                       });
 }
 
 // O(n) copy of a column the constraint set keeps: on the pool, not on a gRPC thread.
@@ -1304,11 +1307,10 @@ grpc::ServerUnaryReactor* DeformService::GetHandleWeights(
 grpc::ServerUnaryReactor* DeformService::SetTimeline(grpc::CallbackServerContext* ctx,
                                                      const v1::SetTimelineRequest* request,
                                                      v1::Timeline* response) {
-  return finish_on_session(ctx, "SetTimeline", request->name(), Access::kEdit,
-                           [this, request, response](Session& s) {
-                             *response = s.set_timeline(*request);
-                             store_.save(s);
-                           });
+  return finish_change(ctx, "SetTimeline", request->name(),
+                       [this, request, response](Session& s) {
+                         *response = s.set_timeline(*request);
+                       });
 }
 
 grpc::ServerUnaryReactor* DeformService::GetTimeline(grpc::CallbackServerContext* ctx,
@@ -1374,15 +1376,14 @@ grpc::ServerUnaryReactor* DeformService::ReleaseHandles(grpc::CallbackServerCont
 grpc::ServerUnaryReactor* DeformService::RotateTokens(grpc::CallbackServerContext* ctx,
                                                       const v1::RotateTokensRequest* request,
                                                       v1::Session* response) {
-  return finish_on_session(ctx, "RotateTokens", request->name(), Access::kEdit,
-                           [this, response](Session& s) {
-                             const IssuedTokens tokens = s.rotate_tokens();
-                             store_.save(s);
-                             *response = s.describe();
-                             response->set_edit_token(tokens.edit);
-                             response->set_view_token(tokens.view);
-                             spdlog::info("{}: tokens rotated", s.name());
-                           });
+  return finish_change(ctx, "RotateTokens", request->name(),
+                       [this, response](Session& s) {
+                         const IssuedTokens tokens = s.rotate_tokens();
+                         *response = s.describe();
+                         response->set_edit_token(tokens.edit);
+                         response->set_view_token(tokens.view);
+                         spdlog::info("{}: tokens rotated", s.name());
+                       });
 }
 
 }  // namespace hdeform::service

@@ -161,6 +161,12 @@ class DeformService final : public v1::Deformation::CallbackService {
                                               const std::string& name, Access needed,
                                               std::function<void(Session&)> fn,
                                               std::function<void(Session&)> admit = {});
+  // A change of the session (docs/architecture.md "One path for a change"): authorized for
+  // editing, admitted to the strand, applied by `fn` (a Session method that runs
+  // Session::execute), then persisted — answered only after the store took it.
+  grpc::ServerUnaryReactor* finish_change(grpc::CallbackServerContext* ctx, const char* op,
+                                          const std::string& name,
+                                          std::function<void(Session&)> fn);
   // Durable state from the options (none, SQLite folder, Redis); throws StateError.
   void open_state();
   std::shared_ptr<const MeshRef> load_stored_mesh(const v1::Snapshot& snapshot,

@@ -7,23 +7,33 @@
 namespace hdeform::service {
 
 bool same_transform(const HandleTransform& a, const HandleTransform& b) {
-  return a.pivot.has_value() == b.pivot.has_value() && (!a.pivot || *a.pivot == *b.pivot) &&
-         a.rotation.coeffs() == b.rotation.coeffs() && a.stretch == b.stretch &&
-         a.translation == b.translation;
+  if (a.rotation.coeffs() != b.rotation.coeffs() || a.stretch != b.stretch ||
+      a.translation != b.translation)
+    return false;
+  if (a.pivot.has_value() == b.pivot.has_value() && (!a.pivot || *a.pivot == *b.pivot))
+    return true;
+  // Without rotation and stretch the pivot moves nothing (x' = x + t): the viewer's reset
+  // sends its identity with the centroid as pivot, and that is no move.
+  return a.rotation.coeffs() == Eigen::Quaterniond::Identity().coeffs() &&
+         a.stretch == Eigen::Matrix3d::Identity();
 }
 
 namespace {
 
-std::size_t given_bytes(const Step& s) {
+// What a step keeps alive: the values of the parts it changed (the others are shared with
+// the session or other steps and are counted there).
+std::size_t kept_bytes(const Step& s) {
   std::size_t n = 0;
-  if (s.before.given) n += s.before.given->ByteSizeLong();
-  if (s.after.given) n += s.after.given->ByteSizeLong();
+  for (const EditState* side : {&s.before, &s.after}) {
+    if (s.constraints && side->given) n += side->given->ByteSizeLong();
+    if (s.timeline && side->timeline) n += side->timeline->ByteSizeLong();
+    if (!s.snapshot.empty() && side->snapshot) n += side->snapshot->ByteSizeLong();
+  }
   return n;
 }
 
 bool undoable_kind(pb::StepKind k) {
-  return k == pb::STEP_KIND_CONSTRAINTS || k == pb::STEP_KIND_BETA || k == pb::STEP_KIND_MOVE ||
-         k == pb::STEP_KIND_RESTORE;
+  return k != pb::STEP_KIND_UNSPECIFIED && k != pb::STEP_KIND_UNDO && k != pb::STEP_KIND_REDO;
 }
 
 std::string describe(const pb::HistoryStep& s) {
@@ -31,6 +41,20 @@ std::string describe(const pb::HistoryStep& s) {
 }
 
 }  // namespace
+
+void apply_side(EditState& state, const Step& step, const EditState& side) {
+  if (step.constraints) {
+    state.cs_key = side.cs_key;
+    state.given = side.given;
+    state.transforms = side.transforms;
+  } else {
+    for (int h : step.handles)
+      state.transforms[static_cast<std::size_t>(h)] = side.transforms[static_cast<std::size_t>(h)];
+  }
+  if (step.beta) state.beta = side.beta;
+  if (step.timeline) state.timeline = side.timeline;
+  if (!step.snapshot.empty()) state.snapshot = side.snapshot;
+}
 
 namespace {
 
@@ -62,11 +86,11 @@ const pb::HistoryStep& History::record(Step step) {
   step.info.set_id(next_id_++);
   if (step.info.kind() != pb::STEP_KIND_UNDO && step.info.kind() != pb::STEP_KIND_REDO)
     redo_.erase(step.info.client_id());
-  bytes_ += given_bytes(step);
+  bytes_ += kept_bytes(step);
   steps_.push_back(std::move(step));
   while (steps_.size() > 1 &&
          (steps_.size() > limits_.max_steps || bytes_ > limits_.max_bytes)) {
-    bytes_ -= given_bytes(steps_.front());
+    bytes_ -= kept_bytes(steps_.front());
     steps_.pop_front();
   }
   return steps_.back().info;
@@ -143,8 +167,12 @@ const Step& History::redo_target(const std::string& client_id, std::int64_t step
 
 const Step* History::later_change(const Step& step) const {
   for (auto it = steps_.rbegin(); it != steps_.rend() && it->info.id() > step.info.id(); ++it) {
-    bool touches = (step.constraints || it->constraints) ||
-                   (step.beta && it->beta);
+    const bool pose = step.changes_pose() || step.timeline;
+    bool touches = (pose && it->constraints) ||
+                   (step.constraints && (it->changes_pose() || it->timeline)) ||
+                   (step.beta && it->beta) ||
+                   (step.timeline && it->timeline) ||
+                   (!step.snapshot.empty() && it->snapshot == step.snapshot);
     for (int h : step.handles)
       touches = touches || std::find(it->handles.begin(), it->handles.end(), h) != it->handles.end();
     if (touches) return &*it;
@@ -155,7 +183,10 @@ const Step* History::later_change(const Step& step) const {
 void History::check_unchanged(const Step& step, const EditState& current,
                               const EditState& expect, const char* what) const {
   std::string changed;
-  if (current.cs_key != expect.cs_key) changed = "the constraints";
+  // Handles and keys mean something only for the constraint set they were made for; a
+  // named snapshot is self-contained.
+  const bool per_handle = step.changes_pose() || step.timeline;
+  if (per_handle && current.cs_key != expect.cs_key) changed = "the constraints";
   else if (step.beta && !current.beta.same_as(expect.beta)) changed = "beta";
   else if (step.constraints) {
     bool same = current.transforms.size() == expect.transforms.size();
@@ -170,6 +201,10 @@ void History::check_unchanged(const Step& step, const EditState& current,
         changed = "handle " + std::to_string(h);
         break;
       }
+  if (changed.empty() && step.timeline && current.timeline != expect.timeline)
+    changed = "the timeline";
+  if (changed.empty() && !step.snapshot.empty() && current.snapshot != expect.snapshot)
+    changed = "snapshot '" + step.snapshot + "'";
   if (changed.empty()) return;
   const Step* later = later_change(step);
   fail(grpc::StatusCode::ABORTED,

@@ -19,29 +19,47 @@
 namespace hdeform::service {
 
 // The parts of a session a step may change. Constraints by their cache key and as given (a
-// step never pins a ConstraintSet and its factorizations in memory).
+// step never pins a ConstraintSet and its factorizations in memory). Values are immutable
+// and shared, so a step's before/after cost a pointer each, and "unchanged since" is
+// pointer equality for the timeline and snapshots.
 struct EditState {
   std::string cs_key;
   std::shared_ptr<const pb::Constraints> given;
   SessionBeta beta;
   std::vector<HandleTransform> transforms;
+  std::shared_ptr<const pb::Timeline> timeline;  // keys per handle of cs_key's set
+  // A step on one named snapshot (Step::snapshot): its value on this side; null: absent.
+  std::shared_ptr<const pb::NamedSnapshot> snapshot;
 };
 
+// The same transform, or one that moves every point the same way because neither rotates
+// nor stretches (then the pivot is irrelevant).
 bool same_transform(const HandleTransform& a, const HandleTransform& b);
 
+// One change as a command (docs/architecture.md "One path for a change"): what it touched,
+// and each touched part's value before and after. Undo applies `before` over the current
+// state, redo `after`, each refused when a later step touched the same part.
 struct Step {
   pb::HistoryStep info;
   bool constraints = false;  // cs_key, given and every transform changed
   bool beta = false;
   std::vector<int> handles;  // transforms changed (all of them when `constraints`)
+  bool timeline = false;     // the timeline changed
+  std::string snapshot;      // the named snapshot it saved or deleted ("" : none)
   EditState before, after;   // only the changed parts are meaningful
+
+  // It changes the deformed pose (a new session version), not only the timeline/snapshots.
+  bool changes_pose() const { return constraints || beta || !handles.empty(); }
 };
+
+// `side` (a step's before or after) laid over `state` for what `step` touched.
+void apply_side(EditState& state, const Step& step, const EditState& side);
 
 class History {
  public:
   struct Limits {
     std::size_t max_steps = 1000;
-    std::size_t max_bytes = 64u << 20;  // of constraints kept as given
+    std::size_t max_bytes = 64u << 20;  // of constraints, timelines and snapshots kept
   };
   explicit History(Limits limits) : limits_(limits) {}
 

@@ -226,30 +226,32 @@ hdeform::Frame Session::solve(const ConstraintSet& cs,
 pb::Session Session::set_constraints(const pb::Constraints& constraints,
                                      std::int64_t expected_version,
                                      std::int64_t expected_config_version,
-                                     const std::string& client_id) {
+                                     const std::string& client_id, bool discard_timeline) {
   touch();
   {
     std::lock_guard lock(mutex_);
     check_version_locked(expected_version);
     check_config_version_locked(expected_config_version);
   }
-  std::string key;
-  auto cs = constraint_set_of(constraints, &key);
-  EditState target;
+  Change change;
+  change.cs = constraint_set_of(constraints, &change.target.cs_key);
+  const ConstraintSet& cs = *change.cs;
   {
     std::lock_guard lock(mutex_);
-    target = edit_state_locked();
+    const std::string key = std::move(change.target.cs_key);
+    change.target = edit_state_locked();
+    change.target.cs_key = key;
   }
-  target.cs_key = key;
-  target.given = std::make_shared<const pb::Constraints>(constraints);
-  target.transforms.assign(cs->num_handles(), HandleTransform{});
-  Step step;
+  change.target.given = std::make_shared<const pb::Constraints>(constraints);
+  change.target.transforms.assign(cs.num_handles(), HandleTransform{});
+  Step& step = change.step;
   step.info.set_kind(pb::STEP_KIND_CONSTRAINTS);
   step.info.set_client_id(client_id);
-  step.info.set_summary("constraints: " + std::to_string(cs->constraints().fixed.size()) +
-                        " fixed vertices, " + std::to_string(cs->num_handles()) + " handle(s)");
+  step.info.set_summary("constraints: " + std::to_string(cs.constraints().fixed.size()) +
+                        " fixed vertices, " + std::to_string(cs.num_handles()) + " handle(s)");
   step.constraints = true;
-  return commit_edit(std::move(target), std::move(cs), std::move(step), false);
+  change.discard_timeline = discard_timeline;
+  return execute(std::move(change));
 }
 
 std::shared_ptr<const ConstraintSet> Session::constraint_set_of(const pb::Constraints& given,
@@ -260,75 +262,113 @@ std::shared_ptr<const ConstraintSet> Session::constraint_set_of(const pb::Constr
   return constraint_set_for(resolved, *key);
 }
 
-EditState Session::edit_state_locked() const {
-  return EditState{cs_key_, given_, beta_, transforms_};
+EditState Session::edit_state_locked(const std::string& snapshot) const {
+  EditState out{cs_key_, given_, beta_, transforms_, timeline_, nullptr};
+  if (!snapshot.empty())
+    if (auto it = snapshots_.find(snapshot); it != snapshots_.end()) out.snapshot = it->second;
+  return out;
 }
 
 std::string Session::author_of(const std::string& client_id) const {
   return client_id.empty() ? "anonymous" : roster_.name_of(client_id);
 }
 
-pb::Session Session::commit_edit(EditState target, std::shared_ptr<const ConstraintSet> cs,
-                                 Step step, bool send_frame) {
+pb::HistoryStep Session::record_locked(Step step) {
+  step.info.set_version(version_);
+  step.info.set_time_unix_ms(unix_ms_now());
+  step.info.set_author(author_of(step.info.client_id()));
+  step.info.set_beta_changed(step.beta);
+  step.info.set_timeline_changed(step.timeline);
+  if (!step.snapshot.empty()) step.info.set_snapshot(step.snapshot);
+  step.info.mutable_handles()->Assign(step.handles.begin(), step.handles.end());
+  return history_.record(std::move(step));
+}
+
+pb::Session Session::execute(Change change) {
+  EditState& target = change.target;
+  Step& step = change.step;
+  std::shared_ptr<const ConstraintSet>& cs = change.cs;
   std::string current_key;
   {
     std::lock_guard lock(mutex_);
     current_key = cs_key_;
     if (!cs && target.cs_key == cs_key_) cs = cs_;
   }
+  // Build and account, outside the lock: the set and the β factorization the target needs
+  // (ConstraintSet::prepare is thread-safe; an automatic β keeps its pick).
   if (!cs && !target.cs_key.empty()) {
     std::string key;
     cs = constraint_set_of(*target.given, &key);
     target.cs_key = key;
   }
-  // ConstraintSet is shared: prepare() is thread-safe (it builds each β once). An automatic
-  // β keeps its pick.
-  if (cs) {
+  if (cs && step.changes_pose()) {
     prepare_beta(*cs, target.beta);
     cache_.update_size(target.cs_key, cs->base_bytes());
   }
   const bool constraints_changed = target.cs_key != current_key;
   pb::Session out;
   pb::HistoryStep info;
-  bool timeline_cleared = false;
+  bool pose_changed = false;
   {
     std::lock_guard lock(mutex_);
-    step.before = edit_state_locked();
-    const bool config_changed = constraints_changed || !beta_.same_as(target.beta);
-    step.beta = step.beta || !beta_.same_as(target.beta);
+    // Check: everything below must succeed once it starts.
+    const bool drops_keys = constraints_changed && !step.timeline && timeline_->keys_size() > 0;
+    if (drops_keys && !change.discard_timeline &&
+        timeline_->client_id() != step.info.client_id())
+      fail(grpc::StatusCode::ABORTED,
+           "new constraints would drop the timeline's " + std::to_string(timeline_->keys_size()) +
+               " key(s) set by " + timeline_->author() +
+               " (a key's transforms are per handle): send discard_timeline to drop them "
+               "anyway (Undo brings them back)");
+    if (!step.snapshot.empty() && target.snapshot && !snapshots_.count(step.snapshot))
+      check_limit(snapshots_.size() + 1, limits_.max_snapshots, "named snapshots of " + name_,
+                  "--max-snapshots");
+
+    // Apply.
+    step.before = edit_state_locked(step.snapshot);
+    const bool beta_changed = !beta_.same_as(target.beta);
+    step.beta = step.beta || beta_changed;
     if (step.constraints || constraints_changed) {
       step.constraints = true;
       step.handles.clear();
       for (int j = 0; j < (cs ? cs->num_handles() : 0); ++j) step.handles.push_back(j);
       history_.forget_drags();
     }
-    cs_ = cs;
-    cs_key_ = target.cs_key;
-    given_ = target.given;
-    beta_ = target.beta;
-    transforms_ = target.transforms;
-    step.after = std::move(target);
-    if (config_changed) ++config_version_;
-    changed_locked(&out);
-    step.info.set_version(version_);
-    step.info.set_time_unix_ms(update_ms_);
-    step.info.set_author(author_of(step.info.client_id()));
-    step.info.set_beta_changed(step.beta);
-    step.info.mutable_handles()->Assign(step.handles.begin(), step.handles.end());
-    info = history_.record(std::move(step));
-    // The keys' transforms are per handle of the old set: they mean nothing for the new one.
-    timeline_cleared = constraints_changed && timeline_.keys_size() > 0;
-    if (timeline_cleared) {
-      timeline_ = pb::Timeline();
-      timeline_.set_version(version_);
-      timeline_.set_author(info.author());
+    pose_changed = step.changes_pose();
+    if (pose_changed) {
+      cs_ = cs;
+      cs_key_ = target.cs_key;
+      given_ = target.given;
+      beta_ = target.beta;
+      transforms_ = target.transforms;
+      if (constraints_changed || beta_changed) ++config_version_;
+      changed_locked(&out);
+    } else {
+      describe_locked(&out);
     }
+    if (drops_keys) {
+      auto cleared = std::make_shared<pb::Timeline>();
+      cleared->set_version(version_);
+      cleared->set_author(author_of(step.info.client_id()));
+      cleared->set_client_id(step.info.client_id());
+      target.timeline = std::move(cleared);
+      step.timeline = true;
+    }
+    if (step.timeline) timeline_ = target.timeline;
+    if (!step.snapshot.empty()) {
+      if (target.snapshot) snapshots_[step.snapshot] = target.snapshot;
+      else snapshots_.erase(step.snapshot);
+    }
+    step.after = std::move(target);
+
+    info = record_locked(std::move(step));
   }
-  broadcast_state();
+  // Broadcast.
+  if (pose_changed) broadcast_state();
   broadcast_step(info);
-  if (timeline_cleared) broadcast_timeline();
+  if (info.timeline_changed()) broadcast_timeline();
   if (constraints_changed && roster_.release_all()) broadcast_presence();  // renumbered
-  if (send_frame) broadcast_frame(info.client_id());
+  if (change.send_frame && pose_changed) broadcast_frame(info.client_id());
   return out;
 }
 
@@ -359,7 +399,8 @@ pb::Session Session::set_beta(const pb::Beta& beta_msg, std::int64_t expected_ve
     describe_locked(&out);
     return out;
   }
-  Step step;
+  Change change;
+  Step& step = change.step;
   step.info.set_kind(pb::STEP_KIND_BETA);
   step.info.set_client_id(client_id);
   char buf[96];
@@ -369,7 +410,9 @@ pb::Session Session::set_beta(const pb::Beta& beta_msg, std::int64_t expected_ve
   step.info.set_summary(buf);
   step.beta = true;
   target.beta = std::move(beta);
-  return commit_edit(std::move(target), std::move(cs), std::move(step), false);
+  change.target = std::move(target);
+  change.cs = std::move(cs);
+  return execute(std::move(change));
 }
 
 std::vector<int> Session::handle_indices(
@@ -493,8 +536,9 @@ std::shared_ptr<pb::Frame> Session::update(const Update& given) {
     bool moved_any = false;
     for (const auto& [h, t] : started)
       moved_any = moved_any || !same_transform(t, transforms[static_cast<std::size_t>(h)]);
+    std::optional<Step> step_made;
     if (moved_any || beta_changed) {
-      Step step;
+      Step& step = step_made.emplace();
       step.before = edit_state_locked();
       for (const auto& [h, t] : started) {
         // A handle sent back to where it was (or a frame refresh) is not a change.
@@ -503,19 +547,15 @@ std::shared_ptr<pb::Frame> Session::update(const Update& given) {
         step.handles.push_back(h);
       }
       step.beta = beta_changed;
-      step.after = EditState{cs_key_, given_, beta, transforms};
+      step.after = edit_state_locked();
+      step.after.beta = beta;
+      step.after.transforms = transforms;
       step.info.set_kind(step.handles.empty() ? pb::STEP_KIND_BETA : pb::STEP_KIND_MOVE);
       step.info.set_client_id(u.client_id);
-      step.info.set_author(author_of(u.client_id));
       std::string summary;
       for (int h : step.handles) summary += (summary.empty() ? "moved handle " : ", ") + std::to_string(h);
       if (beta_changed) summary += std::string(summary.empty() ? "" : "; ") + "beta changed";
       step.info.set_summary(summary);
-      step.info.set_version(version_ + 1);
-      step.info.set_time_unix_ms(unix_ms_now());
-      step.info.set_beta_changed(beta_changed);
-      step.info.mutable_handles()->Assign(step.handles.begin(), step.handles.end());
-      recorded = history_.record(std::move(step));
     }
     transforms_ = std::move(transforms);
     beta_ = beta;
@@ -532,6 +572,7 @@ std::shared_ptr<pb::Frame> Session::update(const Update& given) {
     last_frame_version_ = version_;
     update_ms_ = unix_ms_now();
     out->set_version(version_);
+    if (step_made) recorded = record_locked(std::move(*step_made));
   }
   out->set_solve_ms(
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
@@ -687,7 +728,7 @@ pb::Snapshot Session::export_snapshot(bool include_mesh, std::int64_t* version) 
   if (cs_ && given_) *s.mutable_constraints() = *given_;
   beta_to_proto(beta_, s.mutable_beta());
   for (const auto& t : transforms_) to_proto(t, s.add_transforms());
-  if (timeline_.keys_size() > 0) *s.mutable_timeline() = timeline_;
+  if (timeline_->keys_size() > 0) *s.mutable_timeline() = *timeline_;
   return s;
 }
 
@@ -719,7 +760,7 @@ void Session::restore(const pb::Snapshot& s) {
   if (s.timeline().keys_size() > 0) parse_timeline(s.timeline(), *cs);  // a bad one is refused
   std::lock_guard lock(mutex_);
   transforms_ = std::move(transforms);
-  timeline_ = s.timeline();
+  timeline_ = std::make_shared<const pb::Timeline>(s.timeline());
   ++version_;
   last_frame_.reset();
 }
@@ -868,19 +909,6 @@ void Session::broadcast_state() {
 
 namespace {
 
-// What `side` (a step's before or after) holds for what `step` changed, laid over `state`.
-void apply_side(EditState& state, const Step& step, const EditState& side) {
-  if (step.constraints) {
-    state.cs_key = side.cs_key;
-    state.given = side.given;
-    state.transforms = side.transforms;
-  } else {
-    for (int h : step.handles)
-      state.transforms[static_cast<std::size_t>(h)] = side.transforms[static_cast<std::size_t>(h)];
-  }
-  if (step.beta) state.beta = side.beta;
-}
-
 void check_snapshot_name(const std::string& name, const char* op) {
   const auto chars = std::count_if(name.begin(), name.end(), [](char c) {
     return (static_cast<unsigned char>(c) & 0xC0) != 0x80;
@@ -918,12 +946,8 @@ void Session::close_drag(const std::string& client_id) {
     if (step.handles.empty()) return;  // back where it started: no change
     step.info.set_kind(pb::STEP_KIND_MOVE);
     step.info.set_client_id(client_id);
-    step.info.set_author(author_of(client_id));
     step.info.set_summary(summary);
-    step.info.set_version(version_);
-    step.info.set_time_unix_ms(unix_ms_now());
-    step.info.mutable_handles()->Assign(step.handles.begin(), step.handles.end());
-    info = history_.record(std::move(step));
+    info = record_locked(std::move(step));
   }
   broadcast_step(info);
 }
@@ -937,8 +961,8 @@ pb::Session Session::redo(const pb::UndoRequest& request) { return revert(reques
 
 pb::Session Session::revert(const pb::UndoRequest& request, bool undo) {
   touch();
-  EditState target;
-  Step step;
+  Change change;
+  Step& step = change.step;
   std::int64_t target_id = 0;
   {
     std::lock_guard lock(mutex_);
@@ -947,13 +971,15 @@ pb::Session Session::revert(const pb::UndoRequest& request, bool undo) {
     // Undo goes from the step's after to its before; redo the other way.
     const EditState& from = undo ? t.after : t.before;
     const EditState& to = undo ? t.before : t.after;
-    const EditState current = edit_state_locked();
+    const EditState current = edit_state_locked(t.snapshot);
     history_.check_unchanged(t, current, from, undo ? "Undo" : "Redo");
-    target = current;
-    apply_side(target, t, to);
+    change.target = current;
+    apply_side(change.target, t, to);
     step.constraints = t.constraints;
     step.beta = t.beta;
     step.handles = t.handles;
+    step.timeline = t.timeline;
+    step.snapshot = t.snapshot;
     step.info.set_target(t.info.id());
     step.info.set_summary(std::string(undo ? "undo" : "redo") + " step " +
                           std::to_string(t.info.id()) + " (" + t.info.author() + ": " +
@@ -962,7 +988,9 @@ pb::Session Session::revert(const pb::UndoRequest& request, bool undo) {
   }
   step.info.set_kind(undo ? pb::STEP_KIND_UNDO : pb::STEP_KIND_REDO);
   step.info.set_client_id(request.client_id());
-  pb::Session out = commit_edit(std::move(target), nullptr, std::move(step), true);
+  change.send_frame = true;
+  change.discard_timeline = request.discard_timeline();
+  pb::Session out = execute(std::move(change));
   std::lock_guard lock(mutex_);
   if (undo) history_.mark_undone(target_id, request.client_id());
   else history_.mark_redone(target_id, request.client_id());
@@ -997,41 +1025,60 @@ pb::ListHistoryResponse Session::list_history(const pb::ListHistoryRequest& requ
 pb::NamedSnapshot Session::save_snapshot(const pb::SaveSnapshotRequest& request) {
   touch();
   check_snapshot_name(request.snapshot(), "SaveSnapshot");
-  pb::NamedSnapshot named;
-  named.set_name(request.snapshot());
-  named.set_author(author_of(request.client_id()));
-  named.set_time_unix_ms(unix_ms_now());
+  auto named = std::make_shared<pb::NamedSnapshot>();
+  named->set_name(request.snapshot());
+  named->set_author(author_of(request.client_id()));
+  named->set_time_unix_ms(unix_ms_now());
   std::int64_t version = 0;
-  *named.mutable_snapshot() = export_snapshot(false, &version);
-  named.mutable_snapshot()->clear_timeline();  // a named snapshot is the pose, not the timeline
-  named.set_version(version);
-  std::lock_guard lock(mutex_);
-  if (!snapshots_.count(request.snapshot()))
-    check_limit(snapshots_.size() + 1, limits_.max_snapshots, "named snapshots of " + name_,
-                "--max-snapshots");
-  snapshots_[request.snapshot()] = named;
-  return named;
+  *named->mutable_snapshot() = export_snapshot(false, &version);
+  named->mutable_snapshot()->clear_timeline();  // a named snapshot is the pose, not the timeline
+  named->set_version(version);
+  Change change;
+  {
+    std::lock_guard lock(mutex_);
+    change.target = edit_state_locked(request.snapshot());
+  }
+  Step& step = change.step;
+  step.info.set_kind(pb::STEP_KIND_SNAPSHOT_SAVE);
+  step.info.set_client_id(request.client_id());
+  step.info.set_summary(std::string(change.target.snapshot ? "replaced" : "saved") +
+                        " snapshot '" + request.snapshot() + "'");
+  step.snapshot = request.snapshot();
+  change.target.snapshot = named;
+  execute(std::move(change));
+  return *named;
 }
 
 pb::ListSnapshotsResponse Session::list_snapshots() const {
   pb::ListSnapshotsResponse out;
   std::lock_guard lock(mutex_);
-  for (const auto& [name, snap] : snapshots_) *out.add_snapshots() = snap;
+  for (const auto& [name, snap] : snapshots_) *out.add_snapshots() = *snap;
   return out;
 }
 
-void Session::delete_snapshot(const std::string& snapshot) {
+void Session::delete_snapshot(const std::string& snapshot, const std::string& client_id) {
   touch();
-  std::lock_guard lock(mutex_);
-  if (snapshots_.erase(snapshot) == 0)
+  Change change;
+  {
+    std::lock_guard lock(mutex_);
+    change.target = edit_state_locked(snapshot);
+  }
+  if (!change.target.snapshot)
     fail(grpc::StatusCode::NOT_FOUND, "DeleteSnapshot: " + name_ + " has no snapshot named '" +
                                           snapshot.substr(0, 64) + "'");
+  Step& step = change.step;
+  step.info.set_kind(pb::STEP_KIND_SNAPSHOT_DELETE);
+  step.info.set_client_id(client_id);
+  step.info.set_summary("deleted snapshot '" + snapshot + "'");
+  step.snapshot = snapshot;
+  change.target.snapshot = nullptr;
+  execute(std::move(change));
 }
 
 void Session::adopt_snapshots(
     const google::protobuf::RepeatedPtrField<pb::NamedSnapshot>& snapshots) {
   std::lock_guard lock(mutex_);
-  for (const auto& s : snapshots) snapshots_[s.name()] = s;
+  for (const auto& s : snapshots) snapshots_[s.name()] = std::make_shared<const pb::NamedSnapshot>(s);
 }
 
 pb::Session Session::restore_snapshot(const pb::RestoreSnapshotRequest& request) {
@@ -1045,7 +1092,7 @@ pb::Session Session::restore_snapshot(const pb::RestoreSnapshotRequest& request)
     if (it == snapshots_.end())
       fail(grpc::StatusCode::NOT_FOUND, "RestoreSnapshot: " + name_ + " has no snapshot named '" +
                                             request.snapshot().substr(0, 64) + "'");
-    named = it->second;
+    named = *it->second;
     target = edit_state_locked();
   }
   const pb::Snapshot& snap = named.snapshot();
@@ -1062,14 +1109,19 @@ pb::Session Session::restore_snapshot(const pb::RestoreSnapshotRequest& request)
                             : std::vector<HandleTransform>(cs->num_handles());
   }
   target.beta = snap.has_beta() ? parse_beta(snap.beta(), true) : SessionBeta{};
-  Step step;
+  Change change;
+  Step& step = change.step;
   step.info.set_kind(pb::STEP_KIND_RESTORE);
   step.info.set_client_id(request.client_id());
   step.info.set_snapshot(named.name());
   step.info.set_summary("restored snapshot '" + named.name() + "'");
   step.constraints = true;
   step.beta = true;
-  return commit_edit(std::move(target), std::move(cs), std::move(step), true);
+  change.target = std::move(target);
+  change.cs = std::move(cs);
+  change.send_frame = true;
+  change.discard_timeline = request.discard_timeline();
+  return execute(std::move(change));
 }
 
 void Session::broadcast_step(const pb::HistoryStep& step) {

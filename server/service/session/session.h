@@ -80,29 +80,30 @@ class Session : public std::enable_shared_from_this<Session> {
   // ---- blocking: call on the strand. Throw ServiceError / InvalidInput. ----
   // expected_config_version (0: any): ABORTED unless no constraint or β change came since.
   // `client_id`: the author recorded in the history (empty: anonymous).
+  // discard_timeline: new constraints may drop keys another client set (else ABORTED).
   pb::Session set_constraints(const pb::Constraints& constraints, std::int64_t expected_version,
                               std::int64_t expected_config_version = 0,
-                              const std::string& client_id = "");
+                              const std::string& client_id = "", bool discard_timeline = false);
   pb::Session set_beta(const pb::Beta& beta, std::int64_t expected_version,
                        std::int64_t expected_config_version = 0,
                        const std::string& client_id = "");
 
   // History and named snapshots (history.h; docs/api.md "History and snapshots"). Each
-  // change is a new step that every watcher sees; undo and redo are refused (ABORTED) when a
-  // later change touched what they would revert.
-  pb::Session undo(const pb::UndoRequest& request);
+  // change — saving and deleting a snapshot too — is a new step that every watcher sees; undo
+  // and redo are refused (ABORTED) when a later change touched what they would revert.
+  pb::Session undo(const pb::UndoRequest& request);  // request.discard_timeline as above
   pb::Session redo(const pb::UndoRequest& request);
   pb::ListHistoryResponse list_history(const pb::ListHistoryRequest& request) const;
   pb::NamedSnapshot save_snapshot(const pb::SaveSnapshotRequest& request);
   pb::ListSnapshotsResponse list_snapshots() const;
   pb::Session restore_snapshot(const pb::RestoreSnapshotRequest& request);
-  void delete_snapshot(const std::string& snapshot);
+  void delete_snapshot(const std::string& snapshot, const std::string& client_id = "");
   // Durable state: the named snapshots as stored (a fresh session only).
   void adopt_snapshots(const google::protobuf::RepeatedPtrField<pb::NamedSnapshot>& snapshots);
 
   // Timeline (timeline.h; docs/api.md "Timeline and animation"). set_timeline runs on the
-  // strand: it is checked against the constraint set, which a SetConstraints may replace
-  // (that clears the timeline: its transforms are per handle).
+  // strand and is a step: it is checked against the constraint set, which a SetConstraints
+  // may replace (that drops the keys as part of its step: their transforms are per handle).
   pb::Timeline set_timeline(const pb::SetTimelineRequest& request);
   pb::Timeline timeline() const;
   pb::Keyframe pose_at(double time_s) const;
@@ -270,15 +271,28 @@ class Session : public std::enable_shared_from_this<Session> {
   void broadcast_timeline();
   // A frame of the current state to every watcher (after undo, redo, restore).
   void broadcast_frame(const std::string& client_id);
-  EditState edit_state_locked() const;
+  // The current state; `snapshot`: with that named snapshot's value (null: none).
+  EditState edit_state_locked(const std::string& snapshot = {}) const;
   // The constraint set `given` resolves to, from the cache or built; `key` gets its key.
   std::shared_ptr<const ConstraintSet> constraint_set_of(const pb::Constraints& given,
                                                          std::string* key);
-  // Makes `target` the session's state as one history step (`step`: kind, what changed,
-  // author): builds what it needs first (constraint set `cs`, or resolved when null and the
-  // key differs; the β factorization), then commits, records and tells the watchers.
-  pb::Session commit_edit(EditState target, std::shared_ptr<const ConstraintSet> cs, Step step,
-                          bool send_frame);
+  // A change as a command (docs/architecture.md "One path for a change"): the state it
+  // leads to and its step (kind, author, what it touches; history.h).
+  struct Change {
+    EditState target;
+    std::shared_ptr<const ConstraintSet> cs;  // target's set if the caller built it
+    Step step;
+    bool send_frame = false;        // watchers get the new pose's frame (undo, restore)
+    bool discard_timeline = false;  // may drop keys another client set
+  };
+  // The one commit path of every change but a handle move's (update()): builds what the
+  // target needs (its constraint set, the β factorization) and charges it to the cache,
+  // checks the change still fits (another client's keys, the snapshot cap), then applies it,
+  // records the step and tells the watchers. Persisting is the caller's (SessionStore::save).
+  pb::Session execute(Change change);
+  // The step's bookkeeping (version, time, author, what it touched) and into the history,
+  // which may merge it with its predecessor (History::record). Returns it as recorded.
+  pb::HistoryStep record_locked(Step step);
   std::string author_of(const std::string& client_id) const;
   void close_drag(const std::string& client_id);  // an open drag becomes its step
   // Undo (undo = true) or Redo: the step's reverse or itself, as a new step.
@@ -319,8 +333,9 @@ class Session : public std::enable_shared_from_this<Session> {
   // Constraints as the client gave them (snapshots, history).
   std::shared_ptr<const pb::Constraints> given_;
   History history_;
-  std::map<std::string, pb::NamedSnapshot> snapshots_;  // by name
-  pb::Timeline timeline_;  // as set (checked against cs_), with version and author
+  std::map<std::string, std::shared_ptr<const pb::NamedSnapshot>> snapshots_;  // by name
+  // As set (checked against cs_), with version and author; shared with history steps.
+  std::shared_ptr<const pb::Timeline> timeline_ = std::make_shared<const pb::Timeline>();
   SessionBeta beta_;
   std::vector<HandleTransform> transforms_;
   std::int64_t version_ = 1;

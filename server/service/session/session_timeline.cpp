@@ -26,34 +26,53 @@ constexpr double kMaxSampleSpan = 1e7;
 pb::Timeline Session::set_timeline(const pb::SetTimelineRequest& request) {
   touch();
   if (closed_) fail(grpc::StatusCode::NOT_FOUND, name_ + " was deleted");
-  std::shared_ptr<const ConstraintSet> cs;
+  Change change;
+  std::int64_t version = 0;
   {
     std::lock_guard lock(mutex_);
     check_config_version_locked(request.expected_config_version());
-    cs = cs_;
+    change.target = edit_state_locked();
+    change.cs = cs_;
+    version = version_;
   }
-  pb::Timeline timeline = request.timeline();
-  if (timeline.keys_size() > 0) {
-    if (!cs)
+  auto timeline = std::make_shared<pb::Timeline>(request.timeline());
+  if (timeline->keys_size() > 0) {
+    if (!change.cs)
       fail(grpc::StatusCode::FAILED_PRECONDITION,
            "SetTimeline: the session has no constraints yet: call SetConstraints first");
-    parse_timeline(timeline, *cs);  // throws naming the key and field
-  } else if (timeline.easing() != pb::EASING_LINEAR && timeline.easing() != pb::EASING_SMOOTHSTEP) {
-    throw InvalidInput("SetTimeline easing: unknown value " + std::to_string(timeline.easing()));
+    parse_timeline(*timeline, *change.cs);  // throws naming the key and field
+  } else if (timeline->easing() != pb::EASING_LINEAR &&
+             timeline->easing() != pb::EASING_SMOOTHSTEP) {
+    throw InvalidInput("SetTimeline easing: unknown value " +
+                       std::to_string(timeline->easing()));
   }
-  timeline.set_author(author_of(request.client_id()));
-  {
-    std::lock_guard lock(mutex_);
-    timeline.set_version(version_);
-    timeline_ = timeline;
-  }
-  broadcast_timeline();
-  return timeline;
+  // Nothing that changes nothing is a step: the same keys and easing answer what is set.
+  const pb::Timeline& current = *change.target.timeline;
+  if (current.easing() == timeline->easing() &&
+      current.keys_size() == timeline->keys_size() &&
+      std::equal(current.keys().begin(), current.keys().end(), timeline->keys().begin(),
+                 [](const pb::Keyframe& a, const pb::Keyframe& b) {
+                   return a.SerializeAsString() == b.SerializeAsString();
+                 }))
+    return current;
+  timeline->set_author(author_of(request.client_id()));
+  timeline->set_client_id(request.client_id());
+  timeline->set_version(version);
+  Step& step = change.step;
+  step.info.set_kind(pb::STEP_KIND_TIMELINE);
+  step.info.set_client_id(request.client_id());
+  step.info.set_summary(timeline->keys_size() == 0
+                            ? std::string("cleared the timeline")
+                            : "timeline: " + std::to_string(timeline->keys_size()) + " key(s)");
+  step.timeline = true;
+  change.target.timeline = timeline;
+  execute(std::move(change));
+  return *timeline;
 }
 
 pb::Timeline Session::timeline() const {
   std::lock_guard lock(mutex_);
-  return timeline_;
+  return *timeline_;
 }
 
 void Session::broadcast_timeline() {
@@ -69,7 +88,7 @@ pb::Keyframe Session::pose_at(double time_s) const {
   std::shared_ptr<const ConstraintSet> cs;
   {
     std::lock_guard lock(mutex_);
-    timeline = timeline_;
+    timeline = *timeline_;
     cs = cs_;
   }
   if (timeline.keys_size() == 0 || !cs) no_timeline("PoseAt");
@@ -94,7 +113,7 @@ Session::AnimationPlan Session::animation_plan(const pb::ExportAnimationRequest&
   pb::Timeline timeline;
   {
     std::lock_guard lock(mutex_);
-    timeline = timeline_;
+    timeline = *timeline_;
     plan.cs = cs_;
     plan.beta = beta_;
   }

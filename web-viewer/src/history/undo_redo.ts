@@ -11,6 +11,7 @@ import { describeError } from "../api";
 import type { App } from "../app";
 import type { Session } from "../gen/hdeform/v1/deform_pb";
 import type { Sync } from "../sync/sync";
+import { askingToDropKeys } from "../conflict";
 
 export type UndoKind = "undo" | "redo";
 
@@ -38,7 +39,11 @@ export function setupUndoRedo(app: App, sync: Sync, clientId: () => string): Und
       running = true;
       const request = { name: state.sessionName, clientId: clientId(), step: step ?? 0n };
       try {
-        adopt(await (kind === "undo" ? client.undo(request) : client.redo(request)));
+        adopt(
+          await askingToDropKeys((discardTimeline) =>
+            kind === "undo" ? client.undo({ ...request, discardTimeline }) : client.redo({ ...request, discardTimeline }),
+          ),
+        );
         banner.clear("rejected");
         return true;
       } catch (err) {

@@ -3,7 +3,7 @@
 // unapplied edits).
 import { Code, ConnectError } from "@connectrpc/connect";
 import { describeError } from "../api";
-import { reloadAfterConflict } from "../conflict";
+import { askingToDropKeys, dropsOthersKeys, reloadAfterConflict } from "../conflict";
 import { regionColourCss } from "../region_colours";
 import type { App } from "../app";
 import { $ } from "../dom";
@@ -65,11 +65,14 @@ export function setupRegionsPanel(app: App): { applyConstraints: () => Promise<v
     const region = (ids: number[]) => ({ selectors: ids.length ? [{ kind: { case: "baseIds" as const, value: { ids } } }] : [] });
     try {
       status.set("factorizing…");
-      const s = await edits.setConstraints({
-        name,
-        constraints: { fixed: region(fixed), handles: handleIds.map(region) },
-        expectedConfigVersion: state.session?.configVersion ?? 0n,
-      });
+      const s = await askingToDropKeys((discardTimeline) =>
+        edits.setConstraints({
+          name,
+          constraints: { fixed: region(fixed), handles: handleIds.map(region) },
+          expectedConfigVersion: state.session?.configVersion ?? 0n,
+          discardTimeline,
+        }),
+      );
       if (name !== state.sessionName) return;
       state.labelsDirty = false;
       banner.clear("rejected");
@@ -81,7 +84,8 @@ export function setupRegionsPanel(app: App): { applyConstraints: () => Promise<v
       showLabels();
       edits.requestFrame();
     } catch (err) {
-      if (err instanceof ConnectError && err.code === Code.Aborted) await reloadAfterConflict(app, "constraints", err);
+      if (dropsOthersKeys(err)) banner.show(`Constraints not applied, the timeline kept: ${describeError(err)}`, "rejected");
+      else if (err instanceof ConnectError && err.code === Code.Aborted) await reloadAfterConflict(app, "constraints", err);
       else banner.show(`Constraints rejected: ${describeError(err)}`, "rejected");
     }
   }

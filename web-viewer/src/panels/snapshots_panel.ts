@@ -5,11 +5,13 @@
 import { Code, ConnectError } from "@connectrpc/connect";
 import { describeError } from "../api";
 import type { App } from "../app";
-import { reloadAfterConflict } from "../conflict";
+import { askingToDropKeys, dropsOthersKeys, reloadAfterConflict } from "../conflict";
 import { $ } from "../dom";
 import type { NamedSnapshot } from "../gen/hdeform/v1/deform_pb";
 import { relativeTime } from "../history/relative_time";
 import type { UndoRedo } from "../history/undo_redo";
+import type { Sync } from "../sync/sync";
+import { StepKind } from "../gen/hdeform/v1/deform_pb";
 
 function escape(s: string): string {
   return s.replace(/[&<>"']/g, (c) => `&#${c.charCodeAt(0)};`);
@@ -20,7 +22,7 @@ export interface SnapshotsPanel {
   names(): string[];
 }
 
-export function setupSnapshotsPanel(app: App, undo: UndoRedo, clientId: () => string): SnapshotsPanel {
+export function setupSnapshotsPanel(app: App, sync: Sync, undo: UndoRedo, clientId: () => string): SnapshotsPanel {
   const { state, client, banner } = app;
   const nameField = $<HTMLInputElement>("snapshot-name");
   const save = $<HTMLButtonElement>("snapshot-save");
@@ -58,7 +60,8 @@ export function setupSnapshotsPanel(app: App, undo: UndoRedo, clientId: () => st
       await call();
       banner.clear("rejected");
     } catch (err) {
-      if (what === "restore" && err instanceof ConnectError && err.code === Code.Aborted) await reloadAfterConflict(app, "restore", err);
+      if (what === "restore" && dropsOthersKeys(err)) banner.show(`Snapshot not restored, the timeline kept: ${describeError(err)}`, "rejected");
+      else if (what === "restore" && err instanceof ConnectError && err.code === Code.Aborted) await reloadAfterConflict(app, "restore", err);
       else banner.show(`Snapshot ${what}: ${describeError(err)}`, "rejected");
     }
     await refresh();
@@ -82,12 +85,19 @@ export function setupSnapshotsPanel(app: App, undo: UndoRedo, clientId: () => st
     if (button.dataset.act === "restore") {
       void act("restore", async () =>
         undo.adopt(
-          await client.restoreSnapshot({ name, snapshot, clientId: clientId(), expectedConfigVersion: state.session?.configVersion ?? 0n }),
+          await askingToDropKeys((discardTimeline) =>
+            client.restoreSnapshot({ name, snapshot, clientId: clientId(), expectedConfigVersion: state.session?.configVersion ?? 0n, discardTimeline }),
+          ),
         ),
       );
     } else {
-      void act("delete", () => client.deleteSnapshot({ name, snapshot }));
+      void act("delete", () => client.deleteSnapshot({ name, snapshot, clientId: clientId() }));
     }
+  });
+
+  // Saves and deletes are steps (anyone's, and their undos): the list follows them live.
+  sync.on("step", (step) => {
+    if (step.snapshot !== "" && step.kind !== StepKind.RESTORE) void refresh();
   });
 
   state.on("session", () => {
