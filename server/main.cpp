@@ -107,6 +107,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   hdeform::service::RequestLimits request;
   std::size_t max_upload_inflight_mb = 1024;
+  std::size_t grpc_memory_mb = 1024;
+  int max_concurrent_streams = 100;
   double upload_stall_timeout = 30;
   app.add_option("--max-handles", request.max_handles, "handle regions per session")
       ->envname("HDEFORM_MAX_HANDLES")
@@ -138,6 +140,28 @@ int main(int argc, char** argv) {
                  "every frame for itself)")
       ->envname("HDEFORM_MAX_DELTA_WATCHERS")
       ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--max-queued-calls", request.max_queued_calls,
+                 "calls waiting for a solver thread, all sessions together; more are refused "
+                 "(RESOURCE_EXHAUSTED) on arrival")
+      ->envname("HDEFORM_MAX_QUEUED_CALLS")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--max-session-queue", request.max_session_queue,
+                 "calls waiting on one session (its changes run one at a time); more are "
+                 "refused (RESOURCE_EXHAUSTED) on arrival")
+      ->envname("HDEFORM_MAX_SESSION_QUEUE")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--max-concurrent-streams", max_concurrent_streams,
+                 "gRPC streams (calls) one connection may have open at once; more wait")
+      ->envname("HDEFORM_MAX_CONCURRENT_STREAMS")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
+  app.add_option("--grpc-memory-mb", grpc_memory_mb,
+                 "memory gRPC may use for its buffers (MiB); beyond it new calls are refused")
+      ->envname("HDEFORM_GRPC_MEMORY_MB")
+      ->check(CLI::Range(16, 1 << 20))
       ->capture_default_str();
   app.add_option("--max-pending-updates", request.max_pending_updates,
                  "coalescing UpdateHandles (pipelined clients) waiting per session")
@@ -280,6 +304,8 @@ int main(int argc, char** argv) {
   options.session_ttl = std::chrono::seconds(session_ttl);
   options.request = request;
   options.max_upload_inflight_bytes = max_upload_inflight_mb << 20;
+  options.grpc_memory_bytes = grpc_memory_mb << 20;
+  options.max_concurrent_streams = max_concurrent_streams;
   options.upload_stall_timeout =
       std::chrono::milliseconds(static_cast<long>(upload_stall_timeout * 1000));
   if (!no_state) {

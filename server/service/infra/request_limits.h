@@ -26,6 +26,10 @@ struct RequestLimits {
   std::size_t max_snapshots = 64;            // --max-snapshots: named snapshots per session
   std::size_t max_animation_frames = 600;    // --max-animation-frames: samples per export
   std::size_t max_animation_bytes = 256u << 20;  // --max-animation-bytes: an export's GLB
+  // Admission: a call that would wait behind this many is refused at arrival, before any
+  // work, so a flood queues nothing unbounded.
+  std::size_t max_queued_calls = 1024;  // --max-queued-calls: waiting for a solver thread (server)
+  std::size_t max_session_queue = 32;  // --max-session-queue: waiting on one session's strand
 };
 
 // Throws ServiceError RESOURCE_EXHAUSTED "WHAT: COUNT exceeds the limit of LIMIT (FLAG)".

@@ -126,6 +126,11 @@ void Strand::post(WorkerPool::Task task) {
   if (start) pool_.submit([self = shared_from_this()] { self->drain(); });
 }
 
+std::size_t Strand::queued() const {
+  std::lock_guard lock(mutex_);
+  return tasks_.size();
+}
+
 void Strand::drain() {
   // Runs one task per pool slot so a busy session cannot starve the others.
   WorkerPool::Task task;

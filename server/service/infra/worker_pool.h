@@ -51,12 +51,13 @@ class Strand : public std::enable_shared_from_this<Strand> {
  public:
   explicit Strand(WorkerPool& pool) : pool_(pool) {}
   void post(WorkerPool::Task task);
+  std::size_t queued() const;  // posted, not started
 
  private:
   void drain();
 
   WorkerPool& pool_;
-  std::mutex mutex_;
+  mutable std::mutex mutex_;
   std::deque<WorkerPool::Task> tasks_;
   bool running_ = false;
 };

@@ -874,9 +874,22 @@ grpc::ServerUnaryReactor* DeformService::finish_inline(grpc::CallbackServerConte
   return reactor;
 }
 
+void DeformService::admit_to_pool() const {
+  const std::size_t waiting = pool_->queued();
+  if (waiting >= options_.request.max_queued_calls)
+    fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
+         "the server has " + std::to_string(waiting) +
+             " calls waiting for a solver thread, the limit (--max-queued-calls); retry later");
+}
+
 grpc::ServerUnaryReactor* DeformService::finish_on_pool(grpc::CallbackServerContext* ctx,
                                                         const char* op, Work fn) {
   auto* reactor = ctx->DefaultReactor();
+  const auto status = guarded([this] { admit_to_pool(); }, op);
+  if (!status.ok()) {
+    reactor->Finish(status);
+    return reactor;
+  }
   pool_->submit([reactor, op, fn = std::move(fn)] { reactor->Finish(guarded(fn, op)); });
   return reactor;
 }
@@ -901,11 +914,12 @@ grpc::ServerUnaryReactor* DeformService::finish_on_session(grpc::CallbackServerC
               },
               op));
         };
+        admit_to_pool();
         session->admit_and_post(
             [&] {
               if (admit) admit(*session);
             },
-            std::move(task));
+            std::move(task), options_.request.max_session_queue);
       },
       op);
   if (!status.ok()) reactor->Finish(status);

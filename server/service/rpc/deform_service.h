@@ -167,6 +167,8 @@ class DeformService final : public v1::Deformation::CallbackService {
   grpc::ServerUnaryReactor* finish_change(grpc::CallbackServerContext* ctx, const char* op,
                                           const std::string& name,
                                           std::function<void(Session&)> fn);
+  // RESOURCE_EXHAUSTED naming --max-queued-calls when that many wait for a solver thread.
+  void admit_to_pool() const;
   // Durable state from the options (none, SQLite folder, Redis); throws StateError.
   void open_state();
   std::shared_ptr<const MeshRef> load_stored_mesh(const v1::Snapshot& snapshot,

@@ -60,6 +60,10 @@ Server::Server(const ServerOptions& options) : impl_(std::make_unique<Impl>()) {
       clamp_int(std::max<std::size_t>(64u << 20, options.max_upload_bytes + (16u << 20))));
   builder.SetMaxSendMessageSize(
       clamp_int(std::max<std::size_t>(256u << 20, options.max_upload_bytes + (16u << 20))));
+  builder.AddChannelArgument(GRPC_ARG_MAX_CONCURRENT_STREAMS, options.max_concurrent_streams);
+  grpc::ResourceQuota quota("hdeform-server");
+  quota.Resize(options.grpc_memory_bytes);
+  builder.SetResourceQuota(quota);
   impl_->server = builder.BuildAndStart();
   if (!impl_->server) {
     impl_->service.reset();

@@ -30,6 +30,11 @@ struct ServerOptions {
   // An upload that sends nothing for this long is ended with DEADLINE_EXCEEDED
   // (--upload-stall-timeout); its bytes are released.
   std::chrono::milliseconds upload_stall_timeout{30'000};
+  // gRPC's own bounds: streams one connection may have open at once (--max-concurrent-streams;
+  // more wait in the client), and the memory gRPC may use for its buffers (--grpc-memory-mb;
+  // beyond it new calls are refused with RESOURCE_EXHAUSTED by gRPC).
+  int max_concurrent_streams = 100;
+  std::size_t grpc_memory_bytes = 1ull << 30;
   // Durable session state (docs/deployment.md "State"): a folder for SQLite + mesh files
   // (--state-dir), or a Redis URL (--state-redis); both empty = sessions live in memory only.
   std::string state_dir;

@@ -94,6 +94,14 @@ std::chrono::steady_clock::time_point Session::last_used() const {
   return std::chrono::steady_clock::time_point(std::chrono::nanoseconds(last_used_ns_.load()));
 }
 
+void Session::check_queue_locked(std::size_t limit) const {
+  const std::size_t waiting = strand_->queued();
+  if (waiting >= limit)
+    fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
+         name_ + " has " + std::to_string(waiting) +
+             " calls waiting, the limit (--max-session-queue); retry when an answer arrives");
+}
+
 void Session::check_version_locked(std::int64_t expected) const {
   if (expected != 0 && expected != version_)
     fail(grpc::StatusCode::ABORTED, "version conflict: expected " + std::to_string(expected) +

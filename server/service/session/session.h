@@ -70,9 +70,11 @@ class Session : public std::enable_shared_from_this<Session> {
   // Runs `admit` (which may throw; then nothing is posted) and posts `task`, as one step
   // against every other admit_and_post on this session: the strand runs the tasks in the
   // order their admits ran, which coalescing tickets rely on (the newest ticket runs last).
+  // RESOURCE_EXHAUSTED naming --max-session-queue when `limit` calls already wait.
   template <class Admit>
-  void admit_and_post(Admit&& admit, WorkerPool::Task task) {
+  void admit_and_post(Admit&& admit, WorkerPool::Task task, std::size_t limit) {
     std::lock_guard lock(arrival_mutex_);
+    check_queue_locked(limit);
     admit();
     strand_->post(std::move(task));
   }
@@ -250,6 +252,7 @@ class Session : public std::enable_shared_from_this<Session> {
   bool closed() const { return closed_.load(); }
 
  private:
+  void check_queue_locked(std::size_t limit) const;
   void check_version_locked(std::int64_t expected) const;
   void check_config_version_locked(std::int64_t expected) const;
   // The transforms an update leads to, checked (version, grabs); `moved` gets its handles.
