@@ -275,7 +275,7 @@ std::string session_name_of(const std::string& id_or_name) {
   return "sessions/" + session_id_of(id_or_name);
 }
 
-std::string random_session_id() {
+std::string random_id() {
   std::random_device rd;
   std::mt19937_64 gen((static_cast<std::uint64_t>(rd()) << 32) ^ rd() ^
                       static_cast<std::uint64_t>(
@@ -320,7 +320,7 @@ std::string mib_text(std::size_t bytes) {
 // Not retried: a CreateSession that reached the server before it died may have created the
 // session, and its tokens are answered only once.
 SessionClient SessionClient::create(Connection& conn, const std::string& mesh) {
-  const std::string id = random_session_id();
+  const std::string id = random_id();
   pb::CreateSessionRequest header_msg;
   auto* header = header_msg.mutable_header();
   header->set_session_id(id);
@@ -370,7 +370,7 @@ SessionClient SessionClient::create(Connection& conn, const std::string& mesh) {
 }
 
 SessionClient SessionClient::import(Connection& conn, const pb::Snapshot& snapshot) {
-  return import(conn, snapshot, random_session_id());
+  return import(conn, snapshot, random_id());
 }
 
 // Not retried (as CreateSession). Presents every token known: a snapshot that names its mesh
@@ -406,6 +406,7 @@ pb::Session SessionClient::get() {
 pb::Session SessionClient::set_constraints(const pb::Constraints& constraints) {
   pb::SetConstraintsRequest req;
   req.set_name(name_);
+  req.set_request_id(random_id());  // a retry (UNAVAILABLE) is answered, not applied twice
   *req.mutable_constraints() = constraints;
   pb::Session s;
   call("SetConstraints", [&](grpc::ClientContext& ctx) {
@@ -425,6 +426,7 @@ pb::Session SessionClient::set_beta(double value, pb::BetaUnits units) {
 pb::Session SessionClient::set_beta(const pb::Beta& beta) {
   pb::SetBetaRequest req;
   req.set_name(name_);
+  req.set_request_id(random_id());  // a retry (UNAVAILABLE) is answered, not applied twice
   *req.mutable_beta() = beta;
   pb::Session s;
   call("SetBeta", [&](grpc::ClientContext& ctx) {
@@ -537,6 +539,7 @@ pb::Snapshot SessionClient::export_snapshot(bool include_mesh) {
 pb::Timeline SessionClient::set_timeline(const pb::Timeline& timeline) {
   pb::SetTimelineRequest req;
   req.set_name(name_);
+  req.set_request_id(random_id());  // a retry (UNAVAILABLE) is answered, not applied twice
   *req.mutable_timeline() = timeline;
   pb::Timeline out;
   call("SetTimeline", [&](grpc::ClientContext& ctx) {

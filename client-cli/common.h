@@ -109,8 +109,8 @@ class Connection {
 // "sessions/abc" → "abc"; "abc" → "abc".
 std::string session_id_of(const std::string& name);
 std::string session_name_of(const std::string& id_or_name);
-// 16 random lowercase hex characters.
-std::string random_session_id();
+// 16 random lowercase hex characters (session ids, request ids).
+std::string random_id();
 
 // One session on the server, with its routing key (= its id; see docs/deployment.md).
 class SessionClient {

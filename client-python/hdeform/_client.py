@@ -2,6 +2,7 @@
 import csv
 import itertools
 import os
+import time
 import uuid
 import weakref
 from dataclasses import dataclass
@@ -231,7 +232,19 @@ class Session:
         self._sequence = itertools.count(1)
 
     def _call(self, method, request):
-        return _rpc(getattr(self.client.stub, method), request, metadata=_metadata(self.token))
+        # A change carries a request id, so one retry after UNAVAILABLE (the answer may have
+        # been lost after the server applied it) is answered, never applied twice.
+        retry = "request_id" in request.DESCRIPTOR.fields_by_name
+        if retry and not request.request_id:
+            request.request_id = uuid.uuid4().hex
+        stub = getattr(self.client.stub, method)
+        try:
+            return _rpc(stub, request, metadata=_metadata(self.token))
+        except Error as e:
+            if not retry or e.code != grpc.StatusCode.UNAVAILABLE:
+                raise
+            time.sleep(0.5)
+            return _rpc(stub, request, metadata=_metadata(self.token))
 
     # --- state ----------------------------------------------------------------------------
     @property

@@ -238,6 +238,19 @@ def test_undo_redo_history_and_snapshots(cactus):
     assert set(cactus.snapshots()) == {"moved"}
 
 
+def test_changes_carry_a_request_id_and_a_repeat_applies_nothing(cactus):
+    from hdeform._proto import pb
+    cactus.update(translate=(0.05, 0, 0))
+    cactus.update(translate=(0.1, 0, 0))
+    r = pb.UndoRequest(name=cactus.name, client_id=cactus.client_id)
+    first = cactus._call("Undo", r)
+    assert len(r.request_id) == 32  # filled in by the client
+    again = cactus._call("Undo", r)  # as a retry after a lost answer would
+    assert again == first
+    assert [s.kind for s in cactus.history(limit=2)] == [pb.STEP_KIND_UNDO, pb.STEP_KIND_MOVE]
+    assert cactus.refresh().info.transforms[0].translation.x == 0.05
+
+
 def test_new_constraints_keep_another_clients_keys_unless_asked(cactus):
     from hdeform._proto import pb
     cactus.set_timeline([(0, [None]), (1, [dict(translate=(0, 0, 0.2))])])

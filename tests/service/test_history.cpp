@@ -431,3 +431,57 @@ TEST(History, TimelineEditsAndSnapshotSavesAndDeletesAreUndoable) {
   ASSERT_TRUE(alice.undo(nullptr, save_step).ok());
   EXPECT_TRUE(snapshots().empty());
 }
+
+// Retries are safe: a change repeated with the same request_id answers as the first did and
+// applies nothing more; a call that applied nothing (refused) is not remembered, so its
+// retry may apply; ids are per method and at most 64 bytes.
+TEST(Retries, ARepeatedRequestIdAnswersTheFirstAnswerWithoutApplyingAgain) {
+  TwoHandles e;
+  ASSERT_TRUE(e.update("alice", {0}, {translation(0, 0, 0.4)}).ok());
+  ASSERT_TRUE(e.update("alice", {1}, {translation(0, 0, 0.2)}).ok());
+  auto undo = [&](const std::string& id, pb::Session* out) {
+    pb::UndoRequest r;
+    r.set_name(e.s.name());
+    r.set_client_id("alice");
+    r.set_request_id(id);
+    return e.t.bare_stub->Undo(as(e.s.edit_token()).get(), r, out);
+  };
+  pb::Session first, again;
+  ASSERT_TRUE(undo("u-1", &first).ok());
+  const auto steps = history(e).total();
+  auto st = undo("u-1", &again);  // the answer was lost: the client retries
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_EQ(again.SerializeAsString(), first.SerializeAsString());
+  EXPECT_EQ(history(e).total(), steps);  // no second undo
+  EXPECT_DOUBLE_EQ(tz(e.state(), 0), 0.4);  // handle 0's move stands
+  EXPECT_DOUBLE_EQ(tz(e.state(), 1), 0.0);
+  ASSERT_TRUE(undo("u-2", &again).ok());  // a new id: the next undo
+  EXPECT_DOUBLE_EQ(tz(e.state(), 0), 0.0);
+
+  // Refused first (nothing applied): not remembered, the retry applies once it can.
+  pb::RestoreSnapshotRequest r;
+  r.set_name(e.s.name());
+  r.set_snapshot("later");
+  r.set_client_id("alice");
+  r.set_request_id("r-1");
+  pb::Session out;
+  EXPECT_EQ(e.t.bare_stub->RestoreSnapshot(as(e.s.edit_token()).get(), r, &out).error_code(),
+            grpc::StatusCode::NOT_FOUND);
+  ASSERT_TRUE(save(e, "later").ok());
+  st = e.t.bare_stub->RestoreSnapshot(as(e.s.edit_token()).get(), r, &out);
+  EXPECT_TRUE(st.ok()) << st.error_message();
+
+  // Per method: the same id on another call is another request.
+  pb::SetBetaRequest b;
+  b.set_name(e.s.name());
+  b.mutable_beta()->set_value(0.25);
+  b.set_client_id("alice");
+  b.set_request_id("u-1");
+  ASSERT_TRUE(e.t.bare_stub->SetBeta(as(e.s.edit_token()).get(), b, &out).ok());
+  EXPECT_DOUBLE_EQ(out.beta().value(), 0.25);
+
+  b.set_request_id(std::string(65, 'x'));
+  st = e.t.bare_stub->SetBeta(as(e.s.edit_token()).get(), b, &out);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("request_id"), std::string::npos) << st.error_message();
+}

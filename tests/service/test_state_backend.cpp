@@ -1,6 +1,7 @@
 // Durable state backends (state_backend.h) against real stores: SQLite in a fresh temp
 // folder and a redis-server started by the test on a free loopback port.
 #include "service/state/state_backend.h"
+#include "service_fixture.h"
 
 #include <arpa/inet.h>
 #include <fcntl.h>
@@ -623,4 +624,46 @@ TEST(RedisState, HungServerTimesOutAfterTwoSeconds) {
   EXPECT_LT(took, std::chrono::seconds(4));
   server.resume();
   EXPECT_EQ(state->get_session("x"), "1");  // a fresh connection, in step again
+}
+
+// A change the server applied but could not store is answered DATA_LOSS (never UNAVAILABLE,
+// which clients retry); a retry with its request_id gets the same answer and applies
+// nothing; once Redis is back the flusher stores it.
+TEST(RedisState, AChangeAppliedButNotStoredIsDataLossAndItsRetryAppliesNothing) {
+  RedisServer redis;
+  hdeform::service::ServerOptions o;
+  o.state_redis = redis.url();
+  hdeform::testing::TestServer t(o);
+  namespace pb = hdeform::v1;
+  pb::Session s = t.library_session("cactus");
+  redis.stop(SIGTERM);
+  pb::SetBetaRequest r;
+  r.set_name(s.name());
+  r.mutable_beta()->set_value(0.3);
+  r.set_client_id("alice");
+  r.set_request_id("b-1");
+  pb::Session out;
+  grpc::ClientContext c1;
+  auto st = t.stub->SetBeta(&c1, r, &out);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::DATA_LOSS) << st.error_message();
+  EXPECT_NE(st.error_message().find("do not send it again"), std::string::npos)
+      << st.error_message();
+  grpc::ClientContext c2;
+  pb::GetSessionRequest g;
+  g.set_name(s.name());
+  ASSERT_TRUE(t.stub->GetSession(&c2, g, &out).ok());
+  EXPECT_DOUBLE_EQ(out.beta().value(), 0.3);  // applied
+  const auto version = out.version();
+  grpc::ClientContext c3;
+  st = t.stub->SetBeta(&c3, r, &out);  // the client's retry
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::DATA_LOSS) << st.error_message();
+  grpc::ClientContext c4;
+  ASSERT_TRUE(t.stub->GetSession(&c4, g, &out).ok());
+  EXPECT_EQ(out.version(), version);  // nothing applied again
+  pb::ListHistoryRequest h;
+  h.set_name(s.name());
+  pb::ListHistoryResponse steps;
+  grpc::ClientContext c5;
+  ASSERT_TRUE(t.stub->ListHistory(&c5, h, &steps).ok());
+  EXPECT_EQ(steps.total(), 1);  // one β step
 }

@@ -62,20 +62,20 @@ export class FakeClient {
   session: () => Session = () => create(SessionSchema, { name: "sessions/s" });
   getSessionCalls = 0;
   setBetaCalls = 0;
-  /** SetBeta and SetConstraints requests, in order (their client_id). */
-  requests: { clientId?: string }[] = [];
+  /** SetBeta and SetConstraints requests, in order (their client_id and request_id). */
+  requests: { clientId?: string; requestId?: string }[] = [];
   /** What each SetBeta answers, in order. */
   betaAnswers: (() => Session)[] = [];
 
   readonly client = {
     updateHandles: (request: UpdateHandlesRequest) =>
       new Promise<Frame>((resolve, reject) => this.updates.push({ request, resolve, reject })),
-    setBeta: async (request: { clientId?: string }) => {
+    setBeta: async (request: { clientId?: string; requestId?: string }) => {
       this.requests.push(request);
       const answer = this.betaAnswers[this.setBetaCalls++];
       return answer ? answer() : create(SessionSchema, {});
     },
-    setConstraints: async (request: { clientId?: string }) => {
+    setConstraints: async (request: { clientId?: string; requestId?: string }) => {
       this.requests.push(request);
       return create(SessionSchema, {});
     },

@@ -220,6 +220,12 @@ describe("sync, connection", () => {
     fake.betaAnswers = [unavailable, unavailable, () => create(SessionSchema, {})];
     await assert.rejects(sync.setBeta({ name: "sessions/s", beta: { value: 0.4 } }), /unavailable/);
     assert.equal(fake.setBetaCalls, 2);
+    // The retry is the same request to the server (its request_id): applied at most once.
+    const [first, retry] = fake.requests.map((r) => r.requestId);
+    assert.match(first ?? "", /^[0-9a-f]{32}$/);
+    assert.equal(retry, first);
+    await sync.setBeta({ name: "sessions/s", beta: { value: 0.4 } });
+    assert.notEqual(fake.requests[2].requestId, first); // a new change: a new id
     assert.equal(sync.link.state, "connected");
   });
 

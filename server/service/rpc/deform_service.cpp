@@ -928,11 +928,26 @@ grpc::ServerUnaryReactor* DeformService::finish_on_session(grpc::CallbackServerC
 
 grpc::ServerUnaryReactor* DeformService::finish_change(grpc::CallbackServerContext* ctx,
                                                        const char* op, const std::string& name,
+                                                       const std::string& request_id,
+                                                       google::protobuf::Message* response,
                                                        std::function<void(Session&)> fn) {
-  return finish_on_session(ctx, op, name, Access::kEdit, [this, fn = std::move(fn)](Session& s) {
-    fn(s);
-    store_.save(s);
-  });
+  auto admit = [op, &request_id](Session&) { RequestLog::check_id(request_id, op); };
+  auto change = [this, op, request_id, response, fn = std::move(fn)](Session& s) {
+    grpc::Status first;
+    if (s.requests().replay(op, request_id, response, &first)) {
+      if (!first.ok()) throw ServiceError(first.error_code(), first.error_message());
+      return;
+    }
+    fn(s);  // throws when nothing was applied: a retry may try again
+    try {
+      store_.save(s);
+    } catch (const ServiceError& e) {
+      s.requests().remember(op, request_id, *response, e.status());
+      throw;
+    }
+    s.requests().remember(op, request_id, *response, grpc::Status::OK);
+  };
+  return finish_on_session(ctx, op, name, Access::kEdit, std::move(change), std::move(admit));
 }
 
 grpc::ServerReadReactor<v1::CreateSessionRequest>* DeformService::CreateSession(
@@ -988,7 +1003,7 @@ grpc::ServerUnaryReactor* DeformService::ListMeshes(grpc::CallbackServerContext*
 grpc::ServerUnaryReactor* DeformService::SetConstraints(grpc::CallbackServerContext* ctx,
                                                         const v1::SetConstraintsRequest* request,
                                                         v1::Session* response) {
-  return finish_change(ctx, "SetConstraints", request->name(),
+  return finish_change(ctx, "SetConstraints", request->name(), request->request_id(), response,
                        [this, request, response](Session& s) {
                          *response = s.set_constraints(
                              request->constraints(), request->expected_version(),
@@ -1000,7 +1015,7 @@ grpc::ServerUnaryReactor* DeformService::SetConstraints(grpc::CallbackServerCont
 grpc::ServerUnaryReactor* DeformService::SetBeta(grpc::CallbackServerContext* ctx,
                                                  const v1::SetBetaRequest* request,
                                                  v1::Session* response) {
-  return finish_change(ctx, "SetBeta", request->name(),
+  return finish_change(ctx, "SetBeta", request->name(), request->request_id(), response,
                        [this, request, response](Session& s) {
                          *response = s.set_beta(request->beta(), request->expected_version(),
                                                 request->expected_config_version(),
@@ -1239,7 +1254,7 @@ grpc::ServerUnaryReactor* DeformService::ImportSession(grpc::CallbackServerConte
 grpc::ServerUnaryReactor* DeformService::Undo(grpc::CallbackServerContext* ctx,
                                               const v1::UndoRequest* request,
                                               v1::Session* response) {
-  return finish_change(ctx, "Undo", request->name(),
+  return finish_change(ctx, "Undo", request->name(), request->request_id(), response,
                        [this, request, response](Session& s) {
                          *response = s.undo(*request);
                        });
@@ -1248,7 +1263,7 @@ grpc::ServerUnaryReactor* DeformService::Undo(grpc::CallbackServerContext* ctx,
 grpc::ServerUnaryReactor* DeformService::Redo(grpc::CallbackServerContext* ctx,
                                               const v1::UndoRequest* request,
                                               v1::Session* response) {
-  return finish_change(ctx, "Redo", request->name(),
+  return finish_change(ctx, "Redo", request->name(), request->request_id(), response,
                        [this, request, response](Session& s) {
                          *response = s.redo(*request);
                        });
@@ -1266,7 +1281,7 @@ grpc::ServerUnaryReactor* DeformService::ListHistory(grpc::CallbackServerContext
 grpc::ServerUnaryReactor* DeformService::SaveSnapshot(grpc::CallbackServerContext* ctx,
                                                       const v1::SaveSnapshotRequest* request,
                                                       v1::NamedSnapshot* response) {
-  return finish_change(ctx, "SaveSnapshot", request->name(),
+  return finish_change(ctx, "SaveSnapshot", request->name(), request->request_id(), response,
                        [this, request, response](Session& s) {
                          *response = s.save_snapshot(*request);
                        });
@@ -1284,7 +1299,7 @@ grpc::ServerUnaryReactor* DeformService::ListSnapshots(grpc::CallbackServerConte
 grpc::ServerUnaryReactor* DeformService::RestoreSnapshot(
     grpc::CallbackServerContext* ctx, const v1::RestoreSnapshotRequest* request,
     v1::Session* response) {
-  return finish_change(ctx, "RestoreSnapshot", request->name(),
+  return finish_change(ctx, "RestoreSnapshot", request->name(), request->request_id(), response,
                        [this, request, response](Session& s) {
                          *response = s.restore_snapshot(*request);
                        });
@@ -1292,8 +1307,8 @@ grpc::ServerUnaryReactor* DeformService::RestoreSnapshot(
 
 grpc::ServerUnaryReactor* DeformService::DeleteSnapshot(grpc::CallbackServerContext* ctx,
                                                         const v1::DeleteSnapshotRequest* request,
-                                                        v1::DeleteSnapshotResponse*) {
-  return finish_change(ctx, "DeleteSnapshot", request->name(),
+                                                        v1::DeleteSnapshotResponse* response) {
+  return finish_change(ctx, "DeleteSnapshot", request->name(), request->request_id(), response,
                        [this, request](Session& s) {
                          s.delete_snapshot(request->snapshot(), request->client_id());
                        });
@@ -1321,7 +1336,7 @@ grpc::ServerUnaryReactor* DeformService::GetHandleWeights(
 grpc::ServerUnaryReactor* DeformService::SetTimeline(grpc::CallbackServerContext* ctx,
                                                      const v1::SetTimelineRequest* request,
                                                      v1::Timeline* response) {
-  return finish_change(ctx, "SetTimeline", request->name(),
+  return finish_change(ctx, "SetTimeline", request->name(), request->request_id(), response,
                        [this, request, response](Session& s) {
                          *response = s.set_timeline(*request);
                        });
@@ -1390,7 +1405,7 @@ grpc::ServerUnaryReactor* DeformService::ReleaseHandles(grpc::CallbackServerCont
 grpc::ServerUnaryReactor* DeformService::RotateTokens(grpc::CallbackServerContext* ctx,
                                                       const v1::RotateTokensRequest* request,
                                                       v1::Session* response) {
-  return finish_change(ctx, "RotateTokens", request->name(),
+  return finish_change(ctx, "RotateTokens", request->name(), "", response,
                        [this, response](Session& s) {
                          const IssuedTokens tokens = s.rotate_tokens();
                          *response = s.describe();

@@ -163,9 +163,11 @@ class DeformService final : public v1::Deformation::CallbackService {
                                               std::function<void(Session&)> admit = {});
   // A change of the session (docs/architecture.md "One path for a change"): authorized for
   // editing, admitted to the strand, applied by `fn` (a Session method that runs
-  // Session::execute), then persisted — answered only after the store took it.
+  // Session::execute), then persisted — answered only after the store took it. A repeated
+  // `request_id` gets the first answer (into `response`) and applies nothing.
   grpc::ServerUnaryReactor* finish_change(grpc::CallbackServerContext* ctx, const char* op,
-                                          const std::string& name,
+                                          const std::string& name, const std::string& request_id,
+                                          google::protobuf::Message* response,
                                           std::function<void(Session&)> fn);
   // RESOURCE_EXHAUSTED naming --max-queued-calls when that many wait for a solver thread.
   void admit_to_pool() const;

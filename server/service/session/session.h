@@ -15,6 +15,7 @@
 #include "service/session/client_sequences.h"
 #include "service/session/history.h"
 #include "service/session/mesh_library.h"
+#include "service/session/request_log.h"
 #include "service/session/roster.h"
 #include "service/session/timeline.h"
 
@@ -208,6 +209,8 @@ class Session : public std::enable_shared_from_this<Session> {
   };
   Persisted& persisted() { return persisted_; }
   void add_watcher(std::shared_ptr<EventSink> sink);  // also sends the current state
+  // Answers of recent changes by request id (the strand only: every change runs there).
+  RequestLog& requests() { return requests_; }
   // Frames as the watchers asked for them, one encode per encoding (encoded_frames.h).
   EncodedFrameCache& encoded_frames() { return encoded_frames_; }
   void remove_watcher(const EventSink* sink);
@@ -368,6 +371,7 @@ class Session : public std::enable_shared_from_this<Session> {
   Roster roster_;
   ClientSequences sequences_;  // guarded by mutex_
   EncodedFrameCache encoded_frames_;
+  RequestLog requests_;  // the strand only
 
   std::atomic<int> streams_{0};
   std::atomic<int> delta_watchers_{0};

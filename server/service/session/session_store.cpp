@@ -483,9 +483,11 @@ void SessionStore::save(Session& s) const {
   } catch (const StateError& e) {
     p.dirty = true;  // the flusher tries again
     spdlog::error("{}: {}", s.name(), e.what());
-    fail(grpc::StatusCode::UNAVAILABLE,
-         "the change was applied but could not be saved (it may be lost on a restart): " +
-             std::string(e.what()));
+    // Not UNAVAILABLE: clients retry that, and this change is applied already.
+    fail(grpc::StatusCode::DATA_LOSS,
+         "the change was applied but is not stored yet (" + std::string(e.what()) +
+             "): the server stores it once the store answers again, and it is lost only if "
+             "the server stops before; do not send it again");
   }
 }
 

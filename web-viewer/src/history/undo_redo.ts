@@ -12,6 +12,7 @@ import type { App } from "../app";
 import type { Session } from "../gen/hdeform/v1/deform_pb";
 import type { Sync } from "../sync/sync";
 import { askingToDropKeys } from "../conflict";
+import { newRequestId } from "../request_id";
 
 export type UndoKind = "undo" | "redo";
 
@@ -37,7 +38,7 @@ export function setupUndoRedo(app: App, sync: Sync, clientId: () => string): Und
       if (state.watchOnly || !state.sessionName || running) return false;
       if (sync.dragging) return false; // the drag is not a step yet
       running = true;
-      const request = { name: state.sessionName, clientId: clientId(), step: step ?? 0n };
+      const request = { name: state.sessionName, clientId: clientId(), step: step ?? 0n, requestId: newRequestId() };
       try {
         adopt(
           await askingToDropKeys((discardTimeline) =>

@@ -11,6 +11,7 @@ import type { NamedSnapshot } from "../gen/hdeform/v1/deform_pb";
 import { relativeTime } from "../history/relative_time";
 import type { UndoRedo } from "../history/undo_redo";
 import type { Sync } from "../sync/sync";
+import { newRequestId } from "../request_id";
 import { StepKind } from "../gen/hdeform/v1/deform_pb";
 
 function escape(s: string): string {
@@ -70,7 +71,7 @@ export function setupSnapshotsPanel(app: App, sync: Sync, undo: UndoRedo, client
   const doSave = () => {
     const snapshot = nameField.value.trim();
     if (!snapshot || !state.sessionName) return;
-    void act("save", () => client.saveSnapshot({ name: state.sessionName, snapshot, clientId: clientId() }));
+    void act("save", () => client.saveSnapshot({ name: state.sessionName, snapshot, clientId: clientId(), requestId: newRequestId() }));
   };
   save.addEventListener("click", doSave);
   nameField.addEventListener("keydown", (ev) => {
@@ -83,15 +84,16 @@ export function setupSnapshotsPanel(app: App, sync: Sync, undo: UndoRedo, client
     if (!button || snapshot === undefined) return;
     const name = state.sessionName;
     if (button.dataset.act === "restore") {
+      const requestId = newRequestId();
       void act("restore", async () =>
         undo.adopt(
           await askingToDropKeys((discardTimeline) =>
-            client.restoreSnapshot({ name, snapshot, clientId: clientId(), expectedConfigVersion: state.session?.configVersion ?? 0n, discardTimeline }),
+            client.restoreSnapshot({ name, snapshot, clientId: clientId(), expectedConfigVersion: state.session?.configVersion ?? 0n, discardTimeline, requestId }),
           ),
         ),
       );
     } else {
-      void act("delete", () => client.deleteSnapshot({ name, snapshot, clientId: clientId() }));
+      void act("delete", () => client.deleteSnapshot({ name, snapshot, clientId: clientId(), requestId: newRequestId() }));
     }
   });
 

@@ -14,6 +14,7 @@
 // comes on the stream; a stream still connecting would miss it); frames apply in version
 // order from wherever they come. The update after a
 // non-dragging one never coalesces, so a drag's last update is always solved.
+import { newRequestId } from "../request_id";
 import type { MessageInitShape } from "@bufbuild/protobuf";
 import { describeError, isAbort, isTransient } from "../api";
 import { Emitter } from "../events";
@@ -315,11 +316,13 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
   // Both carry this page's client_id (unless the request names one), so the server's history
   // names the author and Undo (by client_id) finds the change as this page's own.
   setBeta(request: MessageInitShape<typeof SetBetaRequestSchema>): Promise<Session> {
-    return this.edit(() => this.client.setBeta({ clientId: this.participantOf()?.clientId ?? "", ...request }));
+    const requestId = newRequestId(); // the same on the retry: applied once
+    return this.edit(() => this.client.setBeta({ clientId: this.participantOf()?.clientId ?? "", requestId, ...request }));
   }
 
   setConstraints(request: MessageInitShape<typeof SetConstraintsRequestSchema>): Promise<Session> {
-    return this.edit(() => this.client.setConstraints({ clientId: this.participantOf()?.clientId ?? "", ...request }));
+    const requestId = newRequestId();
+    return this.edit(() => this.client.setConstraints({ clientId: this.participantOf()?.clientId ?? "", requestId, ...request }));
   }
 
   /**

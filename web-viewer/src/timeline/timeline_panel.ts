@@ -3,6 +3,7 @@
 // key, easing, scrubbing (scrub.ts), Play (the exported GLB in the viewport) and Export (the same
 // GLB as a download). Every change sends the whole edited key list (SetTimeline). Watch pages
 // see the keys and move their own playhead; they change nothing (the calls need the edit token).
+import { newRequestId } from "../request_id";
 import { Code, ConnectError } from "@connectrpc/connect";
 import type { MessageInitShape } from "@bufbuild/protobuf";
 import { describeError } from "../api";
@@ -158,6 +159,7 @@ export function setupTimelinePanel(app: App, sync: Sync, editors: Editors, scrub
         timeline: { keys: next, easing: nextEasing },
         clientId: editors.identity.clientId,
         expectedConfigVersion: state.session?.configVersion ?? 0n,
+        requestId: newRequestId(),
       });
       if (name !== state.sessionName) return;
       adopt(t, "set");
