@@ -852,30 +852,27 @@ void ConstraintSet::throw_result_error(std::span<const HandleTransform> transfor
   throw InvalidInput(fmt_result_error(worst, t));
 }
 
-std::size_t ConstraintSet::memory_bytes() const {
-  std::lock_guard lock(mutex_);
+std::size_t ConstraintSet::base_bytes_locked() const {
   std::size_t bytes = sizeof(*this) + static_cast<std::size_t>(basis_.size()) * sizeof(double) +
                       (free_.size() + constrained_.size() + 2 * region_of_.size()) * sizeof(int);
-  for (const auto& [b, sys] : by_beta_) bytes += sys->memory_bytes();
-  for (const auto& [key, fs] : by_field_)
-    bytes += fs.system->memory_bytes() + static_cast<std::size_t>(fs.beta.size()) * sizeof(double);
   if (wide_)
     bytes += sparse_bytes(wide_->area.FF) + sparse_bytes(wide_->area.FC) +
              (wide_->reg_FF.size() + wide_->reg_FC.size()) * sizeof(double);
   return bytes;
 }
 
+std::size_t ConstraintSet::memory_bytes() const {
+  std::lock_guard lock(mutex_);
+  std::size_t bytes = base_bytes_locked();
+  for (const auto& [b, sys] : by_beta_) bytes += sys->memory_bytes();
+  for (const auto& [key, fs] : by_field_)
+    bytes += fs.system->memory_bytes() + static_cast<std::size_t>(fs.beta.size()) * sizeof(double);
+  return bytes;
+}
+
 std::size_t ConstraintSet::base_bytes() const {
-  std::size_t cached = 0;
-  {
-    std::lock_guard lock(mutex_);
-    for (const auto& [b, sys] : by_beta_) cached += sys->memory_bytes();
-    for (const auto& [key, fs] : by_field_)
-      cached += fs.system->memory_bytes() +
-                static_cast<std::size_t>(fs.beta.size()) * sizeof(double);
-  }
-  const std::size_t all = memory_bytes();  // the maps may change between the two reads
-  return all > cached ? all - cached : 0;
+  std::lock_guard lock(mutex_);
+  return base_bytes_locked();
 }
 
 std::size_t ConstraintSet::num_cached_factorizations() const {

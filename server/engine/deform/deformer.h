@@ -273,6 +273,7 @@ class ConstraintSet : public std::enable_shared_from_this<ConstraintSet>,
   const OpenTimings& open_timings() const { return open_timings_; }
 
  private:
+  std::size_t base_bytes_locked() const;  // base_bytes under mutex_
   OpenTimings open_timings_;
   std::shared_ptr<const BetaSystem> system(double raw_beta) const;
   // Builds the system for raw β; build_mutex_ must be held (it guards wide_ and

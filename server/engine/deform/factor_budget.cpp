@@ -26,7 +26,9 @@ void FactorBudget::prune_locked() const {
 
 void FactorBudget::charge(std::weak_ptr<const Owner> owner, std::weak_ptr<const Item> item,
                           std::size_t bytes, bool pinned) {
-  if (auto live = item.lock()) touch(*live);
+  // Held for the whole call: the item charged now is never its own victim.
+  const std::shared_ptr<const Item> charged_now = item.lock();
+  if (charged_now) touch(*charged_now);
   // Read before the lock: other_bytes_ may take another object's lock.
   const std::size_t other = other_bytes_ ? other_bytes_() : 0;
   struct Victim {
@@ -36,7 +38,6 @@ void FactorBudget::charge(std::weak_ptr<const Owner> owner, std::weak_ptr<const 
   std::vector<Victim> victims;
   {
     std::lock_guard lock(mutex_);
-    const Item* const charged_now = item.lock().get();
     entries_.push_back({std::move(owner), std::move(item), bytes, pinned});
     prune_locked();
     std::size_t total = other;
@@ -51,7 +52,7 @@ void FactorBudget::charge(std::weak_ptr<const Owner> owner, std::weak_ptr<const 
       const Entry& e = entries_[i];
       if (e.pinned) continue;
       const auto live = e.item.lock();
-      if (!live || live.get() == charged_now) continue;
+      if (!live || live == charged_now) continue;
       order.push_back({live->last_use.load(std::memory_order_relaxed), i});
     }
     std::sort(order.begin(), order.end(),

@@ -756,10 +756,7 @@ void DeformService::begin_shutdown() {
   store_.end_streams();
 }
 
-void DeformService::close_sessions() {
-  stopping_ = true;
-  store_.shutdown();
-}
+void DeformService::close_sessions() { store_.shutdown(); }  // after begin_shutdown
 void DeformService::stop_workers() { pool_->stop(); }
 
 std::shared_ptr<const MeshRef> DeformService::load_library_mesh(const std::string& name) {

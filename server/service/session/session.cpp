@@ -827,17 +827,20 @@ IssuedTokens Session::rotate_tokens() {
   return issued;
 }
 
+Session::OpenStreams Session::take_streams() {
+  OpenStreams out;
+  std::lock_guard lock(mutex_);
+  out.watchers.swap(watchers_);
+  for (auto& w : streams_auth_)
+    if (auto s = w.lock()) out.deform.push_back(std::move(s));
+  streams_auth_.clear();
+  return out;
+}
+
 void Session::end_streams(const grpc::Status& why) {
-  std::vector<std::shared_ptr<EventSink>> sinks;
-  std::vector<std::weak_ptr<AuthorizedStream>> streams;
-  {
-    std::lock_guard lock(mutex_);
-    sinks.swap(watchers_);
-    streams.swap(streams_auth_);
-  }
-  for (auto& s : sinks) s->revoke(why);
-  for (auto& w : streams)
-    if (auto s = w.lock()) s->revoke(why);
+  const OpenStreams open = take_streams();
+  for (const auto& s : open.watchers) s->revoke(why);
+  for (const auto& s : open.deform) s->revoke(why);
 }
 
 void Session::add_stream(std::weak_ptr<AuthorizedStream> stream) {
@@ -1312,25 +1315,15 @@ int Session::observers() const {
 
 void Session::close() {
   if (closed_.exchange(true)) return;
-  std::vector<std::shared_ptr<EventSink>> sinks;
-  {
-    std::lock_guard lock(mutex_);
-    sinks.swap(watchers_);
-  }
-  std::vector<std::weak_ptr<AuthorizedStream>> streams;
-  {
-    std::lock_guard lock(mutex_);
-    streams.swap(streams_auth_);
-  }
+  const OpenStreams open = take_streams();
   auto event = std::make_shared<pb::SessionEvent>();
   event->set_deleted(name_);
-  for (auto& s : sinks) {
+  for (const auto& s : open.watchers) {  // watchers hear why, then end normally
     s->push(event);
     s->close();
   }
   const grpc::Status gone(grpc::StatusCode::NOT_FOUND, name_ + " was deleted");
-  for (auto& w : streams)
-    if (auto s = w.lock()) s->revoke(gone);
+  for (const auto& s : open.deform) s->revoke(gone);
 }
 
 }  // namespace hdeform::service

@@ -256,6 +256,12 @@ class Session : public std::enable_shared_from_this<Session> {
 
  private:
   void check_queue_locked(std::size_t limit) const;
+  // Every open stream, taken out of the session (close, end_streams).
+  struct OpenStreams {
+    std::vector<std::shared_ptr<EventSink>> watchers;
+    std::vector<std::shared_ptr<AuthorizedStream>> deform;
+  };
+  OpenStreams take_streams();
   void check_version_locked(std::int64_t expected) const;
   void check_config_version_locked(std::int64_t expected) const;
   // The transforms an update leads to, checked (version, grabs); `moved` gets its handles.
