@@ -667,3 +667,28 @@ TEST(RedisState, AChangeAppliedButNotStoredIsDataLossAndItsRetryAppliesNothing) 
   ASSERT_TRUE(t.stub->ListHistory(&c5, h, &steps).ok());
   EXPECT_EQ(steps.total(), 1);  // one β step
 }
+
+// Idle on one replica is not idle everywhere: when replica A's copy expires after replica B
+// wrote a newer record, A keeps its hands off it — B (and any other replica) goes on.
+TEST(RedisState, AnExpiringReplicaNeverDeletesARecordAnotherOvertook) {
+  namespace pb = hdeform::v1;
+  RedisServer redis;
+  hdeform::service::ServerOptions oa;
+  oa.state_redis = redis.url();
+  oa.session_ttl = std::chrono::seconds(1);
+  hdeform::testing::TestServer a(oa);
+  hdeform::service::ServerOptions ob;
+  ob.state_redis = redis.url();
+  hdeform::testing::TestServer b(ob);
+  const pb::Session s = a.library_session("cactus");
+  pb::Session out;
+  ASSERT_TRUE(b.set_beta(s.name(), 0.3, &out).ok());  // B restores it and writes version 2
+  std::this_thread::sleep_for(std::chrono::milliseconds(1800));  // A's copy expires (TTL 1 s)
+  hdeform::testing::TestServer c(ob);  // a third replica finds B's record
+  grpc::ClientContext ctx;
+  pb::GetSessionRequest g;
+  g.set_name(s.name());
+  const auto st = c.stub->GetSession(&ctx, g, &out);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_DOUBLE_EQ(out.beta().value(), 0.3);
+}

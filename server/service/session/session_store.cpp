@@ -169,13 +169,24 @@ bool SessionStore::still_current(Session& s) const {
   return true;
 }
 
-void SessionStore::forget(Session& s) {
+void SessionStore::forget(Session& s, bool expired) {
   if (durable()) {
     std::lock_guard plock(s.persisted().mutex);  // no save of it may follow the delete
+    const std::int64_t saved = s.persisted().saved_version;
     s.persisted().saved_version = INT64_MAX;
     try {
-      persistence_.backend->delete_session(s.id());
-    } catch (const StateError& e) {
+      if (!expired) {
+        persistence_.backend->delete_session(s.id());
+      } else if (const auto bytes = persistence_.backend->get_session(s.id())) {
+        // Idle here is not idle everywhere: a record another replica wrote since (a newer
+        // version) is that replica's to expire. The delete is conditional on the very bytes
+        // read, so a write landing in between is kept too.
+        const std::int64_t stored = parse_record(s.id(), *bytes).version();
+        if (stored > saved || !persistence_.backend->delete_session_if(s.id(), *bytes))
+          spdlog::info("{}: expired here; its stored state is newer (another replica), kept",
+                       s.name());
+      }
+    } catch (const std::exception& e) {
       spdlog::error("{}: deleting its stored state: {}", s.name(), e.what());
     }
   }
@@ -326,7 +337,7 @@ std::size_t SessionStore::expire_idle() {
   }
   for (auto& s : expired) {
     spdlog::info("{}: expired after {} ms idle", s->name(), limits_.session_ttl.count());
-    forget(*s);
+    forget(*s, true);
   }
   const std::size_t n = expired.size();
   expired.clear();

@@ -121,9 +121,10 @@ class SessionStore {
   // False when the store holds a newer version of `s` (or none): the copy must go.
   bool still_current(Session& s) const;
   void drop(const std::shared_ptr<Session>& s) const;
-  // A session taken out of the registry (deleted, expired): its stored state is deleted and
-  // its streams end.
-  void forget(Session& s);
+  // A session taken out of the registry (deleted, or `expired` here): its stored state is
+  // deleted — an expired one's only while the store still holds what this replica wrote —
+  // and its streams end.
+  void forget(Session& s, bool expired = false);
   void save_locked(Session& session, Session::Persisted& p) const;
   void purge_stored(bool meshes_too);
 

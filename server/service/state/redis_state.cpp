@@ -34,6 +34,9 @@ constexpr std::string_view kPutScript =
     "redis.call('SET', KEYS[1], ARGV[1]) redis.call('SADD', KEYS[2], ARGV[2]) return 1";
 constexpr std::string_view kDeleteScript =
     "redis.call('DEL', KEYS[1]) redis.call('SREM', KEYS[2], ARGV[1]) return 1";
+constexpr std::string_view kDeleteIfScript =
+    "if redis.call('GET', KEYS[1]) == ARGV[2] then redis.call('DEL', KEYS[1]) "
+    "redis.call('SREM', KEYS[2], ARGV[1]) return 1 end return 0";
 
 struct RedisUrl {
   std::string host;
@@ -232,6 +235,13 @@ class RedisState final : public StateBackend {
     check_session_id(id);
     Reply r = call("delete session", {"EVAL", kDeleteScript, "2", session_key(id), kSessionSet, id});
     integer(r, "delete session");
+  }
+
+  bool delete_session_if(const std::string& id, const std::string& record) override {
+    check_session_id(id);
+    Reply r = call("delete session",
+                   {"EVAL", kDeleteIfScript, "2", session_key(id), kSessionSet, id, record});
+    return integer(r, "delete session") == 1;
   }
 
   std::vector<std::string> list_sessions() override {

@@ -318,6 +318,17 @@ class SqliteState final : public StateBackend {
     step_done(s.get(), "delete session");
   }
 
+  bool delete_session_if(const std::string& id, const std::string& record) override {
+    check_session_id(id);
+    std::lock_guard lock(mu_);
+    StmtUse s(delete_if_.get());
+    bind_text(s.get(), 1, id);
+    if (sqlite3_bind_blob64(s.get(), 2, record.data(), record.size(), SQLITE_STATIC) != SQLITE_OK)
+      throw error("bind");
+    step_done(s.get(), "delete session");
+    return sqlite3_changes(db_.get()) == 1;
+  }
+
   std::vector<std::string> list_sessions() override {
     std::lock_guard lock(mu_);
     StmtUse s(list_.get());
@@ -402,6 +413,7 @@ class SqliteState final : public StateBackend {
         " updated_unix_ms = excluded.updated_unix_ms");
     select_ = prepare("SELECT record FROM sessions WHERE id = ?1");
     delete_ = prepare("DELETE FROM sessions WHERE id = ?1");
+    delete_if_ = prepare("DELETE FROM sessions WHERE id = ?1 AND record = ?2");
     list_ = prepare("SELECT id FROM sessions");
   }
 
@@ -474,7 +486,7 @@ class SqliteState final : public StateBackend {
   Fd lock_;
   std::mutex mu_;  // one connection; SQLite opened NOMUTEX, so we serialize here
   Db db_;
-  Stmt insert_, upsert_, select_, delete_, list_;
+  Stmt insert_, upsert_, select_, delete_, delete_if_, list_;
 };
 
 }  // namespace

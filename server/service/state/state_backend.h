@@ -37,6 +37,9 @@ class StateBackend {
   virtual std::optional<std::string> get_session(const std::string& id) = 0;
   // Idempotent.
   virtual void delete_session(const std::string& id) = 0;
+  // Deletes `id`'s record only if it is exactly `record` (atomically: a replica that wrote
+  // a newer one in between keeps it). True when it deleted.
+  virtual bool delete_session_if(const std::string& id, const std::string& record) = 0;
   // Every stored id (any order).
   virtual std::vector<std::string> list_sessions() = 0;
 
