@@ -692,3 +692,28 @@ TEST(RedisState, AnExpiringReplicaNeverDeletesARecordAnotherOvertook) {
   ASSERT_TRUE(st.ok()) << st.error_message();
   EXPECT_DOUBLE_EQ(out.beta().value(), 0.3);
 }
+
+// Redis restarted empty: the replica serving an uploaded session writes its record again on
+// the next change — and its mesh, without which no other replica could restore it.
+TEST(RedisState, AfterRedisRestartsEmptyTheNextChangeRewritesRecordAndMesh) {
+  namespace pb = hdeform::v1;
+  RedisServer redis;
+  hdeform::service::ServerOptions o;
+  o.state_redis = redis.url();
+  hdeform::testing::TestServer a(o);
+  pb::Session s;
+  ASSERT_TRUE(a.upload(hdeform::testing::grid_off(12), "grid.off", &s).ok());
+  redis.stop(SIGKILL);
+  redis.start();  // no persistence: empty
+  pb::Session out;
+  auto st = a.set_beta(s.name(), 0.2, &out);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  hdeform::testing::TestServer b(o);  // another replica restores it from Redis alone
+  grpc::ClientContext ctx;
+  pb::GetSessionRequest g;
+  g.set_name(s.name());
+  st = b.stub->GetSession(&ctx, g, &out);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_DOUBLE_EQ(out.beta().value(), 0.2);
+  EXPECT_EQ(out.vertex_count(), 144);
+}

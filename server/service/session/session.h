@@ -205,6 +205,7 @@ class Session : public std::enable_shared_from_this<Session> {
     std::int64_t saved_ms = 0;          // when it was written (unix ms)
     std::atomic<bool> dirty{false};     // changed since (coalesced handle moves)
     std::string mesh_key;               // blob key of an uploaded mesh ("" for library)
+    std::uint64_t store_generation = 0;  // StateBackend::generation() at the last write
     std::atomic<std::int64_t> checked_ms{0};  // last compared with the store (revalidate)
   };
   Persisted& persisted() { return persisted_; }

@@ -95,8 +95,10 @@ std::shared_ptr<Session> SessionStore::create(std::shared_ptr<const MeshRef> mes
     auto& p = s->persisted();
     std::lock_guard plock(p.mutex);
     try {
-      if (s->mesh().library_name.empty() && s->mesh().file_bytes)
+      if (s->mesh().library_name.empty() && s->mesh().file_bytes) {
+        p.store_generation = persistence_.backend->generation();
         p.mesh_key = persistence_.backend->put_mesh(*s->mesh().file_bytes);
+      }
       std::int64_t version = 0;
       const auto record = make_record(*s, p.mesh_key, unix_ms_now(), &version);
       if (!persistence_.backend->create_session(id, record.SerializeAsString()))
@@ -153,8 +155,17 @@ bool SessionStore::still_current(Session& s) const {
   try {
     auto bytes = persistence_.backend->get_session(s.id());
     if (!bytes) {
-      spdlog::info("{}: deleted elsewhere; dropping this copy", s.name());
-      return false;
+      std::lock_guard lock(p.mutex);
+      if (persistence_.backend->generation() == p.store_generation) {
+        spdlog::info("{}: deleted elsewhere; dropping this copy", s.name());
+        return false;
+      }
+      // Not deleted: the store lost everything (Redis restarted empty). This copy is the
+      // session now: it is written again, mesh and all.
+      spdlog::warn("{}: missing from {} after it was emptied; writing it again", s.name(),
+                   persistence_.backend->describe());
+      save_locked(s, p);
+      return true;
     }
     const auto record = parse_record(s.id(), *bytes);
     std::lock_guard lock(p.mutex);
@@ -246,6 +257,7 @@ std::shared_ptr<Session> SessionStore::restore(const std::string& id) const {
     auto& p = s->persisted();
     std::lock_guard plock(p.mutex);
     p.mesh_key = record.mesh_key();
+    p.store_generation = persistence_.backend->generation();
     p.saved_version = record.version();
     p.saved_ms = unix_ms_now();
   }
@@ -481,6 +493,18 @@ void SessionStore::save_locked(Session& s, Session::Persisted& p) const {
   const auto record = make_record(s, p.mesh_key, last_used, &version);
   if (version < p.saved_version) return;  // deleted (INT64_MAX), or a newer one is stored
   persistence_.backend->put_session(s.id(), record.SerializeAsString());
+  // A store that may have lost data since the mesh was written (Redis restarted empty; the
+  // write above may be what found out) gets it again: a record without its mesh could never
+  // be restored by another replica.
+  if (const auto g = persistence_.backend->generation();
+      !p.mesh_key.empty() && g != p.store_generation && s.mesh().file_bytes) {
+    if (!persistence_.backend->has_mesh(p.mesh_key)) {
+      persistence_.backend->put_mesh(*s.mesh().file_bytes);
+      spdlog::warn("{}: its mesh was missing from {}; written again", s.name(),
+                   persistence_.backend->describe());
+    }
+    p.store_generation = g;
+  }
   p.saved_version = version;
   p.saved_ms = now;
 }

@@ -12,6 +12,7 @@
 
 #include <cctype>
 #include <charconv>
+#include <atomic>
 #include <cstring>
 #include <initializer_list>
 #include <mutex>
@@ -24,6 +25,8 @@ namespace {
 constexpr int kTimeoutSeconds = 2;
 constexpr std::string_view kSessionPrefix = "hdeform:session:";
 constexpr std::string_view kSessionSet = "hdeform:sessions";
+// Set once per Redis dataset: a reconnection that finds it missing found an emptied store.
+constexpr std::string_view kMarker = "hdeform:marker";
 constexpr std::string_view kMeshPrefix = "hdeform:mesh:";
 
 // SET NX and SADD in one script so the id set never disagrees with the records.
@@ -264,6 +267,13 @@ class RedisState final : public StateBackend {
     return key;
   }
 
+  bool has_mesh(const std::string& key) override {
+    check_mesh_key(key);
+    return integer(call("has mesh", {"EXISTS", mesh_key(key)}), "has mesh") == 1;
+  }
+
+  std::uint64_t generation() const override { return generation_.load(); }
+
   std::optional<std::string> get_mesh(const std::string& key) override {
     check_mesh_key(key);
     auto bytes = string_or_nil(call("get mesh", {"GET", mesh_key(key)}), "get mesh");
@@ -349,6 +359,14 @@ class RedisState final : public StateBackend {
     }
     // Proves at once that a Redis server (and one that accepts us) is at the other end.
     check_setup_reply(c.get(), send(c.get(), {"PING"}), "PING");
+    Reply marked = send(c.get(), {"SET", kMarker, "1", "NX"});
+    check_setup_reply(c.get(), marked, "SET marker");
+    if (marked->type == REDIS_REPLY_STATUS && connected_before_) {
+      ++generation_;
+      spdlog::warn("state: {}: the store is empty again (restarted without persistence?)",
+                   describe());
+    }
+    connected_before_ = true;
     ctx_ = std::move(c);
   }
 
@@ -389,6 +407,8 @@ class RedisState final : public StateBackend {
   std::string where_;  // host:port[/db], for messages
   std::mutex mu_;      // guards ctx_: hiredis contexts are not thread-safe
   Context ctx_;        // null after a failure until the next call reconnects
+  std::atomic<std::uint64_t> generation_{0};  // times the store was found emptied
+  bool connected_before_ = false;             // guarded by mu_
 };
 
 }  // namespace

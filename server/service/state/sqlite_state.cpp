@@ -352,6 +352,12 @@ class SqliteState final : public StateBackend {
     return key;
   }
 
+  bool has_mesh(const std::string& key) override {
+    check_mesh_key(key);
+    std::error_code ec;
+    return fs::exists(mesh_path(key), ec);
+  }
+
   std::optional<std::string> get_mesh(const std::string& key) override {
     check_mesh_key(key);
     const fs::path path = mesh_path(key);

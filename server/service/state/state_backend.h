@@ -10,6 +10,7 @@
 
 #include <filesystem>
 #include <memory>
+#include <cstdint>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -50,6 +51,11 @@ class StateBackend {
   // The bytes stored under `key`, verified against it (a corrupt file throws StateError);
   // nullopt when absent. `key` must be 64 hex digits (else StateError).
   virtual std::optional<std::string> get_mesh(const std::string& key) = 0;
+  virtual bool has_mesh(const std::string& key) = 0;
+  // Counts the times the store was found to have lost everything written before (Redis
+  // restarted without persistence: a new connection finds its marker key gone); 0 for a
+  // store that cannot.
+  virtual std::uint64_t generation() const { return 0; }
   // Drops every stored mesh whose key is not in `keep` (no session refers to it any more).
   // Returns how many were dropped.
   virtual std::size_t purge_meshes(const std::vector<std::string>& keep) = 0;
@@ -63,7 +69,8 @@ class StateBackend {
 std::unique_ptr<StateBackend> open_sqlite_state(const std::filesystem::path& dir);
 
 // redis://[:PASSWORD@]HOST[:PORT][/DB]. Keys under the prefix "hdeform:" (sessions as
-// hdeform:session:ID, their ids in the set hdeform:sessions, meshes as hdeform:mesh:KEY).
+// hdeform:session:ID, their ids in the set hdeform:sessions, meshes as hdeform:mesh:KEY,
+// and hdeform:marker, set once per dataset: its absence on a reconnection bumps generation()).
 // Connects at once (StateError when the server cannot be reached), reconnects once per
 // call after a broken connection; every command has a 2 s timeout.
 std::unique_ptr<StateBackend> open_redis_state(const std::string& url);
