@@ -1,0 +1,141 @@
+#include "service/rpc/reactors.h"
+
+#include "service/rpc/deform_service.h"
+#include "service/infra/release_memory.h"
+#include "service/infra/service_error.h"
+
+#include <algorithm>
+#include <mutex>
+
+namespace hdeform::service {
+
+namespace {
+
+constexpr std::size_t kMeshChunkBytes = 1u << 20;
+
+// A file streamed in ≤ 1 MiB chunks once it is produced (GetMesh, ExportAnimation).
+class ChunkWriter : public grpc::ServerWriteReactor<v1::MeshChunk> {
+ public:
+  void OnWriteDone(bool ok) override {
+    std::lock_guard lock(mutex_);
+    if (!ok) {
+      Finish({grpc::StatusCode::CANCELLED, "the client went away"});
+      return;
+    }
+    next_locked();
+  }
+
+  void OnDone() override { delete this; }
+
+ protected:
+  // Starts streaming `data` (once), or ends the call with `status` when it is not OK.
+  void produced(const grpc::Status& status, std::string data) {
+    if (!status.ok()) {
+      Finish(status);
+      return;
+    }
+    std::lock_guard lock(mutex_);
+    data_ = std::move(data);
+    next_locked();
+  }
+
+ private:
+  void next_locked() {
+    if (offset_ >= data_.size() && offset_ > 0) {
+      Finish(grpc::Status::OK);
+      return;
+    }
+    chunk_.Clear();
+    if (offset_ == 0) chunk_.set_total_bytes(static_cast<std::int64_t>(data_.size()));
+    const std::size_t n = std::min(kMeshChunkBytes, data_.size() - offset_);
+    chunk_.set_data(data_.substr(offset_, n));
+    offset_ += n;
+    if (data_.empty()) offset_ = 1;  // an empty file is one empty chunk
+    StartWrite(&chunk_);
+  }
+
+  std::mutex mutex_;
+  std::string data_;
+  std::size_t offset_ = 0;
+  v1::MeshChunk chunk_;
+};
+
+// GetMesh: the file is produced on the session's strand, then streamed.
+class MeshWriter final : public ChunkWriter {
+ public:
+  MeshWriter(std::shared_ptr<Session> session, const v1::GetMeshRequest& request)
+      : session_(std::move(session)) {
+    session_->post([this, request] {
+      std::string data;
+      const auto status = guarded([&] { data = session_->mesh_file(request); }, "GetMesh");
+      produced(status, std::move(data));
+    });
+  }
+
+ private:
+  std::shared_ptr<Session> session_;
+};
+
+// ExportAnimation: one pool task per sampled frame, like a Sweep (never the session's
+// strand, never a worker for the whole export); stops at the next frame when the client
+// leaves or its deadline passes, the session is deleted or the server stops. Counted with
+// the Sweeps under --max-sweeps.
+class AnimationWriter final : public ChunkWriter {
+ public:
+  AnimationWriter(DeformService* svc, grpc::CallbackServerContext* ctx,
+                  std::shared_ptr<Session> session, Session::AnimationPlan plan)
+      : svc_(svc), ctx_(ctx), session_(std::move(session)), plan_(std::move(plan)) {
+    svc_->pool().submit([this] { step(); });
+  }
+
+ private:
+  void step() {
+    std::string data;
+    bool done = false;
+    const auto status = guarded(
+        [&] {
+          if (ctx_->IsCancelled()) throw Cancelled("ExportAnimation cancelled by the client");
+          if (std::chrono::system_clock::now() > ctx_->deadline())
+            fail(grpc::StatusCode::DEADLINE_EXCEEDED,
+                 "ExportAnimation deadline exceeded after " + std::to_string(plan_.next) +
+                     " of " + std::to_string(plan_.times.size()) + " frames");
+          if (svc_->stopping()) fail(grpc::StatusCode::UNAVAILABLE, "the server is stopping");
+          if (session_->closed()) fail(grpc::StatusCode::NOT_FOUND, session_->name() + " was deleted");
+          session_->animation_frame(plan_);
+          if (plan_.next == plan_.times.size()) {
+            data = session_->animation_finish(plan_);
+            done = true;
+          }
+        },
+        "ExportAnimation");
+    if (status.ok() && !done) {
+      svc_->pool().submit([this] { step(); });
+      return;
+    }
+    plan_ = {};  // the frames' memory goes before the bytes are streamed
+    --svc_->running_sweeps();
+    release_freed_memory();  // a finished sweep must not leave its peak resident
+    produced(status, std::move(data));
+  }
+
+  DeformService* svc_;
+  grpc::CallbackServerContext* ctx_;
+  std::shared_ptr<Session> session_;
+  Session::AnimationPlan plan_;
+};
+
+}  // namespace
+
+grpc::ServerWriteReactor<v1::MeshChunk>* new_mesh_writer(std::shared_ptr<Session> session,
+                                                         const v1::GetMeshRequest& request) {
+  return new MeshWriter(std::move(session), request);
+}
+
+grpc::ServerWriteReactor<v1::MeshChunk>* new_animation_writer(DeformService* svc,
+                                                              grpc::CallbackServerContext* ctx,
+                                                              std::shared_ptr<Session> session,
+                                                              Session::AnimationPlan plan) {
+  return new AnimationWriter(svc, ctx, std::move(session), std::move(plan));
+}
+
+}  // namespace hdeform::service

@@ -1,0 +1,37 @@
+// The streaming calls' reactors, one file each (DeformService creates them): the upload
+// of CreateSession, the Deform and WatchSession streams, and the chunked file writers of
+// GetMesh and ExportAnimation. Each deletes itself when its call is done.
+#pragma once
+
+#include "hdeform/v1/deform.grpc.pb.h"
+#include "service/session/session.h"
+
+#include <grpcpp/grpcpp.h>
+
+#include <functional>
+#include <memory>
+#include <string>
+
+namespace hdeform::service {
+
+class DeformService;
+
+grpc::ServerReadReactor<v1::CreateSessionRequest>* new_create_session_reactor(
+    DeformService* svc, grpc::CallbackServerContext* ctx, v1::Session* response);
+grpc::ServerBidiReactor<v1::DeformRequest, v1::Frame>* new_deform_reactor(
+    DeformService* svc, grpc::CallbackServerContext* ctx);
+// `client_id`: the watcher joined the session's presence under it (empty: anonymous);
+// `authorize` fills the sink's tokens before it is added.
+grpc::ServerWriteReactor<v1::SessionEvent>* new_watch_reactor(
+    std::shared_ptr<Session> session, const v1::FrameFormat& format, std::string client_id,
+    WorkerPool& pool, const std::function<void(AuthorizedStream&)>& authorize);
+// GetMesh: the file is produced on the session's strand, then streamed.
+grpc::ServerWriteReactor<v1::MeshChunk>* new_mesh_writer(std::shared_ptr<Session> session,
+                                                         const v1::GetMeshRequest& request);
+// ExportAnimation: one pool task per sample, then the GLB streamed.
+grpc::ServerWriteReactor<v1::MeshChunk>* new_animation_writer(DeformService* svc,
+                                                              grpc::CallbackServerContext* ctx,
+                                                              std::shared_ptr<Session> session,
+                                                              Session::AnimationPlan plan);
+
+}  // namespace hdeform::service
