@@ -315,6 +315,20 @@ inline pb::HandleTransform translation(double x, double y, double z) {
   return t;
 }
 
+// grid_off's left strip (x ≤ 0.3) fixed, its right strip (x ≥ 2.8) the one handle.
+inline pb::Constraints grid_strips() {
+  auto half_space = [](double nx, double offset) {
+    pb::Selector sel;
+    sel.mutable_half_space()->mutable_normal()->set_x(nx);
+    sel.mutable_half_space()->set_offset(offset);
+    return sel;
+  };
+  pb::Constraints c;
+  *c.mutable_fixed()->add_selectors() = half_space(-1, -0.3);
+  *c.add_handles()->add_selectors() = half_space(1, 2.8);
+  return c;
+}
+
 // A finely subdivided wavy grid (n×n vertices) as OFF text with 17 significant digits.
 inline std::string grid_off(int n) {
   std::string s = "OFF\n" + std::to_string(n * n) + " " + std::to_string(2 * (n - 1) * (n - 1)) +

@@ -12,21 +12,10 @@ using namespace hdeform::testing;
 
 namespace {
 
-pb::Selector half_space(double nx, double offset) {
-  pb::Selector sel;
-  auto* h = sel.mutable_half_space();
-  h->mutable_normal()->set_x(nx);
-  h->set_offset(offset);
-  return sel;
-}
-
 pb::Session grid_session(TestServer& t) {
   pb::Session s;
   EXPECT_TRUE(t.upload(grid_off(201), "grid.off", &s).ok());  // 40,401 vertices
-  pb::Constraints c;
-  *c.mutable_fixed()->add_selectors() = half_space(-1, -0.3);
-  *c.add_handles()->add_selectors() = half_space(1, 2.8);
-  const auto st = t.set_constraints(s.name(), c, &s);
+  const auto st = t.set_constraints(s.name(), grid_strips(), &s);
   EXPECT_TRUE(st.ok()) << st.error_message();
   return s;
 }

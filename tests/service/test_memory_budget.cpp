@@ -26,22 +26,6 @@ constexpr std::size_t kMiB = std::size_t{1} << 20;
 // runs 416 MiB; without the budget the same 60 βs reach ≈ 2.4 GB.
 constexpr std::size_t kSlack = 192 * kMiB;
 
-pb::Selector half_space(double nx, double offset) {
-  pb::Selector sel;
-  auto* h = sel.mutable_half_space();
-  h->mutable_normal()->set_x(nx);
-  h->set_offset(offset);
-  return sel;
-}
-
-// The grid's left strip fixed, its right strip the handle.
-pb::Constraints strips() {
-  pb::Constraints c;
-  *c.mutable_fixed()->add_selectors() = half_space(-1, -0.3);
-  *c.add_handles()->add_selectors() = half_space(1, 2.8);
-  return c;
-}
-
 std::string positions_at(TestServer& t, const std::string& name, std::int64_t seq) {
   pb::Frame f;
   const auto st = t.update(name, seq, {translation(0.2, 0.1, 0.3)}, &f);
@@ -70,7 +54,7 @@ TEST(ServiceMemoryBudget, SixtyDistinctBetasStayWithinTheCacheBudget) {
 
   pb::Session s;
   ASSERT_TRUE(t.upload(mesh, "grid.off", &s).ok());
-  ASSERT_TRUE(t.set_constraints(s.name(), strips(), &s).ok());
+  ASSERT_TRUE(t.set_constraints(s.name(), grid_strips(), &s).ok());
   std::int64_t seq = 1;
   positions_at(t, s.name(), seq++);
   const std::size_t rss_open = rss_bytes();
