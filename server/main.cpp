@@ -3,9 +3,7 @@
 #include "engine/runtime/process_environment.h"
 #include "service/rpc/server.h"
 
-#ifdef HDEFORM_HAVE_GATEWAY
 #include "gateway/http_gateway.h"
-#endif
 
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
@@ -254,7 +252,6 @@ int main(int argc, char** argv) {
       ->needs(tls_cert_opt);
   tls_cert_opt->needs(tls_key_opt);
   tls_key_opt->needs(tls_cert_opt);
-#ifdef HDEFORM_HAVE_GATEWAY
   hdeform::gateway::GatewayOptions http;
   double header_timeout = 10, idle_timeout = 60, stall_timeout = 30;
   app.add_option("--http-max-requests", http.max_connections,
@@ -280,7 +277,6 @@ int main(int argc, char** argv) {
       ->envname("HDEFORM_HTTP_STALL_TIMEOUT")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
-#endif
   CLI11_PARSE(app, argc, argv);
 
   spdlog::set_level(spdlog::level::from_str(log_level));
@@ -331,7 +327,6 @@ int main(int argc, char** argv) {
   }
   std::cout << "hdeform-server listening on " << host_port(bind, server->port()) << std::endl;
 
-#ifdef HDEFORM_HAVE_GATEWAY
   std::unique_ptr<hdeform::gateway::HttpGateway> gateway;
   if (http_port >= 0) {
     hdeform::gateway::GatewayOptions g = http;
@@ -359,9 +354,6 @@ int main(int argc, char** argv) {
               << host_port(bind, gateway->port())
               << (web_root.empty() ? " (API only)" : " (viewer: " + web_root + ")") << std::endl;
   }
-#else
-  if (http_port >= 0) spdlog::warn("--http-port: this build has no HTTP gateway");
-#endif
 
   int sig = 0;
   sigwait(&signals, &sig);
@@ -379,10 +371,8 @@ int main(int argc, char** argv) {
     sigwait(&signals, &again);
     std::_Exit(1);
   }).detach();
-#ifdef HDEFORM_HAVE_GATEWAY
   if (gateway) gateway->stop();
   gateway.reset();
-#endif
   server->shutdown(std::chrono::milliseconds(2000));
   server.reset();
   spdlog::info("bye");
