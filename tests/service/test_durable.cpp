@@ -284,3 +284,39 @@ TEST(Durable, ACorruptRecordIsReportedAndKept) {
   }
   EXPECT_EQ(stored_records(dir.path), 2u);
 }
+
+// After a restart, many first calls at once: each stored session is restored once (every
+// caller gets that one session), two sessions restore side by side, and the session cap is
+// checked before a restore does any work.
+TEST(Durable, ConcurrentFirstCallsRestoreEachSessionOnce) {
+  TempDir dir;
+  pb::Session s1, s2, s3;
+  {
+    TestServer a(durable(dir.path));
+    ASSERT_TRUE(a.create_library("cactus", &s1, "first").ok());
+    ASSERT_TRUE(a.create_library("bar", &s2, "second").ok());
+    ASSERT_TRUE(a.create_library("plane", &s3, "third").ok());
+  }
+  auto o = durable(dir.path);
+  o.max_sessions = 2;
+  TestServer b(o);
+  std::vector<pb::Session> got(8);
+  std::vector<grpc::Status> status(8);
+  std::vector<std::thread> threads;
+  for (std::size_t k = 0; k < got.size(); ++k)
+    threads.emplace_back([&, k] {
+      const pb::Session& s = k % 2 ? s2 : s1;
+      got[k] = get(b, s.name(), s.view_token(), &status[k]);
+    });
+  for (auto& t : threads) t.join();
+  for (std::size_t k = 0; k < got.size(); ++k) {
+    ASSERT_TRUE(status[k].ok()) << status[k].error_message();
+    EXPECT_EQ(got[k].create_time_unix_ms(), got[k % 2].create_time_unix_ms());
+    EXPECT_EQ(got[k].name(), (k % 2 ? s2 : s1).name());
+  }
+  grpc::Status full;
+  get(b, s3.name(), s3.view_token(), &full);
+  EXPECT_EQ(full.error_code(), StatusCode::RESOURCE_EXHAUSTED);
+  EXPECT_NE(full.error_message().find("cannot be restored now"), std::string::npos)
+      << full.error_message();
+}

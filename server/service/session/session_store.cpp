@@ -217,11 +217,35 @@ void SessionStore::drop(const std::shared_ptr<Session>& s) const {
 }
 
 std::shared_ptr<Session> SessionStore::restore(const std::string& id) const {
-  std::lock_guard restoring(restore_mutex_);
+  std::shared_ptr<std::mutex> mine;
+  {
+    std::lock_guard lock(mutex_);
+    auto& m = restoring_[id];
+    if (!m) m = std::make_shared<std::mutex>();
+    mine = m;
+  }
+  // The map entry goes with its last user, on every path out.
+  struct Release {
+    const SessionStore& store;
+    const std::string& id;
+    std::shared_ptr<std::mutex>& mine;
+    ~Release() {
+      std::lock_guard lock(store.mutex_);
+      const auto it = store.restoring_.find(id);
+      if (it != store.restoring_.end() && it->second == mine && mine.use_count() == 2)
+        store.restoring_.erase(it);
+    }
+  } release{*this, id, mine};
+  std::lock_guard restoring(*mine);
   {
     std::lock_guard lock(mutex_);  // restored by another caller meanwhile?
     auto it = sessions_.find(id);
     if (it != sessions_.end()) return it->second;
+    // The cap before any work (the record, the mesh, the factorizations).
+    if (sessions_.size() >= limits_.max_sessions)
+      fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
+           "session limit reached (" + std::to_string(limits_.max_sessions) +
+               " sessions in memory): sessions/" + id + " cannot be restored now");
   }
   const auto t0 = std::chrono::steady_clock::now();
   hdeform::state::StoredSession record;

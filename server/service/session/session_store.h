@@ -135,7 +135,9 @@ class SessionStore {
   // by id; mutable: find() publishes sessions it restores
   mutable std::map<std::string, std::shared_ptr<Session>> sessions_;
   Persistence persistence_;
-  mutable std::mutex restore_mutex_;  // one restore at a time (each is rare and heavy)
+  // One restore per id at a time (a second caller waits for the first and takes its
+  // session); different ids restore in parallel. Guarded by mutex_.
+  mutable std::map<std::string, std::shared_ptr<std::mutex>> restoring_;
   std::thread flusher_;
   std::chrono::steady_clock::time_point last_purge_ = std::chrono::steady_clock::now();
 
