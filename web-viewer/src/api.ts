@@ -1,4 +1,5 @@
 // The API client: gRPC-Web (binary) to hdeform-server's own HTTP port, same origin as the page.
+import { randomHex } from "./request_id";
 import { fromBinary } from "@bufbuild/protobuf";
 import { Code, ConnectError, createClient, type Client } from "@connectrpc/connect";
 import { createGrpcWebTransport } from "@connectrpc/connect-web";
@@ -36,8 +37,7 @@ function bearer(): string {
 }
 /** A fresh client-chosen session id (CreateSessionHeader.session_id). */
 export function newSessionId(): string {
-  const bytes = crypto.getRandomValues(new Uint8Array(12));
-  return Array.from(bytes, (b) => b.toString(16).padStart(2, "0")).join("");
+  return randomHex(12);
 }
 
 export function makeClient(baseUrl: string = window.location.origin): DeformationClient {

@@ -2,6 +2,7 @@
 // (sessionStorage: a reload keeps it, so the server sees the same editor come back; a second
 // tab is a second editor), a display name the person may change (localStorage: remembered
 // across sessions) and a colour picked from the id, so everyone sees the same colour for it.
+import { randomHex } from "../request_id";
 
 /** Anything with getItem / setItem (window.sessionStorage, localStorage, a Map in tests). */
 export interface KeyValueStore {
@@ -30,8 +31,7 @@ export function cleanName(name: string): string {
 }
 
 function randomId(): string {
-  const bytes = crypto.getRandomValues(new Uint8Array(8));
-  return Array.from(bytes, (b) => b.toString(16).padStart(2, "0")).join("");
+  return randomHex(8);
 }
 
 export class Identity {
