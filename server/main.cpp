@@ -277,6 +277,12 @@ int main(int argc, char** argv) {
       ->envname("HDEFORM_HTTP_STALL_TIMEOUT")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  app.add_option("--allowed-hosts", http.allowed_hosts,
+                 "Host names the HTTP port answers besides localhost names and IP addresses "
+                 "(comma-separated; .NAME for subdomains; * for any, only behind a proxy that "
+                 "checks Host); others get 421, which stops DNS rebinding")
+      ->envname("HDEFORM_ALLOWED_HOSTS")
+      ->delimiter(',');
   CLI11_PARSE(app, argc, argv);
 
   spdlog::set_level(spdlog::level::from_str(log_level));

@@ -198,7 +198,9 @@ def connect(address=None, *, token=None, server=None, mesh_dir=None, state_dir=N
     """A Client. With an address ("host:port"): that server, presenting `token` (an operator
     token, or a session token for Client.session()). Without: a private hdeform-server
     (`server`, else $HDEFORM_SERVER, PATH, the build tree) on a free loopback port, with a
-    random operator token the client presents, stopped by close()/the context's exit/at exit."""
+    random operator token the client presents, stopped by close()/the context's exit/at exit.
+    That server gets a clean environment (none of the caller's HDEFORM_* settings): configure
+    it with `server_args`."""
     if address is not None:
         return Client(address, token=token, credentials=credentials, ready_timeout=timeout)
     srv = LocalServer(server, mesh_dir=mesh_dir, state_dir=state_dir, args=server_args,

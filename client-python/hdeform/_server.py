@@ -12,6 +12,25 @@ from ._errors import ServerStartError
 
 _LISTENING = re.compile(rb"hdeform-server listening on (\S+):(\d+)")
 
+# What the private server inherits from the caller's environment: nothing else, since every
+# HDEFORM_* variable is a server setting (--http-port, --web-root, limits, TLS, ...).
+_INHERITED = frozenset((
+    "PATH", "LANG", "TMPDIR",  # a process's basics: program lookup, locale, temporary files
+    "LD_LIBRARY_PATH",  # a server linked against libraries outside the loader's default path
+    # sanitizer builds (scripts/sanitize.sh, scripts/tsan.sh): suppressions, halt_on_error
+    "ASAN_OPTIONS", "LSAN_OPTIONS", "TSAN_OPTIONS", "UBSAN_OPTIONS", "MSAN_OPTIONS",
+))
+# Not HOME / XDG_DATA_HOME: the server reads them only for its default --state-dir, and the
+# private server always gets --state-dir or --no-state.
+
+
+def server_environment(admin_token):
+    """The private server's environment: the allow-listed variables of this process (LC_*
+    too) and HDEFORM_ADMIN_TOKEN; none of the caller's other (HDEFORM_*) variables."""
+    env = {k: v for k, v in os.environ.items() if k in _INHERITED or k.startswith("LC_")}
+    env["HDEFORM_ADMIN_TOKEN"] = admin_token
+    return env
+
 
 def find_server(binary=None):
     """The hdeform-server to start: `binary`, else $HDEFORM_SERVER, else `hdeform-server` on
@@ -45,8 +64,10 @@ def _tail(path, lines=20):
 
 class LocalServer:
     """A private hdeform-server: --port 0 on 127.0.0.1, a random operator token (passed in the
-    environment, not on the command line), no durable state unless `state_dir` is given. Its
-    output goes to a temporary log, removed by stop(); stop() runs at exit at the latest."""
+    environment, not on the command line), no durable state unless `state_dir` is given. It
+    gets a clean environment (server_environment): the caller's HDEFORM_* variables would
+    otherwise configure it. Its output goes to a temporary log, removed by stop(); stop()
+    runs at exit at the latest."""
 
     def __init__(self, binary=None, *, mesh_dir=None, state_dir=None, args=(), timeout=30.0):
         self.binary = find_server(binary)
@@ -57,7 +78,7 @@ class LocalServer:
         if mesh_dir:
             cmd += ["--mesh-dir", os.fspath(mesh_dir)]
         cmd += list(args)
-        env = dict(os.environ, HDEFORM_ADMIN_TOKEN=self.admin_token)
+        env = server_environment(self.admin_token)  # never the caller's HDEFORM_* settings
         try:
             self.process = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=fd,
                                             stderr=fd, env=env)

@@ -1,4 +1,5 @@
 import os
+import socket
 import subprocess
 import sys
 
@@ -187,6 +188,41 @@ def test_server_start_failure_reports_log(tmp_path):
     with pytest.raises(hdeform.ServerStartError) as e:
         hdeform.connect(server=str(bad), timeout=10)
     assert "boom: cannot start" in str(e.value) and "status 3" in str(e.value)
+
+
+def _free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_private_server_ignores_the_callers_hdeform_variables(monkeypatch, tmp_path):
+    # Inherited, these would open an HTTP door serving the whole filesystem, refuse every
+    # session and hide the mesh library.
+    http_port = _free_port()
+    monkeypatch.setenv("HDEFORM_HTTP_PORT", str(http_port))
+    monkeypatch.setenv("HDEFORM_WEB_ROOT", "/")
+    monkeypatch.setenv("HDEFORM_MAX_SESSIONS", "0")
+    monkeypatch.setenv("HDEFORM_MESH_DIR", str(tmp_path))
+    monkeypatch.setenv("HDEFORM_ADMIN_TOKEN", "the-callers-token")
+    monkeypatch.setenv("UNRELATED_PARENT_VARIABLE", "not for the server")
+    with hdeform.connect() as hd:
+        names = [m.name for m in hd.meshes()]  # a real call: the server is up and answering
+        with socket.socket() as probe:
+            probe.settimeout(5)
+            with pytest.raises(ConnectionRefusedError):
+                probe.connect(("127.0.0.1", http_port))
+        assert "http on" not in hd.server.log()
+        assert "cactus" in names
+        with hd.open("cactus") as s:
+            assert s.vertex_count > 0
+        environ = f"/proc/{hd.server.process.pid}/environ"
+        if os.path.exists(environ):
+            with open(environ, "rb") as f:
+                env = dict(v.split(b"=", 1) for v in f.read().split(b"\0") if b"=" in v)
+            assert {k for k in env if k.startswith(b"HDEFORM_")} == {b"HDEFORM_ADMIN_TOKEN"}
+            assert env[b"HDEFORM_ADMIN_TOKEN"].decode() == hd.server.admin_token
+            assert b"UNRELATED_PARENT_VARIABLE" not in env
 
 
 @pytest.mark.parametrize("script,args", [

@@ -77,6 +77,7 @@
 
 #include "common/tls_files.h"
 #include "gateway/grpc_web.h"
+#include "gateway/request_checks.h"
 #include "hdeform/v1/deform.pb.h"
 
 namespace hdeform::gateway {
@@ -428,62 +429,28 @@ class GenericCall {
 };
 
 
-// ---- cross-site requests ----------------------------------------------------------------
-// A page on another site can make the user's browser POST here: a "simple" request (a form,
-// or fetch with a CORS-safelisted Content-Type) is sent without asking the server first. Two
-// independent rules stop it. (1) Browsers put Origin on every cross-origin POST; it must name
-// this server (the Host the browser connected to, or the X-Forwarded-Host a proxy passed on —
-// a page cannot set that header cross-site without a preflight). (2) /upload, whose body is
-// any bytes, also needs a custom header, which forces a CORS preflight that this server never
-// approves (it answers OPTIONS with 405), even in a browser that omits Origin. gRPC-Web calls
-// need no extra header: their Content-Type (application/grpc-web…) already forces a preflight.
-
-// host[:port], lower-case, with a default port (80, 443) dropped: the gateway cannot know the
-// scheme a proxy terminated, so "https://a.example" and Host "a.example:443" compare equal.
-std::string normalized_authority(std::string_view authority) {
-  std::string out(authority);
-  for (auto& ch : out) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
-  if (out.ends_with(":80")) out.resize(out.size() - 3);
-  if (out.ends_with(":443")) out.resize(out.size() - 4);
-  return out;
-}
-
-// The host[:port] of an Origin header ("scheme://host[:port]"); empty for "null" (sandboxed
-// frames, file: pages) and anything malformed, which then matches no host.
-std::string origin_authority(std::string_view origin) {
-  const auto sep = origin.find("://");
-  if (sep == std::string_view::npos || sep == 0) return {};
-  const auto authority = origin.substr(sep + 3);
-  if (authority.empty() || authority.find_first_of("/?#@ \t") != std::string_view::npos) return {};
-  return normalized_authority(authority);
-}
-
-std::string_view header_value(const http::request_header<>& req, std::string_view name) {
-  const auto it = req.find(beast::string_view(name.data(), name.size()));
-  return it == req.end() ? std::string_view() : std::string_view(it->value().data(), it->value().size());
-}
-
-// Empty if the request may proceed, else why it is refused (rule 1 above).
-std::string cross_site_refusal(const http::request_header<>& req) {
-  const auto it = req.find(http::field::origin);
-  if (it == req.end()) return {};  // not from a browser, or a same-origin GET-like request
-  const std::string_view origin(it->value().data(), it->value().size());
-  const auto from = origin_authority(origin);
-  auto forwarded = header_value(req, "x-forwarded-host");
-  forwarded = forwarded.substr(0, forwarded.find(','));  // the first (client-facing) proxy
-  while (!forwarded.empty() && forwarded.back() == ' ') forwarded.remove_suffix(1);
-  if (!from.empty() && (from == normalized_authority(header_value(req, "host")) ||
-                        (!forwarded.empty() && from == normalized_authority(forwarded)))) {
-    return {};
+// A call the backend would never answer, refused at once: a malformed body, an unknown
+// method, or a unary method given other than one message (the server would wait for the
+// client to half-close a stream it does not expect, holding the request slot meanwhile).
+std::optional<grpc::Status> body_refusal(std::string_view path, const grpc_web::ParsedBody& body) {
+  if (!body.error.empty()) {
+    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "gateway: " + body.error);
   }
-  return "cross-site request refused: Origin '" + std::string(origin.substr(0, 200)) +
-         "' is not this server (" + std::string(header_value(req, "host").substr(0, 200)) +
-         "); hdeform only answers pages it served itself\n";
-}
-
-// Rule 2 above: the viewer sends X-Session-Id with every upload; scripts may send either.
-bool has_upload_header(const http::request_header<>& req) {
-  return req.count("x-session-id") > 0 || req.count("x-hdeform-upload") > 0;
+  const auto name = path.substr(kServicePrefix.size());
+  const auto* service =
+      hdeform::v1::CreateSessionRequest::descriptor()->file()->FindServiceByName("Deformation");
+  const auto* method = service->FindMethodByName(std::string(name));
+  if (!method) {
+    return grpc::Status(grpc::StatusCode::UNIMPLEMENTED,
+                        "gateway: " + std::string(service->full_name()) + " has no method '" +
+                            std::string(name.substr(0, 100)) + "'");
+  }
+  if (!method->client_streaming() && body.messages.size() != 1) {
+    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                        "gateway: " + std::string(name) + " takes exactly one request message; " +
+                            "the body holds " + std::to_string(body.messages.size()));
+  }
+  return std::nullopt;
 }
 
 http::response<http::string_body> text_response(http::status status, std::string text,
@@ -533,6 +500,7 @@ struct HttpGateway::Impl {
   enum class After { keep_alive, close, linger };
 
   GatewayOptions options;
+  HostPolicy hosts;
   std::filesystem::path web_root;  // canonical; empty = API only
   grpc::GenericStub stub;
   std::unique_ptr<asio::ssl::context> tls;  // null: plain HTTP
@@ -557,7 +525,8 @@ struct HttpGateway::Impl {
   int bound_port = 0;
 
   Impl(const GatewayOptions& opts, std::shared_ptr<grpc::Channel> channel)
-      : options(opts), stub(std::move(channel)), tls(make_tls_context(opts)) {
+      : options(opts), hosts(opts.allowed_hosts), stub(std::move(channel)),
+        tls(make_tls_context(opts)) {
     if (!options.web_root.empty()) {
       std::error_code ec;
       web_root = std::filesystem::canonical(options.web_root, ec);
@@ -764,6 +733,16 @@ struct HttpGateway::Impl {
       } else {
         close(*c);
       }
+      return;
+    }
+    // Refused before any worker, file or call: a smuggling attempt, a rebound DNS name.
+    if (auto why = framing_refusal(c->header->get()); !why.empty()) {
+      reply_and_close(c, http::status::bad_request, std::move(why), version);
+      return;
+    }
+    if (auto why = host_refusal(c->header->get(), hosts); !why.empty()) {
+      spdlog::debug("hdeform-gateway: {}", why);
+      reply_and_close(c, http::status::misdirected_request, std::move(why), version);
       return;
     }
     if (!enter_active(c)) {
@@ -1028,9 +1007,8 @@ struct HttpGateway::Impl {
     };
 
     const auto body = grpc_web::parse_frames(req.body());
-    if (!body.error.empty()) {
-      const auto trailers = grpc_web::trailers_frame(
-          grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "gateway: " + body.error));
+    if (auto refusal = body_refusal(path, body)) {
+      const auto trailers = grpc_web::trailers_frame(*refusal);
       const bool sent = write_header() && write_chunk(c, asio::buffer(trailers)) && write_last_chunk(c);
       return sent ? next : After::close;
     }

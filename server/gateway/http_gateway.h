@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace hdeform::gateway {
 
@@ -16,6 +17,9 @@ struct GatewayOptions {
   int port = 8080;                        // 0 = any free port
   std::string web_root;                   // built viewer (web-viewer/dist); empty = API only
   std::size_t max_body_bytes = 256u << 20;
+  // Host names answered besides localhost names and IP addresses (request_checks.h
+  // HostPolicy): "name", ".name" for subdomains, "*" for any. Others get 421 (DNS rebinding).
+  std::vector<std::string> allowed_hosts;
   int threads = 2;                        // I/O threads (accepting, reading request headers)
 
   // Requests in progress, each on its own worker thread (a WatchSession stream holds one for

@@ -14,6 +14,8 @@
 #include <filesystem>
 #include <fstream>
 #include <future>
+#include <sys/socket.h>
+#include <sys/time.h>
 #include <thread>
 
 using namespace hdeform::testing;
@@ -30,7 +32,8 @@ struct Door {
   TestServer t;
   std::unique_ptr<hdeform::gateway::HttpGateway> gateway;
 
-  Door() : dir(fs::temp_directory_path() / ("hdeform-door-" + std::to_string(::getpid()))) {
+  explicit Door(std::vector<std::string> allowed_hosts = {})
+      : dir(fs::temp_directory_path() / ("hdeform-door-" + std::to_string(::getpid()))) {
     fs::create_directories(dir / "root" / "assets");
     std::ofstream(dir / "root" / "index.html") << "<html>viewer</html>";
     std::ofstream(dir / "secret.txt") << "TOP-SECRET";
@@ -38,6 +41,7 @@ struct Door {
     hdeform::gateway::GatewayOptions o;
     o.port = 0;
     o.web_root = (dir / "root").string();
+    o.allowed_hosts = std::move(allowed_hosts);
     gateway = std::make_unique<hdeform::gateway::HttpGateway>(o, t.server->in_process_channel());
   }
   ~Door() {
@@ -67,6 +71,25 @@ struct Door {
     http::read(socket, buffer, res, ec);
     return {static_cast<int>(res.result_int()), res.body()};
   }
+
+  // Raw bytes as the request; the answer must begin within 5 s (else status 0), so a door
+  // that never answers fails the test instead of hanging it.
+  std::pair<int, std::string> raw(const std::string& bytes) {
+    asio::io_context ioc;
+    tcp::socket socket(ioc);
+    socket.connect({asio::ip::make_address("127.0.0.1"),
+                    static_cast<unsigned short>(gateway->port())});
+    const timeval timeout{5, 0};
+    ::setsockopt(socket.native_handle(), SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
+    asio::write(socket, asio::buffer(bytes));
+    beast::flat_buffer buffer;
+    http::response<http::string_body> res;
+    beast::error_code ec;
+    http::read(socket, buffer, res, ec);
+    if (ec && res.result_int() == 200 && res.body().empty()) return {0, ec.message()};
+    return {static_cast<int>(res.result_int()), res.body()};
+  }
+  std::string host() const { return "127.0.0.1:" + std::to_string(gateway->port()); }
 };
 
 }  // namespace
@@ -186,6 +209,132 @@ TEST(SecurityHttp, RotatingEndsAWatchStreamThroughTheDoor) {
   EXPECT_NE(body.find("rotated"), std::string::npos);
   pb::Session got;
   EXPECT_TRUE(d.t.get_session(other.name(), &got).ok());
+}
+
+}  // namespace
+
+namespace {
+
+std::string frames(const std::vector<std::string>& messages) {
+  std::string out;
+  for (const auto& m : messages) {
+    const auto n = static_cast<std::uint32_t>(m.size());
+    out += '\0';
+    for (int shift = 24; shift >= 0; shift -= 8) out += static_cast<char>((n >> shift) & 0xff);
+    out += m;
+  }
+  return out;
+}
+
+std::string grpc_web_post(const std::string& host, const std::string& method,
+                          const std::string& body) {
+  return "POST /hdeform.v1.Deformation/" + method + " HTTP/1.1\r\nHost: " + host +
+         "\r\nContent-Type: application/grpc-web+proto\r\nContent-Length: " +
+         std::to_string(body.size()) + "\r\n\r\n" + body;
+}
+
+// Issue 35.1: a unary call the backend would never answer (two messages, none, a body ending
+// mid-frame, an unknown method) is refused at once, and many of them leave the door serving.
+TEST(SecurityHttp, AUnaryCallWithOtherThanOneMessageIsRefusedAtOnce) {
+  Door d;
+  const pb::Session s = constrained_cactus(d.t);
+  const std::string list = pb::ListMeshesRequest().SerializeAsString();
+  struct Case {
+    std::string method, body, status, text;
+  };
+  const std::vector<Case> cases = {
+      {"ListMeshes", frames({list, list}), "grpc-status:3", "exactly one request message"},
+      {"ListSessions", frames({list, list, list}), "grpc-status:3", "the body holds 3"},
+      {"ListMeshes", "", "grpc-status:3", "the body holds 0"},
+      {"ListMeshes", frames({list}).substr(0, 3), "grpc-status:3", "truncated"},
+      {"GetSession", std::string("\0\0\0\0\x09" "abc", 8), "grpc-status:3", "truncated"},
+      {"NoSuchMethod", frames({list}), "grpc-status:12", "has no method 'NoSuchMethod'"},
+  };
+  for (int round = 0; round < 100; ++round) {
+    for (const auto& c : cases) {
+      const auto [status, body] = d.raw(grpc_web_post(d.host(), c.method, c.body));
+      ASSERT_EQ(status, 200) << c.method << ": " << body;
+      ASSERT_NE(body.find(c.status), std::string::npos) << c.method << ": " << body;
+      ASSERT_NE(body.find(c.text), std::string::npos) << c.method << ": " << body;
+    }
+  }
+  // One message is still a call.
+  const auto [status, body] = d.raw(grpc_web_post(d.host(), "ListMeshes", frames({list})));
+  EXPECT_NE(body.find("grpc-status:0"), std::string::npos) << body;
+  EXPECT_NE(body.find("cactus"), std::string::npos);
+  pb::Frame f;
+  EXPECT_TRUE(d.t.update(s.name(), 1, {cactus_transform()}, &f).ok());
+}
+
+// Issue 35.4, DNS rebinding: a page on evil.example whose name resolves to this server is
+// same-origin by the browser's rules; its Host names it, and the door refuses it (421)
+// before anything runs. Localhost names, IP literals and --allowed-hosts pass.
+TEST(SecurityHttp, ARequestForAHostNameNotAllowedIsMisdirected) {
+  Door d({"viewer.example", ".team.example"});
+  const std::string port = std::to_string(d.gateway->port());
+  const auto upload = [&](const std::string& host, const std::string& id) {
+    return d.raw("POST /upload?library=cactus&session_id=" + id + " HTTP/1.1\r\nHost: " + host +
+                 "\r\nOrigin: http://" + host + "\r\nX-Hdeform-Upload: 1\r\n" +
+                 "Content-Length: 0\r\n\r\n");
+  };
+  for (const std::string& host : std::vector<std::string>{"evil.example:" + port, "evil.example", "localhost.evil.example",
+                                 "viewer.example.evil", "x.viewer.example", "team.example",
+                                 "evil.example:" + port + "@127.0.0.1", "bad host", ""}) {
+    const auto [status, body] = upload(host, "rebound");
+    EXPECT_EQ(status, 421) << "Host '" << host << "': " << body;
+    EXPECT_NE(body.find("misdirected request"), std::string::npos) << body;
+    pb::Session none;
+    EXPECT_EQ(d.t.get_session("sessions/rebound", &none).error_code(), grpc::StatusCode::NOT_FOUND);
+    const auto [get_status, page] =
+        d.raw("GET / HTTP/1.1\r\nHost: " + host + "\r\nConnection: close\r\n\r\n");
+    EXPECT_EQ(get_status, 421) << host;
+    EXPECT_EQ(page.find("<html>"), std::string::npos);
+  }
+  // No Host at all (HTTP/1.1 requires one) is refused too.
+  EXPECT_EQ(d.raw("GET / HTTP/1.1\r\nConnection: close\r\n\r\n").first, 421);
+  int n = 0;
+  for (const std::string& host : std::vector<std::string>{"localhost:" + port, "LocalHost", "app.localhost:" + port,
+                                 "127.0.0.1:" + port, "[::1]:" + port, "10.1.2.3",
+                                 "viewer.example", "Viewer.Example.:443", "a.team.example"}) {
+    const auto [status, body] = upload(host, "ok" + std::to_string(++n));
+    EXPECT_EQ(status, 200) << "Host '" << host << "': " << body;
+  }
+  EXPECT_THROW(hdeform::gateway::HttpGateway(
+                   [] {
+                     hdeform::gateway::GatewayOptions o;
+                     o.port = 0;
+                     o.allowed_hosts = {"bad name/"};
+                     return o;
+                   }(),
+                   d.t.server->in_process_channel()),
+               std::invalid_argument);
+}
+
+// Issue 35.5: a body whose length two parsers could read differently (request smuggling
+// through a proxy) is 400 before anything runs; plain chunked bodies still work.
+TEST(SecurityHttp, AnAmbiguousTransferEncodingIsABadRequest) {
+  Door d;
+  const std::string head =
+      "POST /upload?library=cactus&session_id=smuggled HTTP/1.1\r\nHost: " + d.host() +
+      "\r\nX-Hdeform-Upload: 1\r\n";
+  for (const std::string& framing : std::vector<std::string>{
+           "Transfer-Encoding: xchunked\r\nContent-Length: 0\r\n",
+        "Transfer-Encoding: chunked, identity\r\n", "Transfer-Encoding: identity\r\n",
+        "Transfer-Encoding: gzip, chunked\r\n",
+        "Transfer-Encoding: chunked\r\nTransfer-Encoding: chunked\r\n",
+        "Transfer-Encoding: chunked\r\nContent-Length: 5\r\n"}) {
+    const auto [status, body] = d.raw(head + framing + "\r\n0\r\n\r\n");
+    EXPECT_EQ(status, 400) << framing << body;
+    EXPECT_NE(body.find("bad request"), std::string::npos) << body;
+    pb::Session none;
+    EXPECT_EQ(d.t.get_session("sessions/smuggled", &none).error_code(),
+              grpc::StatusCode::NOT_FOUND)
+        << framing;
+  }
+  const auto [status, body] = d.raw(
+      "POST /upload?library=cactus&session_id=chunked HTTP/1.1\r\nHost: " + d.host() +
+      "\r\nX-Hdeform-Upload: 1\r\nTransfer-Encoding: Chunked \r\n\r\n0\r\n\r\n");
+  EXPECT_EQ(status, 200) << body;
 }
 
 }  // namespace
