@@ -119,7 +119,7 @@ std::string ply_bytes(const TriMesh& mesh) {
 // ---------------------------------------------------------------------------------------
 // Every call presents the bench server's operator token (the bench measures the deformation
 // path, not access control: one constant-time hash compare per call).
-const std::string kBenchToken = "service-bench-operator-token";
+const std::string kBenchToken = "service-bench-operator-token-0123456789";
 void authorize(grpc::ClientContext& ctx) {
   ctx.AddMetadata("authorization", "Bearer " + kBenchToken);
 }

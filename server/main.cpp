@@ -1,6 +1,7 @@
 // hdeform-server: the gRPC service on TCP (and optionally the gRPC-Web/HTTP gateway with
 // the web viewer). Every flag also reads an HDEFORM_* environment variable.
 #include "engine/runtime/process_environment.h"
+#include "service/access/access.h"
 #include "service/rpc/server.h"
 
 #include "gateway/http_gateway.h"
@@ -225,6 +226,9 @@ int main(int argc, char** argv) {
   app.add_option("--admin-token", admin_token,
                  "operator token: opens every session, lists all (prefer the variable)")
       ->envname("HDEFORM_ADMIN_TOKEN");
+  bool gen_token = false;
+  app.add_flag("--gen-token", gen_token,
+               "print a new random operator token (256 bits, hex) and exit");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical, off")
       ->envname("HDEFORM_LOG_LEVEL")
       ->check(CLI::IsMember(
@@ -314,9 +318,16 @@ int main(int argc, char** argv) {
     if (!state_redis.empty()) options.state_redis = state_redis;
     else options.state_dir = state_dir;
   }
-  if (!admin_token.empty() && admin_token.size() < 16) {
-    spdlog::critical("--admin-token must be at least 16 characters (a guessable token opens "
-                     "every session)");
+  if (gen_token) {
+    std::cout << hdeform::service::new_token() << std::endl;
+    return 0;
+  }
+  // Compose passes an unset variable as empty: that means no operator token, said plainly.
+  if (admin_token.empty()) {
+    spdlog::info("no operator token (--admin-token / HDEFORM_ADMIN_TOKEN empty): every session "
+                 "opens only with its own tokens");
+  } else if (auto why = hdeform::service::operator_token_problem(admin_token); !why.empty()) {
+    spdlog::critical("--admin-token / HDEFORM_ADMIN_TOKEN refused: {}", why);
     return 2;
   }
   options.admin_token = admin_token;

@@ -21,7 +21,7 @@ LOG_FILES=("server*.out" probe.err)
 now_ms() { date +%s%3N; }
 
 PORT=$(free_port)
-export HDEFORM_ADMIN_TOKEN=restart-test-operator-$RANDOM$RANDOM
+export HDEFORM_ADMIN_TOKEN=$(od -An -N16 -tx1 /dev/urandom | tr -d " \n")
 RUN=0
 start_server() {  # → SERVER_PID; waits until it listens
   RUN=$((RUN + 1))

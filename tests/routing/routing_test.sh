@@ -44,7 +44,7 @@ diff <(bash "$SRC/docker/render-nginx-conf.sh") "$SRC/docker/nginx.conf" >/dev/n
 # The replicas' operator token: every session call below presents it (routing_probe and the
 # CLI read HDEFORM_TOKEN; curl sends it as the gRPC-Web authorization header). Access control
 # itself is tested in tests/security; here it must simply not get in the way of routing.
-export HDEFORM_ADMIN_TOKEN=routing-test-operator-$RANDOM$RANDOM
+export HDEFORM_ADMIN_TOKEN=$(od -An -N16 -tx1 /dev/urandom | tr -d " \n")
 export HDEFORM_TOKEN=$HDEFORM_ADMIN_TOKEN
 AUTH=(-H "authorization: Bearer $HDEFORM_TOKEN")
 

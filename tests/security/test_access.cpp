@@ -2,6 +2,8 @@
 // call here goes through `bare_stub` (no operator token) with the tokens a test chooses.
 #include "service_fixture.h"
 
+#include "service/access/access.h"
+
 #include <set>
 
 using namespace hdeform::testing;
@@ -326,4 +328,29 @@ TEST(SecurityAccess, AChosenIdCannotBeSquattedOrOpenedByItsName) {
   EXPECT_EQ(c.remove({}).error_code(), StatusCode::UNAUTHENTICATED);
   EXPECT_EQ(c.remove({"guess"}).error_code(), StatusCode::PERMISSION_DENIED);
   EXPECT_TRUE(c.get({mine.view_token()}).ok());
+}
+
+// Issue 35.9: an operator token opens every session, so a guessable one is refused when the
+// server is built (hdeform-server exits 2 with the same text: security.operator_token).
+TEST(SecurityAccess, AGuessableOperatorTokenIsRefused) {
+  using hdeform::service::operator_token_problem;
+  for (const std::string& weak : {std::string(20, ' '), std::string(16, 'a'), std::string(40, 'a'),
+                                 std::string("abababababababababababababababababab"),
+                                 std::string("0123456789abcdef0123456789abcde"),  // 31
+                                 std::string("0123456789abcdef 0123456789abcdef"),
+                                 std::string("0123456789abcdef,0123456789abcdef"),
+                                 std::string("0123456789abcdef\x01" "0123456789abcdef")}) {
+    EXPECT_FALSE(operator_token_problem(weak).empty()) << "'" << weak << "'";
+    hdeform::service::ServerOptions o;
+    o.admin_token = weak;
+    o.listen_address.clear();
+    EXPECT_THROW(hdeform::service::Server{o}, std::invalid_argument) << weak;
+  }
+  for (int i = 0; i < 100; ++i) {
+    const auto token = hdeform::service::new_token();
+    EXPECT_EQ(token.size(), 64u);
+    EXPECT_EQ(operator_token_problem(token), "") << token;
+  }
+  EXPECT_EQ(operator_token_problem("0123456789abcdef0123456789abcdef"), "");
+  EXPECT_EQ(operator_token_problem(kTestAdminToken), "");
 }

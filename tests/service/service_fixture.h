@@ -62,7 +62,7 @@ class BearerFactory final : public grpc::experimental::ClientInterceptorFactoryI
 
 // The operator token of every TestServer: `stub` presents it on every call, so tests of
 // other behaviour need no session tokens; `bare_stub` presents none (access tests).
-inline const std::string kTestAdminToken = "test-operator-token-0123456789";
+inline const std::string kTestAdminToken = "test-operator-token-0123456789abcdef";
 
 inline std::shared_ptr<grpc::Channel> test_channel(int port, const std::string& token = "") {
   grpc::ChannelArguments args;

@@ -7,6 +7,7 @@
 #include <cctype>
 #include <stdexcept>
 #include <string_view>
+#include <utility>
 
 namespace hdeform::service {
 
@@ -14,7 +15,7 @@ namespace {
 constexpr std::size_t kTokenBytes = 32;
 constexpr std::size_t kMaxTokens = 64, kMaxTokenChars = 256;
 
-std::string random_token() {
+std::string random_hex_token() {
   unsigned char raw[kTokenBytes];
   if (RAND_bytes(raw, sizeof raw) != 1) throw std::runtime_error("RAND_bytes failed");
   static const char* kHex = "0123456789abcdef";
@@ -50,6 +51,30 @@ const char* access_name(Access a) {
   }
 }
 
+std::string new_token() { return random_hex_token(); }
+
+std::string operator_token_problem(std::string_view token) {
+  constexpr std::size_t kMinChars = 32, kMinSymbols = 8;
+  for (const char ch : token) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (c <= 0x20 || c >= 0x7F || c == ',') {
+      return "the operator token may hold only printable ASCII without spaces or commas";
+    }
+  }
+  if (token.size() < kMinChars) {
+    return "the operator token is " + std::to_string(token.size()) + " characters; it needs at least " +
+           std::to_string(kMinChars) + " (hdeform-server --gen-token prints a good one)";
+  }
+  bool seen[128] = {};
+  std::size_t symbols = 0;
+  for (const char ch : token) symbols += !std::exchange(seen[static_cast<unsigned char>(ch)], true);
+  if (symbols < kMinSymbols) {
+    return "the operator token uses " + std::to_string(symbols) + " distinct characters; it needs " +
+           "at least " + std::to_string(kMinSymbols) + " (hdeform-server --gen-token prints a good one)";
+  }
+  return {};
+}
+
 TokenHash hash_token(const std::string& token) {
   TokenHash h{};
   unsigned int n = 0;
@@ -64,7 +89,7 @@ bool same_hash(const TokenHash& a, const TokenHash& b) {
 }
 
 IssuedTokens SessionTokens::issue() {
-  IssuedTokens t{random_token(), random_token()};
+  IssuedTokens t{random_hex_token(), random_hex_token()};
   edit = hash_token(t.edit);
   view = hash_token(t.view);
   set = true;

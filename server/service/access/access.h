@@ -34,6 +34,15 @@ struct SessionTokens {
 };
 
 TokenHash hash_token(const std::string& token);
+
+// A fresh token: 256 bits from the OS CSPRNG as 64 hex digits (`hdeform-server --gen-token`).
+std::string new_token();
+
+// Empty if `token` may be the operator token, else why not. It opens every session, so it
+// must carry ≥ 128 bits that a guess cannot find: ≥ 32 characters, printable ASCII without
+// spaces or commas (a comma splits an Authorization value), ≥ 8 distinct symbols (sixteen
+// "a", or "abab…", are refused). 32 hex digits pass, as does anything --gen-token prints.
+std::string operator_token_problem(std::string_view token);
 bool same_hash(const TokenHash& a, const TokenHash& b);  // constant time
 
 // The tokens a call presents: every `authorization` metadata entry, "Bearer " removed, each

@@ -1,6 +1,7 @@
 #include "service/rpc/server.h"
 
 #include "common/tls_files.h"
+#include "service/access/access.h"
 #include "service/rpc/deform_service.h"
 
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
@@ -43,6 +44,11 @@ struct Server::Impl {
 };
 
 Server::Server(const ServerOptions& options) : impl_(std::make_unique<Impl>()) {
+  if (!options.admin_token.empty()) {
+    if (auto why = operator_token_problem(options.admin_token); !why.empty()) {
+      throw std::invalid_argument(why);
+    }
+  }
   // TLS files first: a bad file fails before anything starts.
   const auto credentials = options.listen_address.empty() ? grpc::InsecureServerCredentials()
                                                           : server_credentials(options);
