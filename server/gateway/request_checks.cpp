@@ -87,6 +87,9 @@ std::string host_of(std::string_view value) {
     const auto close = value.find(']');
     if (close == std::string_view::npos) return {};
     host = value.substr(0, close + 1);
+    // A zone ("%eth0") means nothing to another host, and the address parser would take any
+    // bytes after '%' as one: refuse it, as browsers never send it.
+    if (host.find('%') != std::string_view::npos) return {};
     const auto rest = value.substr(close + 1);
     if (!rest.empty()) {
       if (rest.front() != ':') return {};

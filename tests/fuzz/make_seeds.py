@@ -157,6 +157,43 @@ def grpc_web():
     put("fuzz_grpc_web_frames", "timeout-max", "99999999H")
 
 
+def http_request():
+    """A control byte (bits 0-5: split stride, 0 = all at once; bit 6: the gateway's header
+    parser then body parser), then the bytes a client sent on one connection."""
+    frame = lambda flag, payload: struct.pack(">BI", flag, len(payload)) + payload
+    crlf = lambda *lines: ("\r\n".join(lines) + "\r\n\r\n").encode()
+    seed = lambda name, control, data: put("fuzz_http_request", name, bytes([control]) + data)
+    grpc_web = lambda host, extra, body: crlf(
+        "POST /hdeform.v1.Deformation/ListMeshes HTTP/1.1", f"Host: {host}",
+        "Content-Type: application/grpc-web+proto", "X-Grpc-Web: 1", *extra,
+        f"Content-Length: {len(body)}") + body
+    seed("grpc-web-list-meshes", 0x40, grpc_web("viewer.example:8080", ["grpc-timeout: 30S"], frame(0, b"")))
+    seed("grpc-web-origin", 0x07, grpc_web("viewer.example", ["Origin: https://viewer.example:443"],
+                                           frame(0, b"\x0a\x05cactus") + frame(0x80, b"grpc-status: 0\r\n")))
+    seed("grpc-web-cross-site", 0x00, grpc_web("a.team.example", ["Origin: http://evil.example",
+                                                                  "X-Forwarded-Host: a.team.example, b"], frame(0, b"")))
+    off = b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"
+    chunks = b"".join(b"%x\r\n%s\r\n" % (len(off[i:i + 16]), off[i:i + 16]) for i in range(0, len(off), 16))
+    seed("upload-chunked", 0x43, crlf("POST /upload?name=tri.off HTTP/1.1", "Host: localhost:8080",
+                                      "X-Hdeform-Upload: 1", "Transfer-Encoding: chunked") + chunks + b"0\r\n\r\n")
+    seed("upload-session-id", 0x00, crlf("POST /upload HTTP/1.1", "Host: 127.0.0.1", "X-Session-Id: s1",
+                                         f"Content-Length: {len(off)}") + off)
+    seed("pipelined-gets", 0x01, crlf("GET / HTTP/1.1", "Host: localhost") +
+         crlf("GET /index.html HTTP/1.1", "Host: LOCALHOST.") +
+         crlf("HEAD /assets/app.js HTTP/1.1", "Host: viewer.example", "Connection: close"))
+    seed("xchunked-and-length", 0x00, crlf("POST /upload HTTP/1.1", "Host: localhost", "X-Hdeform-Upload: 1",
+                                           "Transfer-Encoding: xchunked", "Content-Length: 5") + b"0\r\n\r\n")
+    seed("chunked-and-length", 0x40, crlf("POST /upload HTTP/1.1", "Host: localhost",
+                                          "Transfer-Encoding: chunked", "Content-Length: 5") + b"0\r\n\r\n")
+    seed("two-transfer-encodings", 0x05, crlf("POST /upload HTTP/1.1", "Host: localhost", "Transfer-Encoding: gzip",
+                                              "Transfer-Encoding: chunked") + b"3\r\nabc\r\n0\r\n\r\n")
+    seed("host-ipv6", 0x02, crlf("GET / HTTP/1.1", "Host: [::1]:8080") + crlf("GET / HTTP/1.1", "Host: [fe80::1%eth0]"))
+    seed("host-rebound", 0x00, crlf("GET / HTTP/1.1", "Host: evil.example") +
+         crlf("GET / HTTP/1.1", "Host: localhost", "Host: evil.example"))
+    seed("host-list", 0x00, crlf("GET / HTTP/1.1", "Host: viewer.example, .team.example, *.b.example, *"))
+    seed("http10-no-host", 0x00, crlf("GET / HTTP/1.0"))
+
+
 def pb_varint(v):
     out = b""
     while True:
@@ -199,4 +236,4 @@ def frame_decode():
 
 
 if __name__ == "__main__":
-    obj(); off(); ply(); stl(); gltf(); sel(); def_(); grpc_web(); frame_decode()
+    obj(); off(); ply(); stl(); gltf(); sel(); def_(); grpc_web(); http_request(); frame_decode()

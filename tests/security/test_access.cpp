@@ -200,7 +200,7 @@ TEST(SecurityAccess, EveryCallOnASessionNeedsItsToken) {
                               std::string("x")}) {
       st = call({wrong});
       EXPECT_EQ(st.error_code(), StatusCode::PERMISSION_DENIED) << st.error_message();
-      EXPECT_TRUE(contains(st.error_message(), "not one of this session's")) << st.error_message();
+      EXPECT_TRUE(contains(st.error_message(), "opens no session of that name")) << st.error_message();
     }
   }
   // Nothing above changed the session.
@@ -233,7 +233,52 @@ TEST(SecurityAccess, TheViewTokenOnlyReads) {
                   c.deform(edit), c.sweep(edit), c.export_(edit)})
     EXPECT_TRUE(st.ok()) << st.error_message();
   EXPECT_TRUE(c.remove(edit).ok());
-  EXPECT_EQ(c.get(edit).error_code(), StatusCode::NOT_FOUND);
+  // A deleted session's tokens open nothing; only the operator learns it is gone.
+  EXPECT_EQ(c.get(edit).error_code(), StatusCode::PERMISSION_DENIED);
+  pb::Session none;
+  EXPECT_EQ(t.get_session(s.name(), &none).error_code(), StatusCode::NOT_FOUND);
+}
+
+// Issue 35.12: without a token that opens it, an id that does not exist answers exactly as
+// one that does (status and text, the name aside), so ids cannot be probed; the operator
+// alone gets NOT_FOUND.
+TEST(SecurityAccess, AnUnknownIdAnswersLikeAnExistingOneWithoutItsToken) {
+  TestServer t;
+  const pb::Session s = create(t);
+  const pb::Session other = create(t);
+  const std::string unknown = "sessions/" + std::string(16, '7');
+  Calls known{t, s.name()}, missing{t, unknown};
+  const std::vector<std::function<grpc::Status(Calls&, std::vector<std::string>)>> calls = {
+      [](Calls& c, auto tok) { return c.get(tok); },
+      [](Calls& c, auto tok) { return c.mesh(tok); },
+      [](Calls& c, auto tok) { return c.watch(tok); },
+      [](Calls& c, auto tok) { return c.set_constraints(tok); },
+      [](Calls& c, auto tok) { return c.set_beta(tok); },
+      [](Calls& c, auto tok) { return c.update(tok); },
+      [](Calls& c, auto tok) { return c.deform(tok); },
+      [](Calls& c, auto tok) { return c.sweep(tok); },
+      [](Calls& c, auto tok) { return c.export_(tok); },
+      [](Calls& c, auto tok) { return c.rotate(tok); },
+      [](Calls& c, auto tok) { return c.remove(tok); },
+  };
+  const auto without_name = [](std::string text, const std::string& name) {
+    for (auto at = text.find(name); at != std::string::npos; at = text.find(name))
+      text.replace(at, name.size(), "NAME");
+    return text;
+  };
+  for (std::size_t i = 0; i < calls.size(); ++i) {
+    SCOPED_TRACE(i);
+    for (const auto& tokens : std::vector<std::vector<std::string>>{
+             {}, {other.edit_token()}, {other.view_token()}, {"x"}, {std::string(64, 'a')}}) {
+      const auto a = calls[i](known, tokens), b = calls[i](missing, tokens);
+      EXPECT_NE(a.error_code(), StatusCode::OK);
+      EXPECT_EQ(a.error_code(), b.error_code()) << a.error_message() << " | " << b.error_message();
+      EXPECT_EQ(without_name(a.error_message(), s.name()),
+                without_name(b.error_message(), unknown));
+    }
+  }
+  pb::Session none;
+  EXPECT_EQ(t.get_session(unknown, &none).error_code(), StatusCode::NOT_FOUND);
 }
 
 TEST(SecurityAccess, TokensAreReadFromBearerHeadersInAnyCase) {

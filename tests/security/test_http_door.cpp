@@ -278,7 +278,7 @@ TEST(SecurityHttp, ARequestForAHostNameNotAllowedIsMisdirected) {
                  "Content-Length: 0\r\n\r\n");
   };
   for (const std::string& host : std::vector<std::string>{"evil.example:" + port, "evil.example", "localhost.evil.example",
-                                 "viewer.example.evil", "x.viewer.example", "team.example",
+                                 "viewer.example.evil", "x.viewer.example", "team.example", "[::1%eth0]:" + port,
                                  "evil.example:" + port + "@127.0.0.1", "bad host", ""}) {
     const auto [status, body] = upload(host, "rebound");
     EXPECT_EQ(status, 421) << "Host '" << host << "': " << body;

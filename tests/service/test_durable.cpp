@@ -227,10 +227,14 @@ TEST(Durable, DeletedAndExpiredSessionsLeaveTheDisk) {
     o.session_ttl = std::chrono::seconds(2);
     TestServer b(o);  // purges the expired record and its mesh at start
     grpc::Status st;
+    // Their tokens open nothing now; the operator sees that they are gone.
     get(b, gone.name(), gone.view_token(), &st);
-    EXPECT_EQ(st.error_code(), StatusCode::NOT_FOUND);
+    EXPECT_EQ(st.error_code(), StatusCode::PERMISSION_DENIED);
     get(b, idle.name(), idle.view_token(), &st);
-    EXPECT_EQ(st.error_code(), StatusCode::NOT_FOUND);
+    EXPECT_EQ(st.error_code(), StatusCode::PERMISSION_DENIED);
+    pb::Session none;
+    EXPECT_EQ(b.get_session(gone.name(), &none).error_code(), StatusCode::NOT_FOUND);
+    EXPECT_EQ(b.get_session(idle.name(), &none).error_code(), StatusCode::NOT_FOUND);
   }
   EXPECT_EQ(stored_records(dir.path), 0u);
   std::size_t files = 0;

@@ -8,7 +8,7 @@ export function accessError(err: unknown, name: string): string {
     if (err.code === Code.Unauthenticated)
       return `this link carries no access token. Open the session with its share link (…#edit=…) or watch link (…#view=…).`;
     if (err.code === Code.PermissionDenied)
-      return `the link's token does not open ${name} (a wrong or old link: the session's tokens may have been renewed). [PermissionDenied]`;
+      return `the link's token does not open ${name} (a wrong or old link: the session's tokens may have been renewed, or the session deleted or expired). [PermissionDenied]`;
     if (err.code === Code.NotFound) return `${name} does not exist on this server. [NotFound]`;
   }
   return describeError(err);

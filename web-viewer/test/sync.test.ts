@@ -266,6 +266,19 @@ describe("sync, connection", () => {
     assert.equal(fake.updates.length, 0);
   });
 
+  it("a deleted session whose token now opens nothing (PermissionDenied) is gone too", async () => {
+    const { fake, sync, events } = setup();
+    // Without the operator token the server answers a gone id like a wrong token.
+    fake.session = () => {
+      throw new ConnectError("the token presented opens no session of that name", Code.PermissionDenied);
+    };
+    sync.watch();
+    await until(() => fake.streams.length === 1, "the watch stream");
+    fake.stream.push(deletedEvent("sessions/s"));
+    await until(() => sync.link.state === "gone", "gone");
+    assert.deepEqual(events.error.map((e) => [e.kind, e.message]), [["lost", "Session sessions/s was deleted"]]);
+  });
+
   it("drops the answer of an update sent for a session no longer open", async () => {
     const { fake, sync, events } = setup();
     sync.request();

@@ -124,18 +124,26 @@ bool DeformService::is_admin(const std::vector<TokenHash>& token_hashes) const {
 void DeformService::authorize(const grpc::ServerContextBase& ctx, const Session& session,
                               Access needed, const char* op) const {
   const auto hashes = presented_token_hashes(ctx);
-  const std::string what = std::string(op) + " on " + session.name() + " needs the session's " +
-                           access_name(needed) + " token";
+  if (is_admin(hashes)) return;
+  refuse_unless(hashes, session.name(), session.grant(hashes), needed, op);
+}
+
+// The answer depends only on the name asked for and what the tokens grant, so an unknown id
+// answers exactly as an existing one whose tokens the caller lacks (no existence oracle).
+void DeformService::refuse_unless(const std::vector<TokenHash>& hashes, const std::string& name,
+                                  Access granted, Access needed, const char* op) {
+  if (static_cast<int>(granted) >= static_cast<int>(needed)) return;
+  const std::string what =
+      std::string(op) + " on " + name + " needs the session's " + access_name(needed) + " token";
   if (hashes.empty())
     fail(grpc::StatusCode::UNAUTHENTICATED,
          what + ": send the metadata 'authorization: Bearer TOKEN' (CreateSession returned "
                 "the edit and view tokens)");
-  if (is_admin(hashes)) return;
-  const Access got = session.grant(hashes);
-  if (static_cast<int>(got) >= static_cast<int>(needed)) return;
   fail(grpc::StatusCode::PERMISSION_DENIED,
-       got == Access::kView ? what + "; the token presented is its view token (read-only)"
-                            : what + "; the token presented is not one of this session's");
+       granted == Access::kView
+           ? what + "; the token presented is its view token (read-only)"
+           : what + "; the token presented opens no session of that name (a deleted or "
+                    "expired session's tokens open nothing)");
 }
 
 void DeformService::bind_stream(const grpc::ServerContextBase& ctx, AuthorizedStream& stream,
@@ -154,7 +162,15 @@ std::shared_ptr<Session> DeformService::session_for(const grpc::ServerContextBas
                                                     const std::string& name, Access needed,
                                                     const char* op) {
   auto session = store_.find(name);
-  if (!session) fail(grpc::StatusCode::NOT_FOUND, "no session '" + name + "'");
+  if (!session) {
+    const auto hashes = presented_token_hashes(ctx);
+    // Only the operator learns that an id does not exist; anyone else gets the refusal an
+    // existing session would give them.
+    if (!is_admin(hashes)) {
+      refuse_unless(hashes, "sessions/" + SessionStore::id_of(name), Access::kNone, needed, op);
+    }
+    fail(grpc::StatusCode::NOT_FOUND, "no session '" + name + "'");
+  }
   authorize(ctx, *session, needed, op);
   return session;
 }

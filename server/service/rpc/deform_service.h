@@ -131,6 +131,9 @@ class DeformService final : public v1::Deformation::CallbackService {
   bool can_edit(const grpc::ServerContextBase& ctx, const Session& session) const;
   void authorize(const grpc::ServerContextBase& ctx, const Session& session, Access needed,
                  const char* op) const;
+  // Fails (UNAUTHENTICATED without tokens, else PERMISSION_DENIED) unless `granted` ≥ `needed`.
+  static void refuse_unless(const std::vector<TokenHash>& hashes, const std::string& name,
+                            Access granted, Access needed, const char* op);
   // The presented tokens include the operator token.
   bool is_admin(const std::vector<TokenHash>& token_hashes) const;
   // A stream's authorization for `needed` on `session` (AuthorizedStream): the session

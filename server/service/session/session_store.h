@@ -114,8 +114,10 @@ class SessionStore {
   // Stops the sweeper, flushes the durable state and closes every session.
   void shutdown();
 
- private:
+ // "sessions/ID" or "ID" → ID.
   static std::string id_of(const std::string& name);
+
+ private:
 
   std::shared_ptr<Session> restore(const std::string& id) const;
   // False when the store holds a newer version of `s` (or none): the copy must go.

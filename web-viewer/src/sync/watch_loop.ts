@@ -89,7 +89,9 @@ export async function watchLoop(host: WatchHost, name: string, signal: AbortSign
       if (signal.aborted) return;
     } catch (err) {
       if (signal.aborted) return;
-      if (err instanceof ConnectError && err.code === Code.NotFound) {
+      // A deleted session's tokens open nothing: after a `deleted` event, PermissionDenied
+      // means the same as NotFound (only the operator token gets NotFound for a gone id).
+      if (err instanceof ConnectError && (err.code === Code.NotFound || (sawDeleted && err.code === Code.PermissionDenied))) {
         link.set("gone");
         // Right after a `deleted` event: deleted (or expired). After an outage: it did not
         // survive (a server without durable state, or deleted meanwhile).
