@@ -29,6 +29,7 @@ namespace fs = std::filesystem;
 constexpr std::int32_t kApplicationId = 0x6864666d;  // 'hdfm'
 constexpr int kSchemaVersion = 1;
 constexpr int kBusyTimeoutMs = 5000;
+constexpr mode_t kFolderMode = 0700, kFileMode = 0600;  // the owner's alone
 
 std::string errno_text(int err) { return std::strerror(err); }
 
@@ -98,8 +99,8 @@ std::optional<std::string> read_file(const fs::path& path) {
 // when the process dies, so a crash never leaves a stale lock behind).
 Fd lock_folder(const fs::path& dir) {
   const fs::path path = dir / "lock";
-  Fd fd(::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644));
-  if (fd.get() < 0)
+  Fd fd(::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, kFileMode));
+  if (fd.get() < 0 || ::fchmod(fd.get(), kFileMode) != 0)
     throw StateError("cannot open lock file " + path.string() + ": " + errno_text(errno));
   if (::flock(fd.get(), LOCK_EX | LOCK_NB) != 0) {
     if (errno == EWOULDBLOCK)
@@ -254,12 +255,37 @@ void exec(sqlite3* db, const fs::path& path, const char* sql) {
   }
 }
 
-// Removes the temp files a crash during put_mesh can leave behind ("KEY.mesh.tmp.XXXXXX").
-void remove_stale_temps(const fs::path& meshes) {
+// Removes the temp files a crash during put_mesh can leave behind ("KEY.mesh.tmp.XXXXXX"),
+// and makes the meshes the owner's alone (an older server wrote them 0644).
+void tidy_meshes(const fs::path& meshes) {
   std::error_code ec;
   for (const auto& entry : fs::directory_iterator(meshes, ec)) {
     const std::string name = entry.path().filename().string();
     if (name.find(".mesh.tmp.") != std::string::npos) fs::remove(entry.path(), ec);
+    else if (entry.is_regular_file(ec)) ::chmod(entry.path().c_str(), kFileMode);
+  }
+}
+
+// The state holds every session's token hashes and every uploaded mesh: the folder is the
+// owner's alone (0700). One that another user owns, or may write to, is refused: they could
+// replace the records or the meshes this server loads.
+void make_private_folder(const fs::path& dir) {
+  std::error_code ec;
+  const bool created = fs::create_directories(dir, ec);
+  if (ec) throw StateError("cannot create state folder " + dir.string() + ": " + ec.message());
+  struct stat st {};
+  if (::stat(dir.c_str(), &st) != 0)
+    throw StateError("cannot stat state folder " + dir.string() + ": " + errno_text(errno));
+  if (st.st_uid != ::geteuid())
+    throw StateError("state folder " + dir.string() + " belongs to another user (uid " +
+                     std::to_string(st.st_uid) + "); use a folder of your own");
+  if (created || (st.st_mode & 077) != 0) {
+    if ((st.st_mode & 022) != 0 && !created)
+      throw StateError("state folder " + dir.string() + " is writable by other users (mode " +
+                       fmt::format("{:04o}", st.st_mode & 07777) + "); run: chmod 700 " +
+                       dir.string());
+    if (::chmod(dir.c_str(), kFolderMode) != 0)
+      throw StateError("cannot chmod 700 " + dir.string() + ": " + errno_text(errno));
   }
 }
 
@@ -267,14 +293,11 @@ class SqliteState final : public StateBackend {
  public:
   explicit SqliteState(const fs::path& dir) : dir_(dir), db_path_(dir / "state.sqlite3"),
                                               meshes_(dir / "meshes") {
-    std::error_code ec;
-    fs::create_directories(dir_, ec);
-    if (ec) throw StateError("cannot create state folder " + dir_.string() + ": " + ec.message());
+    make_private_folder(dir_);
     lock_ = lock_folder(dir_);
     open_database();
-    fs::create_directories(meshes_, ec);
-    if (ec) throw StateError("cannot create " + meshes_.string() + ": " + ec.message());
-    remove_stale_temps(meshes_);  // safe: we hold the folder lock
+    make_private_folder(meshes_);
+    tidy_meshes(meshes_);  // safe: we hold the folder lock
     spdlog::info("state: {}", describe());
   }
 
@@ -393,6 +416,14 @@ class SqliteState final : public StateBackend {
     // Check before writing anything: a foreign or newer file must stay byte-for-byte intact.
     if (exists && fs::file_size(db_path_, ec) > 0) needs_schema = check_existing_db(db_path_);
 
+    // SQLite creates the database 0644 and gives its -wal and -shm files the database's
+    // mode: create it (or narrow an older one) 0600 first.
+    {
+      Fd fd(::open(db_path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, kFileMode));
+      if (fd.get() < 0 || ::fchmod(fd.get(), kFileMode) != 0)
+        throw error("cannot create it 0600: " + errno_text(errno));
+    }
+    for (const char* suffix : {"-wal", "-shm"}) ::chmod((db_path_.string() + suffix).c_str(), kFileMode);
     db_ = open_db(db_path_, SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE);
     sqlite3_busy_timeout(db_.get(), kBusyTimeoutMs);
     // journal_mode answers with the mode it got (a read-only folder, say, keeps "delete").
@@ -476,7 +507,7 @@ class SqliteState final : public StateBackend {
                        errno_text(errno));
     try {
       write_all(fd.get(), bytes, tmpl);
-      if (::fchmod(fd.get(), 0644) != 0 || ::fsync(fd.get()) != 0)
+      if (::fchmod(fd.get(), kFileMode) != 0 || ::fsync(fd.get()) != 0)
         throw StateError("cannot sync " + tmpl + ": " + errno_text(errno));
       fd.reset();
       if (::rename(tmpl.c_str(), path.c_str()) != 0)
