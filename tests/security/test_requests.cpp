@@ -404,6 +404,48 @@ TEST(Security, ZeroByteRowPlyIsRejectedAtOnce) {
   by.check();
 }
 
+// Issue 35.3: ImportSession's mesh bytes are an upload too: charged to the same in-flight
+// budget as CreateSession's streams, so imports cannot take the memory uploads are refused.
+TEST(Security, ImportedMeshBytesShareTheUploadBudget) {
+  hdeform::service::ServerOptions o;
+  o.max_upload_bytes = 2u << 20;
+  o.max_upload_inflight_bytes = 2u << 20;
+  TestServer t(o);
+  Bystander by(t);
+  pb::Snapshot snap;
+  snap.set_filename("bar.off");
+  snap.set_mesh_bytes(slurp(data_path("botsch-sorkine/bar.off")));  // 448 KB, charged twice
+  // An upload declared at 1.5 MiB holds most of the budget while it is open.
+  auto upload_ctx = std::make_unique<grpc::ClientContext>();
+  pb::Session upload_out;
+  auto upload = t.stub->CreateSession(upload_ctx.get(), &upload_out);
+  pb::CreateSessionRequest header;
+  header.mutable_header()->set_filename("big.off");
+  header.mutable_header()->set_total_bytes(3 << 19);
+  ASSERT_TRUE(upload->Write(header));
+  pb::Session out;
+  grpc::Status st;
+  for (int i = 0; i < 100; ++i) {  // until the server has read the header and charged it
+    st = t.import_session(snap, &out, "");
+    if (!st.ok()) break;
+    std::this_thread::sleep_for(20ms);
+  }
+  EXPECT_EQ(st.error_code(), StatusCode::RESOURCE_EXHAUSTED) << st.error_message();
+  EXPECT_TRUE(contains(st.error_message(), "--max-upload-inflight-mb")) << st.error_message();
+  by.check();
+  // The upload ends: its share comes back, and the same import fits.
+  upload_ctx->TryCancel();
+  upload->Finish();
+  for (int i = 0; i < 100; ++i) {
+    st = t.import_session(snap, &out, "");
+    if (st.ok()) break;
+    std::this_thread::sleep_for(20ms);
+  }
+  EXPECT_TRUE(st.ok()) << st.error_message();
+  EXPECT_EQ(out.vertex_count(), 6084);
+  by.check();
+}
+
 // Defect 7: a failed ImportSession leaves no session behind and keeps its id free.
 TEST(Security, FailedImportPublishesNothing) {
   TestServer t;

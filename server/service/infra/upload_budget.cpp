@@ -30,6 +30,12 @@ bool UploadBudget::Ticket::charge(std::size_t bytes) {
   return true;
 }
 
+grpc::Status UploadBudget::exhausted() const {
+  return {grpc::StatusCode::RESOURCE_EXHAUSTED,
+          "the server is receiving too many uploads at once (" + std::to_string(max_bytes_) +
+              " bytes in flight, --max-upload-inflight-mb); retry later"};
+}
+
 void UploadBudget::Ticket::detach() {
   std::lock_guard lock(mutex_);
   ctx_ = nullptr;

@@ -1,4 +1,5 @@
-// Bounds on uploads in flight (CreateSession streams): the bytes all unfinished uploads
+// Bounds on uploads in flight (CreateSession streams, ImportSession's mesh bytes — every
+// request that carries a mesh): the bytes all unfinished uploads
 // hold together, and how long one may go without sending. A watchdog thread cancels
 // stalled uploads, so a client that opens an upload and goes quiet holds nothing for long.
 #pragma once
@@ -49,6 +50,8 @@ class UploadBudget {
   std::shared_ptr<Ticket> open(grpc::CallbackServerContext* ctx);
   std::size_t bytes_in_flight() const { return bytes_.load(); }
   std::size_t max_bytes() const { return max_bytes_; }
+  // RESOURCE_EXHAUSTED naming --max-upload-inflight-mb: what a charge() refused answers.
+  grpc::Status exhausted() const;
   std::chrono::milliseconds stall_timeout() const { return stall_timeout_; }
 
  private:

@@ -95,12 +95,7 @@ class CreateSessionReactor final : public grpc::ServerReadReactor<v1::CreateSess
   }
 
  private:
-  grpc::Status over_budget() const {
-    return {grpc::StatusCode::RESOURCE_EXHAUSTED,
-            "the server is receiving too many uploads at once (" +
-                std::to_string(svc_->uploads().max_bytes()) +
-                " bytes in flight, --max-upload-inflight-mb); retry later"};
-  }
+  grpc::Status over_budget() const { return svc_->uploads().exhausted(); }
 
   void check_header() {
     const auto& limits = svc_->sessions().limits();

@@ -520,8 +520,24 @@ grpc::ServerUnaryReactor* DeformService::ImportSession(grpc::CallbackServerConte
   // The caller's tokens are read now: the context's metadata is not to be used from the pool
   // after the call could have ended.
   auto hashes = presented_token_hashes(*ctx);
+  // Mesh bytes in a snapshot are an upload: charged to the one in-flight budget before any
+  // work — twice, the request and the copy the mesh keeps — until the import ends.
+  auto ticket = uploads_.open(ctx);
+  ticket->received_all();  // unary: nothing more will arrive, so it cannot stall
+  if (const auto& bytes = request->snapshot().mesh_bytes(); !bytes.empty()) {
+    if (!ticket->charge(2 * bytes.size())) {
+      auto* reactor = ctx->DefaultReactor();
+      reactor->Finish(uploads_.exhausted());
+      return reactor;
+    }
+  }
   return finish_on_pool(ctx, "ImportSession", [this, request, response,
-                                               hashes = std::move(hashes)] {
+                                               hashes = std::move(hashes),
+                                               ticket = std::move(ticket)] {
+    const struct Release {
+      UploadBudget::Ticket& t;
+      ~Release() { t.detach(); }
+    } release{*ticket};
     const auto& snap = request->snapshot();
     store_.check_id(request->session_id());
     store_.check_capacity();
