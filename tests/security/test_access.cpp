@@ -399,3 +399,43 @@ TEST(SecurityAccess, AGuessableOperatorTokenIsRefused) {
   EXPECT_EQ(operator_token_problem("0123456789abcdef0123456789abcdef"), "");
   EXPECT_EQ(operator_token_problem(kTestAdminToken), "");
 }
+
+// Issue 35.7: two users who upload the same bytes share one prepared mesh, but each session
+// shows only the name its own creator gave — in Session.mesh_name and in ExportSession.
+TEST(SecurityAccess, AnUploadShowsOnlyItsOwnCreatorsFileName) {
+  TestServer t;
+  const std::string bytes = slurp(data_path("botsch-sorkine/bar.off"));
+  pb::Session alice, bob;
+  ASSERT_TRUE(t.upload(bytes, "alice-secret-merger.off", &alice).ok());
+  ASSERT_TRUE(t.upload(bytes, "bob.OFF", &bob).ok());
+  ASSERT_EQ(alice.mesh_hash(), bob.mesh_hash());  // one shared mesh
+  EXPECT_EQ(alice.mesh_name(), "alice-secret-merger.off");
+  EXPECT_EQ(bob.mesh_name(), "bob.OFF");
+  Calls c{t, bob.name()};
+  pb::Snapshot snap;
+  ASSERT_TRUE(c.export_({bob.edit_token()}, &snap).ok());
+  EXPECT_EQ(snap.filename(), "bob.OFF");
+  // An import by hash alone, with no file name: a neutral name in the mesh's format.
+  pb::Snapshot by_hash;
+  by_hash.set_mesh_hash(bob.mesh_hash());
+  pb::ImportSessionRequest r;
+  *r.mutable_snapshot() = by_hash;
+  pb::Session carol;
+  ASSERT_TRUE(t.bare_stub->ImportSession(as({bob.edit_token()}).get(), r, &carol).ok());
+  EXPECT_EQ(carol.mesh_name(), "upload.off");
+  // A name whose extension is not the bytes' format gets the format's extension.
+  r.mutable_snapshot()->set_filename("dave.obj");
+  pb::Session dave;
+  ASSERT_TRUE(t.bare_stub->ImportSession(as({bob.edit_token()}).get(), r, &dave).ok());
+  EXPECT_EQ(dave.mesh_name(), "dave.obj.off");
+  for (const auto& s : {bob, carol, dave}) {
+    pb::Session got;
+    pb::GetSessionRequest g;
+    g.set_name(s.name());
+    ASSERT_TRUE(t.bare_stub->GetSession(as({s.edit_token()}).get(), g, &got).ok());
+    EXPECT_EQ(got.mesh_name().find("alice"), std::string::npos) << got.mesh_name();
+    Calls e{t, s.name()};
+    ASSERT_TRUE(e.export_({s.edit_token()}, &snap).ok());
+    EXPECT_EQ(snap.filename().find("alice"), std::string::npos) << snap.filename();
+  }
+}

@@ -146,7 +146,9 @@ class CreateSessionReactor final : public grpc::ServerReadReactor<v1::CreateSess
               fail(grpc::StatusCode::CANCELLED, "upload cancelled by the client");
             IssuedTokens tokens;
             auto session =
-                svc_->sessions().create(std::move(mesh), header_.session_id(), {}, &tokens);
+                svc_->sessions().create(std::move(mesh), header_.session_id(),
+                                        [this](Session& s) { s.name_upload(header_.filename()); },
+                                        &tokens);
             *response_ = session->describe();
             response_->set_edit_token(tokens.edit);
             response_->set_view_token(tokens.view);

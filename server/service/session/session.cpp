@@ -78,6 +78,11 @@ Session::Session(std::string id, std::shared_ptr<const MeshRef> mesh, WorkerPool
     : id_(std::move(id)),
       name_("sessions/" + id_),
       mesh_(std::move(mesh)),
+      // Until named: a neutral name in the file's format (a shared MeshRef's own name is
+      // another uploader's).
+      upload_name_(mesh_->library_name.empty()
+                       ? "upload" + std::filesystem::path(mesh_->filename).extension().string()
+                       : ""),
       limits_(limits),
       cache_(cache),
       strand_(std::make_shared<Strand>(pool)),
@@ -729,7 +734,7 @@ pb::Snapshot Session::export_snapshot(bool include_mesh, std::int64_t* version) 
   pb::Snapshot s;
   s.set_mesh_hash(mesh_->hash);
   s.set_library_mesh(mesh_->library_name);
-  s.set_filename(mesh_->filename);
+  s.set_filename(mesh_->library_name.empty() ? upload_name_ : mesh_->filename);
   if (include_mesh && mesh_->file_bytes) s.set_mesh_bytes(*mesh_->file_bytes);
   std::lock_guard lock(mutex_);
   if (version) *version = version_;
@@ -740,7 +745,23 @@ pb::Snapshot Session::export_snapshot(bool include_mesh, std::int64_t* version) 
   return s;
 }
 
+void Session::name_upload(const std::string& filename) {
+  if (!mesh_->library_name.empty() || filename.empty()) return;
+  upload_name_ = std::filesystem::path(filename).filename().string();
+  // The name must keep saying the bytes' format (an export re-imports by it).
+  const auto ext = std::filesystem::path(mesh_->filename).extension().string();
+  const auto given = std::filesystem::path(upload_name_).extension().string();
+  if (!std::equal(ext.begin(), ext.end(), given.begin(), given.end(),
+                  [](char a, char b) { return std::tolower(a) == std::tolower(b); }))
+    upload_name_ += ext;
+}
+
+const std::string& Session::mesh_name() const {
+  return mesh_->library_name.empty() ? upload_name_ : mesh_->library_name;
+}
+
 void Session::restore(const pb::Snapshot& s) {
+  name_upload(s.filename());
   // An automatic β keeps the snapshot's pick (`value`): the restored session deforms exactly
   // as the exported one, whatever transforms the pick was made at.
   SessionBeta beta = s.has_beta() ? parse_beta(s.beta(), true) : SessionBeta{};
@@ -864,7 +885,7 @@ void Session::changed_locked(pb::Session* out) {
 void Session::describe_locked(pb::Session* out) const {
   out->set_name(name_);
   out->set_mesh_hash(mesh_->hash);
-  out->set_mesh_name(mesh_->display_name());
+  out->set_mesh_name(mesh_name());
   out->set_vertex_count(mesh_->layout->vertex_count());
   out->set_triangle_count(mesh_->layout->triangle_count());
   out->set_version(version_);

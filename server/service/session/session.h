@@ -66,6 +66,12 @@ class Session : public std::enable_shared_from_this<Session> {
   const std::string& name() const { return name_; }  // "sessions/{id}"
   const MeshRef& mesh() const { return *mesh_; }
   std::shared_ptr<const MeshRef> mesh_ref() const { return mesh_; }
+  // The name this session's creator gave its upload (identical files share one MeshRef,
+  // which keeps the first uploader's name: never shown to another user). Set once, before
+  // the session is published; restore() takes it from the snapshot.
+  void name_upload(const std::string& filename);
+  // What Session.mesh_name shows: the library name, or this session's own upload name.
+  const std::string& mesh_name() const;
   // Runs `task` on this session's strand (serialized, on the worker pool).
   void post(WorkerPool::Task task) { strand_->post(std::move(task)); }
   // Runs `admit` (which may throw; then nothing is posted) and posts `task`, as one step
@@ -335,6 +341,7 @@ class Session : public std::enable_shared_from_this<Session> {
 
   const std::string id_, name_;
   const std::shared_ptr<const MeshRef> mesh_;
+  std::string upload_name_;  // name_upload(); empty: a library mesh or not named
   const RequestLimits limits_;
   Cache& cache_;
   std::shared_ptr<Strand> strand_;

@@ -125,7 +125,7 @@ std::shared_ptr<Session> SessionStore::create(std::shared_ptr<const MeshRef> mes
     }
     throw;
   }
-  spdlog::info("{}: created on mesh {} ({}, {} vertices)", s->name(), s->mesh().display_name(),
+  spdlog::info("{}: created on mesh {} ({}, {} vertices)", s->name(), s->mesh_name(),
                s->mesh().hash, s->mesh().layout->vertex_count());
   return s;
 }
