@@ -11,7 +11,7 @@
 // Prints bytes per vertex for each encoding.
 // Usage: node glb_compression.mjs --cli PATH/hdeform --data DIR --viewer DIR --out DIR
 import { execFileSync } from "node:child_process";
-import { mkdirSync, readFileSync } from "node:fs";
+import { mkdirSync, readFileSync, writeFileSync } from "node:fs";
 import { createRequire } from "node:module";
 import { join, resolve } from "node:path";
 import { pathToFileURL } from "node:url";
@@ -190,6 +190,27 @@ for (const c of cases) {
   }
   const per = (b) => (b.length / ref.count).toFixed(1);
   console.log(`     ${c.name} (${ref.count} vertices, ${ref.T.split(" ").length} triangles): none ${files.none.length} B (${per(files.none)} B/vertex), quantized ${files.quantized.length} B (${per(files.quantized)}), meshopt ${files.meshopt.length} B (${per(files.meshopt)})`);
+}
+
+// A glTF upload is written back as itself with the deformed positions (rewrite_gltf): also
+// when its scene has no nodes and a material has no properties (tinygltf would write those
+// objects as null, which no reader accepts). Made from the cactus GLB above.
+{
+  const { doc, bin } = splitGlb(new Uint8Array(readFileSync(join(args.out, "cactus-none.glb"))));
+  doc.scenes = [{}];
+  doc.materials = [{}];
+  doc.meshes[0].primitives[0].material = 0;
+  const input = join(args.out, "nodeless.glb");
+  writeFileSync(input, joinGlb(doc, bin));
+  const output = join(args.out, "nodeless-deformed.glb");
+  execFileSync(args.cli, ["deform", input, ...cases[0].argv.slice(1), "-o", output],
+    { stdio: ["ignore", "ignore", "inherit"] });
+  const written = new Uint8Array(readFileSync(output));
+  // Nodes no scene shows are reported as unused (infos), as in the input.
+  await validate(written, "a glTF upload whose scene has no nodes, deformed", (m) => m.code === "UNUSED_OBJECT");
+  const back = splitGlb(written).doc;
+  check(JSON.stringify(back.scenes) === "[{}]" && JSON.stringify(back.materials) === "[{}]",
+    `its scene and material stay {} (${JSON.stringify(back.scenes)}, ${JSON.stringify(back.materials)})`);
 }
 
 // Bad requests name the problem (and write nothing).

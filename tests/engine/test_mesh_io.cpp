@@ -1,9 +1,11 @@
 // Mesh file I/O: round trips, the data/ meshes, glTF welding, triangulation, errors.
 #include "engine/io/mesh_io.h"
+#include "engine/io/rewrite_gltf.h"
 #include "engine/mesh/validate.h"
 
 #include <Eigen/Geometry>
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 #include <tiny_gltf.h>
 
 #include <cmath>
@@ -339,6 +341,32 @@ TEST(MeshIo, GltfNodeTransformIsIgnoredWithWarning) {
   bool warned = false;
   for (const auto& w : r.warnings) warned |= w.find("node transforms are ignored") != std::string::npos;
   EXPECT_TRUE(warned);
+}
+
+// Issue 35.11: an input whose scene has no nodes (or whose node or material has no
+// properties) uploads; its rewritten GLB must hold `{}` there, not tinygltf's `null`, so
+// that it reads again (the Khronos validator checks the same file in glb_compression.mjs).
+TEST(MeshIo, RewrittenGltfKeepsEmptyObjects) {
+  // Written by hand: tinygltf itself would write those objects as null.
+  auto doc_in = nlohmann::json::parse(serialise(seam_model(), false));
+  doc_in["scenes"] = nlohmann::json::array({nlohmann::json::object()});  // no nodes
+  doc_in["nodes"].push_back(nlohmann::json::object());                   // an empty node
+  doc_in["materials"] = nlohmann::json::array({nlohmann::json::object()});  // all defaults
+  const std::string input = doc_in.dump();
+  const LoadedMesh r = read_mesh_bytes(input, "nodeless.gltf");
+  const Vertices positions = r.to_input_layout(r.mesh.V);
+  const std::string glb = rewrite_gltf(input, "nodeless.gltf", positions, positions);
+  std::uint32_t json_length = 0;
+  std::memcpy(&json_length, glb.data() + 12, 4);
+  const auto doc = nlohmann::json::parse(glb.substr(20, json_length));
+  for (const char* key : {"scenes", "nodes", "materials"}) {
+    ASSERT_TRUE(doc.contains(key)) << key;
+    for (const auto& element : doc[key]) EXPECT_TRUE(element.is_object()) << key << ": " << element;
+  }
+  EXPECT_EQ(doc["scenes"][0], nlohmann::json::object());
+  // It uploads again, with the same vertices.
+  const LoadedMesh again = read_mesh_bytes(glb, "nodeless-deformed.glb");
+  EXPECT_EQ(again.mesh.V, r.mesh.V);
 }
 
 TEST(MeshIo, GltfUploadMayNotReadExternalFiles) {

@@ -1,5 +1,6 @@
 #include "engine/io/rewrite_gltf.h"
 
+#include "engine/io/glb_builder.h"
 #include "engine/io/mesh_io.h"
 
 #include <tiny_gltf.h>
@@ -61,6 +62,36 @@ int append_vec3(tinygltf::Model& model, const Vertices& rows, int first, int cou
   return static_cast<int>(model.accessors.size()) - 1;
 }
 
+// tinygltf writes an object with no properties — a scene without nodes, a material of all
+// defaults, an empty node — as `null`, which no reader accepts. Make each one `{}` again.
+std::string with_empty_objects(const std::string& glb, const std::string& filename) {
+  auto u32 = [&](std::size_t at) {
+    std::uint32_t v = 0;
+    std::memcpy(&v, glb.data() + at, 4);
+    return v;
+  };
+  if (glb.size() < 20 || glb.compare(16, 4, "JSON") != 0 || glb.size() - 20 < u32(12))
+    throw std::runtime_error(filename + ": tinygltf wrote a malformed GLB");
+  const std::size_t json_end = 20 + u32(12);
+  auto doc = nlohmann::json::parse(glb.begin() + 20, glb.begin() + static_cast<long>(json_end));
+  bool changed = false;
+  for (auto& [key, value] : doc.items()) {
+    if (!value.is_array()) continue;
+    for (auto& element : value) {
+      if (!element.is_null()) continue;
+      element = nlohmann::json::object();
+      changed = true;
+    }
+  }
+  if (!changed) return glb;
+  std::string bin;
+  if (glb.size() >= json_end + 8 && glb.compare(json_end + 4, 4, std::string_view("BIN\0", 4)) == 0)
+    bin = glb.substr(json_end + 8, u32(json_end));
+  detail::GlbBuilder out(detail::GlbBuilder::ZeroOffset::omitted, std::move(bin));
+  out.doc() = std::move(doc);
+  return out.finish(filename.c_str());
+}
+
 }  // namespace
 
 std::string rewrite_gltf(std::string_view original, const std::string& filename,
@@ -111,7 +142,7 @@ std::string rewrite_gltf(std::string_view original, const std::string& filename,
   std::ostringstream os;
   if (!loader.WriteGltfSceneToStream(&model, os, false, true))
     throw std::runtime_error(filename + ": tinygltf failed to write the GLB");
-  return os.str();
+  return with_empty_objects(os.str(), filename);
 }
 
 }  // namespace hdeform
