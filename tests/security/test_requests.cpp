@@ -423,24 +423,31 @@ TEST(Security, ImportedMeshBytesShareTheUploadBudget) {
   header.mutable_header()->set_filename("big.off");
   header.mutable_header()->set_total_bytes(3 << 19);
   ASSERT_TRUE(upload->Write(header));
-  pb::Session out;
-  grpc::Status st;
-  for (int i = 0; i < 100; ++i) {  // until the server has read the header and charged it
-    st = t.import_session(snap, &out, "");
-    if (!st.ok()) break;
-    std::this_thread::sleep_for(20ms);
-  }
+  // Probed with an id that fails validation, after the charge: nothing is created meanwhile.
+  const auto probe = [&] {
+    pb::Session none;
+    return t.import_session(snap, &none, "not a valid id!");
+  };
+  const auto wait_for = [&](StatusCode code) {
+    grpc::Status st;
+    for (int i = 0; i < 1000; ++i) {  // until the server has read the header (≤ 20 s)
+      st = probe();
+      if (st.error_code() == code) break;
+      std::this_thread::sleep_for(20ms);
+    }
+    return st;
+  };
+  grpc::Status st = wait_for(StatusCode::RESOURCE_EXHAUSTED);
   EXPECT_EQ(st.error_code(), StatusCode::RESOURCE_EXHAUSTED) << st.error_message();
   EXPECT_TRUE(contains(st.error_message(), "--max-upload-inflight-mb")) << st.error_message();
   by.check();
   // The upload ends: its share comes back, and the same import fits.
   upload_ctx->TryCancel();
   upload->Finish();
-  for (int i = 0; i < 100; ++i) {
-    st = t.import_session(snap, &out, "");
-    if (st.ok()) break;
-    std::this_thread::sleep_for(20ms);
-  }
+  st = wait_for(StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(st.error_code(), StatusCode::INVALID_ARGUMENT) << st.error_message();
+  pb::Session out;
+  st = t.import_session(snap, &out, "");
   EXPECT_TRUE(st.ok()) << st.error_message();
   EXPECT_EQ(out.vertex_count(), 6084);
   by.check();

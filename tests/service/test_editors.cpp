@@ -184,6 +184,61 @@ TEST(Editors, WatchersSeePresenceLiveAndAVanishedClientHoldsNothing) {
   EXPECT_EQ(anon.participants(), 2);  // Vera watching, Bob grabbing
 }
 
+// Issue 35.8: a client id belongs to the role that claimed it first. A view token cannot take
+// an editor's identity (nor keep its grabs alive after the editor's stream ends); an edit
+// claim takes an id a viewer holds, and the viewer's stream then changes nothing.
+TEST(Editors, AViewTokenCannotTakeAnEditorsIdentity) {
+  TwoHandles e;
+  PresenceWatcher w(e.t, e.s.name(), e.s.view_token(), nullptr);  // sees presence only
+  const pb::Participant alice = who("alice", "Alice"), mallory = who("alice", "Mallory");
+  auto a = std::make_unique<PresenceWatcher>(e.t, e.s.name(), e.s.edit_token(), &alice);
+  ASSERT_TRUE(w.wait([&] { return w.find("alice") != nullptr; }));
+  ASSERT_TRUE(e.grab(alice, {0}).ok());
+  {
+    PresenceWatcher m(e.t, e.s.name(), e.s.view_token(), &mallory);
+    ASSERT_TRUE(m.wait([&] { return m.ended; }));  // refused at once
+    grpc::ClientContext ctx;
+    ctx.AddMetadata("authorization", "Bearer " + e.s.view_token());
+    pb::WatchSessionRequest req;
+    req.set_name(e.s.name());
+    *req.mutable_client() = mallory;
+    auto reader = e.t.bare_stub->WatchSession(&ctx, req);
+    pb::SessionEvent ev;
+    EXPECT_FALSE(reader->Read(&ev));
+    const auto st = reader->Finish();
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::ALREADY_EXISTS) << st.error_message();
+    EXPECT_NE(st.error_message().find("belongs to an editor"), std::string::npos)
+        << st.error_message();
+  }
+  EXPECT_EQ(w.copy_of("alice").display_name(), "Alice");
+  EXPECT_TRUE(w.copy_of("alice").editor());
+  // Alice's tab closes: her grab ends with it, whatever a viewer claimed.
+  a->stop();
+  ASSERT_TRUE(w.wait([&] { return w.find("alice") == nullptr; }));
+  EXPECT_TRUE(e.grab(who("bob", "Bob"), {0}).ok());
+
+  // The other way round: a viewer claims "carol" first; the editor Carol takes it over, and
+  // the viewer's stream ending takes nothing from her.
+  const pb::Participant carol = who("carol", "Carol"), squatter = who("carol", "Squatter");
+  auto v = std::make_unique<PresenceWatcher>(e.t, e.s.name(), e.s.view_token(), &squatter);
+  ASSERT_TRUE(w.wait([&] { return w.find("carol") != nullptr; }));
+  EXPECT_FALSE(w.copy_of("carol").editor());
+  PresenceWatcher c(e.t, e.s.name(), e.s.edit_token(), &carol);
+  ASSERT_TRUE(w.wait([&] {
+    const auto* p = w.find("carol");
+    return p && p->editor() && p->display_name() == "Carol";
+  }));
+  ASSERT_TRUE(e.grab(carol, {1}).ok());
+  v->stop();
+  ASSERT_TRUE(v->wait([&] { return v->ended; }));
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  const pb::Participant still = w.copy_of("carol");
+  EXPECT_EQ(still.display_name(), "Carol");
+  EXPECT_TRUE(still.watching());
+  ASSERT_EQ(still.held_handles_size(), 1);
+  EXPECT_EQ(e.grab(who("bob", "Bob"), {1}).error_code(), grpc::StatusCode::ABORTED);
+}
+
 TEST(Editors, LeaseExpiryReachesWatchers) {
   TwoHandles e;
   const pb::Participant viewer = who("v", "Vera");

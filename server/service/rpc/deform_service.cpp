@@ -492,16 +492,19 @@ grpc::ServerWriteReactor<v1::SessionEvent>* DeformService::WatchSession(
              "encode all watchers share"});
   }
   std::string client_id;
+  Roster::Claim claim = 0;
   if (request->has_client()) {
     const auto joined = guarded(
-        [&] { session->join(request->client(), can_edit(*ctx, *session)); }, "WatchSession");
+        [&] { claim = session->join(request->client(), can_edit(*ctx, *session)); },
+        "WatchSession");
     if (!joined.ok()) {
       if (delta) session->release_delta_watcher();
       return failed_stream<v1::SessionEvent>(joined);
     }
     client_id = request->client().client_id();
   }
-  return new_watch_reactor(std::move(session), request->format(), std::move(client_id), *pool_,
+  return new_watch_reactor(std::move(session), request->format(), std::move(client_id), claim,
+                           *pool_,
                           [&](AuthorizedStream& a) { bind_stream(*ctx, a, Access::kView); });
 }
 

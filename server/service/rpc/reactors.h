@@ -20,11 +20,12 @@ grpc::ServerReadReactor<v1::CreateSessionRequest>* new_create_session_reactor(
     DeformService* svc, grpc::CallbackServerContext* ctx, v1::Session* response);
 grpc::ServerBidiReactor<v1::DeformRequest, v1::Frame>* new_deform_reactor(
     DeformService* svc, grpc::CallbackServerContext* ctx);
-// `client_id`: the watcher joined the session's presence under it (empty: anonymous);
-// `authorize` fills the sink's tokens before it is added.
+// `client_id`: the watcher joined the session's presence under it with `claim` (empty:
+// anonymous); `authorize` fills the sink's tokens before it is added.
 grpc::ServerWriteReactor<v1::SessionEvent>* new_watch_reactor(
     std::shared_ptr<Session> session, const v1::FrameFormat& format, std::string client_id,
-    WorkerPool& pool, const std::function<void(AuthorizedStream&)>& authorize);
+    Roster::Claim claim, WorkerPool& pool,
+    const std::function<void(AuthorizedStream&)>& authorize);
 // GetMesh: the file is produced on the session's strand, then streamed.
 grpc::ServerWriteReactor<v1::MeshChunk>* new_mesh_writer(std::shared_ptr<Session> session,
                                                          const v1::GetMeshRequest& request);

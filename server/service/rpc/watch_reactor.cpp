@@ -21,11 +21,12 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
   // `client_id`: the watcher joined the session's presence under it (empty: anonymous).
   // `authorize` fills the sink's tokens (DeformService::bind_stream) before it is added.
   WatchReactor(std::shared_ptr<Session> session, const v1::FrameFormat& format,
-               std::string client_id, WorkerPool& pool,
+               std::string client_id, Roster::Claim claim, WorkerPool& pool,
                const std::function<void(AuthorizedStream&)>& authorize)
       : session_(std::move(session)),
         format_(format),
         client_id_(std::move(client_id)),
+        claim_(claim),
         pool_(pool) {
     sink_ = std::make_shared<Sink>(this);
     authorize(*sink_);
@@ -54,7 +55,7 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
       sink_->reactor = nullptr;
     }
     session_->remove_watcher(sink_.get());
-    if (!client_id_.empty()) session_->leave(client_id_);  // its grabs end with it
+    if (!client_id_.empty()) session_->leave(client_id_, claim_);  // its grabs end with it
     if (format_.encoding() == v1::FRAME_ENCODING_MESHOPT_DELTA) session_->release_delta_watcher();
     {
       std::lock_guard lock(mutex_);
@@ -189,6 +190,7 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
   std::shared_ptr<Session> session_;
   const v1::FrameFormat format_;
   const std::string client_id_;
+  const Roster::Claim claim_;
   WorkerPool& pool_;
   FrameDeltaEncoder delta_;
   std::shared_ptr<Sink> sink_;
@@ -204,8 +206,10 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
 
 grpc::ServerWriteReactor<v1::SessionEvent>* new_watch_reactor(
     std::shared_ptr<Session> session, const v1::FrameFormat& format, std::string client_id,
-    WorkerPool& pool, const std::function<void(AuthorizedStream&)>& authorize) {
-  return new WatchReactor(std::move(session), format, std::move(client_id), pool, authorize);
+    Roster::Claim claim, WorkerPool& pool,
+    const std::function<void(AuthorizedStream&)>& authorize) {
+  return new WatchReactor(std::move(session), format, std::move(client_id), claim, pool,
+                          authorize);
 }
 
 }  // namespace hdeform::service

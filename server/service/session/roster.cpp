@@ -70,6 +70,20 @@ Roster::Member& Roster::member_locked(const pb::Participant& who, bool editor) {
            "the session has " + std::to_string(members_.size()) +
                " participants, the limit (--max-watchers)");
     it = members_.emplace(who.client_id(), Member{}).first;
+    it->second.editor = editor;
+    it->second.claim = next_claim_++;
+  } else if (it->second.editor != editor) {
+    if (!editor)
+      fail(grpc::StatusCode::ALREADY_EXISTS,
+           "client_id '" + who.client_id() +
+               "' belongs to an editor of this session; a view token cannot take it (choose "
+               "another client_id)");
+    // An edit claim wins over a view one: a fresh binding, which the viewer's streams (and
+    // their leave) no longer touch.
+    for (const auto& [handle, lease] : it->second.held) holder_.erase(handle);
+    it->second = Member{};
+    it->second.editor = true;
+    it->second.claim = next_claim_++;
   }
   Member& m = it->second;
   m.name = who.display_name().empty() ? "anonymous" : who.display_name();
@@ -78,7 +92,6 @@ Roster::Member& Roster::member_locked(const pb::Participant& who, bool editor) {
   m.color = !who.color().empty()
                 ? who.color()
                 : kPalette[std::hash<std::string>{}(who.client_id()) % std::size(kPalette)];
-  m.editor = m.editor || editor;
   return m;
 }
 
@@ -88,21 +101,23 @@ void Roster::prune_locked(const std::string& client_id) {
     members_.erase(it);
 }
 
-bool Roster::join(const pb::Participant& who, bool editor) {
+Roster::Claim Roster::join(const pb::Participant& who, bool editor) {
   std::lock_guard lock(mutex_);
-  ++member_locked(who, editor).streams;
-  return true;
+  Member& m = member_locked(who, editor);
+  ++m.streams;
+  return m.claim;
 }
 
-bool Roster::leave(const std::string& client_id) {
+Roster::Left Roster::leave(const std::string& client_id, Claim claim) {
   std::lock_guard lock(mutex_);
   auto it = members_.find(client_id);
-  if (it == members_.end()) return false;
-  if (--it->second.streams > 0) return true;  // another tab of the same client remains
+  if (it == members_.end()) return Left::kAbsent;
+  if (it->second.claim != claim) return Left::kDisplaced;
+  if (--it->second.streams > 0) return Left::kChanged;  // another tab of the same client
   for (const auto& [handle, lease] : it->second.held) holder_.erase(handle);
   it->second.held.clear();
   members_.erase(it);
-  return true;
+  return Left::kChanged;
 }
 
 const std::pair<const std::string, Roster::Member>* Roster::other_holder_locked(

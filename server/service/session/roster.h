@@ -8,6 +8,7 @@
 
 #include <chrono>
 #include <cstddef>
+#include <cstdint>
 #include <map>
 #include <mutex>
 #include <string>
@@ -31,10 +32,18 @@ class Roster {
   // the field, prefixed by `op`.
   static void check_participant(const pb::Participant& who, const char* op);
 
-  // A watch stream of `who` opened / ended. When a client's last stream ends its grabs end:
-  // a vanished client holds nothing. Both return whether presence changed.
-  bool join(const pb::Participant& who, bool editor);
-  bool leave(const std::string& client_id);
+  // A client id belongs to the role that claimed it first (view or edit token), so a view
+  // link cannot take an editor's identity: such a claim is ALREADY_EXISTS. An edit claim
+  // takes over an id a viewer holds (the viewer's streams stop keeping it). Each binding
+  // has a number (a claim) that join returns and leave takes.
+  using Claim = std::uint64_t;
+
+  // A watch stream of `who` opened; returns the claim its leave() must present.
+  Claim join(const pb::Participant& who, bool editor);
+  // That stream ended. When the binding's last stream ends its grabs end: a vanished client
+  // holds nothing. A stream whose claim was taken over changes nothing (kDisplaced).
+  enum class Left { kChanged, kAbsent, kDisplaced };
+  Left leave(const std::string& client_id, Claim claim);
 
   // Takes `handles` (valid indices) for `who` until now + lease (0: the default). ABORTED
   // naming the holder if another client holds one of them (nothing is taken then).
@@ -59,8 +68,9 @@ class Roster {
  private:
   struct Member {
     std::string name, color;
-    bool editor = false;
-    int streams = 0;
+    bool editor = false;  // the role that holds the id
+    Claim claim = 0;
+    int streams = 0;      // the binding's open watch streams
     std::map<int, std::pair<Clock::time_point, std::chrono::milliseconds>> held;  // until, lease
   };
   Member& member_locked(const pb::Participant& who, bool editor);
@@ -75,6 +85,7 @@ class Roster {
   mutable std::mutex mutex_;
   std::map<std::string, Member> members_;  // by client_id
   std::map<int, std::string> holder_;      // handle → client_id
+  Claim next_claim_ = 1;
   // Names of clients seen lately, kept after they leave: history steps name their authors.
   std::map<std::string, std::string> seen_names_;  // at most kMaxSeenNames
 };

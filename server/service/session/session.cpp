@@ -1234,13 +1234,16 @@ void Session::broadcast_presence() {
   broadcast(std::move(event));
 }
 
-void Session::join(const pb::Participant& who, bool editor) {
-  roster_.join(who, editor);
+Roster::Claim Session::join(const pb::Participant& who, bool editor) {
+  const auto claim = roster_.join(who, editor);
   broadcast_presence();
+  return claim;
 }
 
-void Session::leave(const std::string& client_id) {
-  if (roster_.leave(client_id) && !closed_) broadcast_presence();
+void Session::leave(const std::string& client_id, Roster::Claim claim) {
+  const auto left = roster_.leave(client_id, claim);
+  if (left == Roster::Left::kDisplaced) return;  // the id is someone else's now
+  if (left == Roster::Left::kChanged && !closed_) broadcast_presence();
   close_drag(client_id);  // a vanished client's drag ends where it stopped
 }
 

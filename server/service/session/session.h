@@ -189,8 +189,9 @@ class Session : public std::enable_shared_from_this<Session> {
 
   // Several editors (roster.h): watchers with a client identity, and handle grabs. Each
   // change is sent to every watcher as a presence event. Throw ServiceError.
-  void join(const pb::Participant& who, bool editor);
-  void leave(const std::string& client_id);
+  // Presence of a watch stream (Roster::join / leave): join returns the claim leave takes.
+  Roster::Claim join(const pb::Participant& who, bool editor);
+  void leave(const std::string& client_id, Roster::Claim claim);
   pb::GrabHandlesResponse grab(const pb::GrabHandlesRequest& request, bool editor);
   pb::GrabHandlesResponse release(const pb::ReleaseHandlesRequest& request);
   void expire_leases();  // called periodically (SessionStore's sweeper)
