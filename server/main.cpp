@@ -39,7 +39,7 @@ std::string host_port(const std::string& host, int port) {
   return (v6 ? "[" + host + "]" : host) + ":" + std::to_string(port);
 }
 
-// Debian's soft limit of 1024 descriptors is below the gateway's 1024 waiting + 256 active
+// Debian's soft limit of 1024 descriptors is below the gateway's 1024 waiting + 4096 active
 // connections plus gRPC's own: take the hard limit (no privilege needed).
 void raise_open_file_limit() {
   rlimit lim{};
