@@ -35,12 +35,12 @@ def main():
     ap.add_argument("--server", required=True)
     ap.add_argument("--streams", type=int, default=1000)
     ap.add_argument("--calls", type=int, default=200, help="ListMeshes calls timed beside them")
-    ap.add_argument("--extra", nargs="*", default=[], help="more server flags")
+    ap.add_argument("--extra", default="", help="more server flags, one string")
     a = ap.parse_args()
     token = secrets.token_hex(32)
     env = dict(PATH=os.environ.get("PATH", ""), HDEFORM_ADMIN_TOKEN=token)
     srv = subprocess.Popen([a.server, "--no-state", "--port", "0", "--http-port", "0",
-                            "--max-watchers", str(a.streams + 10), *a.extra],
+                            "--max-watchers", str(a.streams + 10), *a.extra.split()],
                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env, text=True)
     try:
         port = None
@@ -68,7 +68,7 @@ def main():
         for s in socks:  # the response header and the first event: the stream is open
             s.settimeout(30)
             got = s.recv(4096)
-            assert got.startswith(b"HTTP/1.1 200"), got[:120]
+            assert got.startswith(b"HTTP/1.1 200"), got[:400]
         opened = time.monotonic() - t0
         time.sleep(1)
         threads, rss = proc_status(srv.pid)
