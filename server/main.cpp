@@ -360,6 +360,7 @@ int main(int argc, char** argv) {
     g.tls_key_file = tls_key;
     g.tls_client_ca_file = tls_client_ca;
     g.max_body_bytes = options.max_upload_bytes + (16u << 20);
+    g.max_inflight_body_bytes = options.max_upload_inflight_bytes;
     try {
       gateway = std::make_unique<hdeform::gateway::HttpGateway>(g, server->in_process_channel());
     } catch (const std::exception& e) {

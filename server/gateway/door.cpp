@@ -278,8 +278,9 @@ void HttpGateway::Impl::on_header(const ConnectionPtr& c, beast::error_code ec) 
 }
 
 // An early answer from the strand (the request was not handed to a worker).
-void HttpGateway::Impl::reply_and_close(const ConnectionPtr& c, http::status status, std::string text,
-                     unsigned version) {
+void HttpGateway::Impl::reply_and_close(const ConnectionPtr& c, http::status status,
+                                        std::string text, unsigned version) {
+  leave(*c);  // no longer answering (a no-op before the request was admitted)
   auto res = std::make_shared<http::response<http::string_body>>(
       text_response(status, std::move(text), version, false));
   if (status == http::status::service_unavailable) res->set(http::field::retry_after, "1");
@@ -390,6 +391,28 @@ void HttpGateway::Impl::send_text(const ConnectionPtr& c, http::status status, s
   });
 }
 
+std::shared_ptr<void> HttpGateway::Impl::charge_body(const ConnectionPtr& c, std::size_t bytes) {
+  std::size_t held = body_bytes.load();
+  do {
+    if (held + bytes > options.max_inflight_body_bytes || held + bytes < held) {
+      reply_and_close(c, http::status::service_unavailable,
+                      "hdeform-gateway is receiving too many request bytes at once (" +
+                          std::to_string(options.max_inflight_body_bytes) +
+                          " in flight, --max-upload-inflight-mb); try again shortly\n",
+                      c->header->get().version());
+      return nullptr;
+    }
+  } while (!body_bytes.compare_exchange_weak(held, held + bytes));
+  struct Charge {
+    Charge(std::atomic<std::size_t>& held, std::size_t bytes) : held(held), bytes(bytes) {}
+    Charge(const Charge&) = delete;
+    ~Charge() { held -= bytes; }
+    std::atomic<std::size_t>& held;
+    const std::size_t bytes;
+  };
+  return std::make_shared<Charge>(body_bytes, bytes);
+}
+
 void HttpGateway::Impl::set_call(Connection& c, const std::shared_ptr<GrpcCall>& call) {
   std::lock_guard lock(c.call_mu);
   c.call = call;
@@ -449,10 +472,11 @@ void HttpGateway::Impl::stop() {
       std::this_thread::sleep_for(milliseconds(5));
     return done();
   };
-  until([&] {
-    std::lock_guard lock(mu);
-    return active.empty();
-  }, milliseconds(1000));
+  if (!until([&] {
+        std::lock_guard lock(mu);
+        return active.empty();
+      }, milliseconds(1000)))
+    spdlog::warn("hdeform-gateway: stopping with {} requests still answering", active.size());
   // Close every connection (waiting, lingering, answering 503, or still answering).
   std::list<ConnectionPtr> live;
   {

@@ -56,6 +56,9 @@ struct HttpGateway::Impl {
   std::filesystem::path web_root;  // canonical; empty = API only
   grpc::GenericStub stub;
   std::unique_ptr<asio::ssl::context> tls;  // null: plain HTTP
+  // Before ioc: handlers it still holds when destroyed may release charges or calls.
+  std::atomic<int> live_calls{0};          // GrpcCalls whose OnDone has not run
+  std::atomic<std::size_t> body_bytes{0};  // charged to max_inflight_body_bytes
   asio::io_context ioc;
   asio::executor_work_guard<asio::io_context::executor_type> work{ioc.get_executor()};
   tcp::acceptor acceptor{asio::make_strand(ioc)};
@@ -64,7 +67,6 @@ struct HttpGateway::Impl {
   std::size_t accept_failures = 0;   // acceptor strand only (for log throttling)
   std::vector<std::thread> io_threads;
   std::atomic<bool> stopping{false};
-  std::atomic<int> live_calls{0};    // GrpcCalls whose OnDone has not run
   std::mutex mu;                     // guards the lists below and Connection::phase
   std::list<ConnectionPtr> waiting;  // waiting for a request header, oldest first
   std::list<ConnectionPtr> active;   // answering a request
@@ -105,6 +107,10 @@ struct HttpGateway::Impl {
   void set_call(Connection& c, const std::shared_ptr<GrpcCall>& call);
   // Cancels `call` when the peer closes its side while the call runs (a browser tab closed).
   void watch_peer(const ConnectionPtr& c, std::weak_ptr<GrpcCall> call);
+
+  // `bytes` of request body held in memory until the returned charge is destroyed; null (and
+  // the request answered 503) when max_inflight_body_bytes would be exceeded.
+  std::shared_ptr<void> charge_body(const ConnectionPtr& c, std::size_t bytes);
 
   // ---- relay.cpp, upload.cpp, static_reply.cpp ----------------------------------------------
   void grpc_web_call(const ConnectionPtr& c, std::string path);

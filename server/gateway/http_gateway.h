@@ -17,6 +17,10 @@ struct GatewayOptions {
   int port = 8080;                        // 0 = any free port
   std::string web_root;                   // built viewer (web-viewer/dist); empty = API only
   std::size_t max_body_bytes = 256u << 20;
+  // Request bodies the door holds in memory, all requests together: a gRPC-Web body is read
+  // whole (its Content-Length is charged up front; a chunked one is capped at 4 MiB), an
+  // upload holds one 1 MiB chunk. Above it a request is answered 503 before its body is read.
+  std::size_t max_inflight_body_bytes = 1u << 30;
   // Host names answered besides localhost names and IP addresses (request_checks.h
   // HostPolicy): "name", ".name" for subdomains, "*" for any. Others get 421 (DNS rebinding).
   std::vector<std::string> allowed_hosts;

@@ -43,6 +43,8 @@ std::optional<grpc::Status> body_refusal(std::string_view path, const grpc_web::
 
 using Parser = http::request_parser<http::string_body>;
 
+constexpr std::size_t kChunkedBodyLimit = 4u << 20;
+
 // One relayed call's state; every member is used on the connection's strand only.
 struct Relay {
   HttpGateway::Impl* door;
@@ -60,6 +62,7 @@ struct Relay {
   std::optional<grpc::Status> ended;
   std::size_t count = 0;
   std::chrono::steady_clock::time_point started = std::chrono::steady_clock::now();
+  std::shared_ptr<void> charge;  // the body's bytes, charged until the relay ends
 
   void release_if_idle() {
     if (reads_over && writes_over) call->release();
@@ -173,13 +176,25 @@ void finish_relay(const std::shared_ptr<Relay>& r) {
 }  // namespace
 
 void HttpGateway::Impl::grpc_web_call(const ConnectionPtr& c, std::string path) {
+  // The body is read whole: charged up front (browsers send a Content-Length; a chunked
+  // body is capped lower, since its size is not known before it is in).
+  const auto length = c->header->content_length();
+  const std::size_t limit = length ? options.max_body_bytes
+                                   : std::min(options.max_body_bytes, kChunkedBodyLimit);
+  if (length && *length > limit) {
+    return reply_and_close(c, http::status::payload_too_large, too_large_text(limit),
+                           c->header->get().version());
+  }
+  auto charge = charge_body(c, length ? static_cast<std::size_t>(*length) : limit);
+  if (!charge) return;
   auto parser = std::make_shared<Parser>(std::move(*c->header));
-  parser->body_limit(options.max_body_bytes);
-  read_body(c, parser, [this, c, parser, path = std::move(path)](beast::error_code ec) mutable {
+  parser->body_limit(limit);
+  read_body(c, parser, [this, c, parser, path = std::move(path), limit,
+                        charge = std::move(charge)](beast::error_code ec) mutable {
     if (ec) {
       if (ec != http::error::body_limit) return after_response(c, After::close);
-      return reply_and_close(c, http::status::payload_too_large,
-                             too_large_text(options.max_body_bytes), parser->get().version());
+      return reply_and_close(c, http::status::payload_too_large, too_large_text(limit),
+                             parser->get().version());
     }
     const auto& req = parser->get();
     const unsigned version = req.version();
@@ -199,6 +214,7 @@ void HttpGateway::Impl::grpc_web_call(const ConnectionPtr& c, std::string path) 
     relay->body = grpc_web::parse_frames(req.body());
     relay->path = std::move(path);
     relay->next = next;
+    relay->charge = std::move(charge);
 
     auto res = std::make_shared<http::response<http::empty_body>>(http::status::ok, version);
     res->set(http::field::content_type, "application/grpc-web+proto");

@@ -35,6 +35,7 @@ struct Upload {
   std::string reply;
   std::optional<grpc::Status> ended;
   bool responded = false;
+  std::shared_ptr<void> charge;  // the chunk's bytes in the door's budget
 
   void release_if_idle() {
     if (writes_over && reply_over) call->release();
@@ -151,7 +152,10 @@ void HttpGateway::Impl::upload(const ConnectionPtr& c, const std::string& query)
   // The client may choose the id (for load balancers that hash x-session-id).
   if (auto id = query_param(query, "session_id"); !id.empty()) header->set_session_id(id);
 
+  auto charge = charge_body(c, kUploadChunk);  // the chunk buffer below
+  if (!charge) return;
   auto u = std::make_shared<Upload>();
+  u->charge = std::move(charge);
   u->door = this;
   u->c = c;
   u->version = head.version();

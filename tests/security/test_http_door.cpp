@@ -13,9 +13,8 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <future>
-#include <sys/socket.h>
-#include <sys/time.h>
 #include <thread>
 
 using namespace hdeform::testing;
@@ -32,8 +31,12 @@ struct Door {
   TestServer t;
   std::unique_ptr<hdeform::gateway::HttpGateway> gateway;
 
-  explicit Door(std::vector<std::string> allowed_hosts = {})
-      : dir(fs::temp_directory_path() / ("hdeform-door-" + std::to_string(::getpid()))) {
+  explicit Door(std::vector<std::string> allowed_hosts = {},
+                std::function<void(hdeform::gateway::GatewayOptions&)> tweak = {})
+      : dir([] {
+          std::string tmpl = (fs::temp_directory_path() / "hdeform-door-XXXXXX").string();
+          return fs::path(::mkdtemp(tmpl.data()));
+        }()) {
     fs::create_directories(dir / "root" / "assets");
     std::ofstream(dir / "root" / "index.html") << "<html>viewer</html>";
     std::ofstream(dir / "secret.txt") << "TOP-SECRET";
@@ -42,6 +45,7 @@ struct Door {
     o.port = 0;
     o.web_root = (dir / "root").string();
     o.allowed_hosts = std::move(allowed_hosts);
+    if (tweak) tweak(o);
     gateway = std::make_unique<hdeform::gateway::HttpGateway>(o, t.server->in_process_channel());
   }
   ~Door() {
@@ -79,13 +83,15 @@ struct Door {
     tcp::socket socket(ioc);
     socket.connect({asio::ip::make_address("127.0.0.1"),
                     static_cast<unsigned short>(gateway->port())});
-    const timeval timeout{5, 0};
-    ::setsockopt(socket.native_handle(), SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof timeout);
     asio::write(socket, asio::buffer(bytes));
+    // Asynchronous, to have a deadline (a blocking asio read would wait forever).
+    beast::tcp_stream stream(std::move(socket));
+    stream.expires_after(std::chrono::seconds(5));
     beast::flat_buffer buffer;
     http::response<http::string_body> res;
     beast::error_code ec;
-    http::read(socket, buffer, res, ec);
+    http::async_read(stream, buffer, res, [&](beast::error_code e, std::size_t) { ec = e; });
+    ioc.run();
     if (ec && res.result_int() == 200 && res.body().empty()) return {0, ec.message()};
     return {static_cast<int>(res.result_int()), res.body()};
   }
@@ -334,6 +340,87 @@ TEST(SecurityHttp, AnAmbiguousTransferEncodingIsABadRequest) {
   const auto [status, body] = d.raw(
       "POST /upload?library=cactus&session_id=chunked HTTP/1.1\r\nHost: " + d.host() +
       "\r\nX-Hdeform-Upload: 1\r\nTransfer-Encoding: Chunked \r\n\r\n0\r\n\r\n");
+  EXPECT_EQ(status, 200) << body;
+}
+
+}  // namespace
+
+namespace {
+
+// Issue 35 (found with the asynchronous door, where a held request costs no thread): the
+// request bodies the door holds are bounded all together; above the budget a request is
+// answered 503 before its body is read, and the budget comes back when a request ends.
+TEST(SecurityHttp, RequestBodiesInFlightAreBounded) {
+  Door d({}, [](hdeform::gateway::GatewayOptions& o) { o.max_inflight_body_bytes = 1u << 20; });
+  const pb::Session s = constrained_cactus(d.t);
+  // A client declares 900 KB and sends a few bytes: the 900 KB are held for it.
+  asio::io_context ioc;
+  tcp::socket held(ioc);
+  held.connect({asio::ip::make_address("127.0.0.1"), static_cast<unsigned short>(d.gateway->port())});
+  asio::write(held, asio::buffer("POST /hdeform.v1.Deformation/ListMeshes HTTP/1.1\r\nHost: " +
+                                 d.host() +
+                                 "\r\nContent-Type: application/grpc-web+proto\r\n"
+                                 "Content-Length: 900000\r\n\r\nabc"));
+  const std::string body(200000, '\0');
+  std::pair<int, std::string> r;
+  for (int i = 0; i < 100; ++i) {  // until the held request's header has been read
+    r = d.raw(grpc_web_post(d.host(), "ListMeshes", body));
+    if (r.first == 503) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_EQ(r.first, 503) << r.second;
+  EXPECT_NE(r.second.find("too many request bytes"), std::string::npos) << r.second;
+  r = d.raw("POST /upload?library=cactus HTTP/1.1\r\nHost: " + d.host() +
+            "\r\nX-Hdeform-Upload: 1\r\nContent-Length: 0\r\n\r\n");
+  EXPECT_EQ(r.first, 503) << r.second;
+  pb::Frame f;
+  EXPECT_TRUE(d.t.update(s.name(), 1, {cactus_transform()}, &f).ok());
+  // The held request goes: its share comes back.
+  held.close();
+  for (int i = 0; i < 100; ++i) {
+    r = d.raw(grpc_web_post(d.host(), "ListMeshes", body));
+    if (r.first == 200) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_EQ(r.first, 200) << r.second;
+  // A chunked gRPC-Web body (size unknown up front) is capped at 4 MiB.
+  r = d.raw("POST /hdeform.v1.Deformation/ListMeshes HTTP/1.1\r\nHost: " + d.host() +
+            "\r\nContent-Type: application/grpc-web+proto\r\nTransfer-Encoding: chunked\r\n\r\n");
+  EXPECT_TRUE(r.first == 503 || r.first == 0) << r.first;  // 4 MiB > this door's 1 MiB budget
+  Door big;
+  std::string chunked = "POST /hdeform.v1.Deformation/ListMeshes HTTP/1.1\r\nHost: " + big.host() +
+                        "\r\nContent-Type: application/grpc-web+proto\r\nTransfer-Encoding: chunked\r\n\r\n";
+  const std::string piece(1u << 20, 'x');
+  for (int i = 0; i < 5; ++i) chunked += "100000\r\n" + piece + "\r\n";
+  chunked += "0\r\n\r\n";
+  r = big.raw(chunked);
+  EXPECT_EQ(r.first, 413) << r.second;
+  EXPECT_NE(r.second.find("4194304"), std::string::npos) << r.second;
+}
+
+}  // namespace
+
+namespace {
+
+// Every way a request ends gives its slot back: with 8 slots, 200 refused, failed and
+// answered requests of every kind leave the door serving (a leaked slot would make it 503).
+TEST(SecurityHttp, EveryAnswerFreesItsRequestSlot) {
+  Door d({}, [](hdeform::gateway::GatewayOptions& o) { o.max_connections = 8; });
+  const std::string list = frames({pb::ListMeshesRequest().SerializeAsString()});
+  const std::vector<std::string> requests = {
+      "POST /upload?library=cactus HTTP/1.1\r\nHost: " + d.host() +
+          "\r\nOrigin: https://evil.example\r\nContent-Length: 0\r\n\r\n",           // 403
+      "POST /upload?library=cactus HTTP/1.1\r\nHost: " + d.host() + "\r\nContent-Length: 0\r\n\r\n",  // 403
+      "PUT /x HTTP/1.1\r\nHost: " + d.host() + "\r\nContent-Length: 0\r\n\r\n",   // 405
+      "GET /hdeform.v1.Deformation/ListMeshes HTTP/1.1\r\nHost: " + d.host() + "\r\n\r\n",  // 405
+      "POST /upload HTTP/1.1\r\nHost: " + d.host() + "\r\nX-Hdeform-Upload: 1\r\nContent-Length: 0\r\n\r\n",  // 400
+      grpc_web_post(d.host(), "ListMeshes", list),                                      // 200
+      grpc_web_post(d.host(), "NoSuchMethod", list),                                    // 200, 12
+      "GET /missing HTTP/1.1\r\nHost: " + d.host() + "\r\n\r\n",                      // 404
+  };
+  for (int round = 0; round < 25; ++round)
+    for (const auto& r : requests) ASSERT_NE(d.raw(r).first, 0) << r;
+  const auto [status, body] = d.request(http::verb::get, "/healthz");
   EXPECT_EQ(status, 200) << body;
 }
 

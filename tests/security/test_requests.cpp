@@ -415,31 +415,41 @@ TEST(Security, ImportedMeshBytesShareTheUploadBudget) {
   pb::Snapshot snap;
   snap.set_filename("bar.off");
   snap.set_mesh_bytes(slurp(data_path("botsch-sorkine/bar.off")));  // 448 KB, charged twice
-  // An upload declared at 1.5 MiB holds most of the budget while it is open.
-  auto upload_ctx = std::make_unique<grpc::ClientContext>();
-  pb::Session upload_out;
-  auto upload = t.stub->CreateSession(upload_ctx.get(), &upload_out);
-  pb::CreateSessionRequest header;
-  header.mutable_header()->set_filename("big.off");
-  header.mutable_header()->set_total_bytes(3 << 19);
-  ASSERT_TRUE(upload->Write(header));
   // Probed with an id that fails validation, after the charge: nothing is created meanwhile.
   const auto probe = [&] {
     pb::Session none;
     return t.import_session(snap, &none, "not a valid id!");
   };
+  // An upload declared at 1.5 MiB holds most of the budget while it is open. Its header is
+  // charged when the server reads it; a probe at that moment could take the budget first and
+  // the upload would be refused, so each attempt waits longer before its one probe.
+  std::unique_ptr<grpc::ClientContext> upload_ctx;
+  std::unique_ptr<grpc::ClientWriter<pb::CreateSessionRequest>> upload;
+  pb::Session upload_out;
+  grpc::Status st;
+  for (int attempt = 1; attempt <= 10; ++attempt) {
+    upload_ctx = std::make_unique<grpc::ClientContext>();
+    upload = t.stub->CreateSession(upload_ctx.get(), &upload_out);
+    pb::CreateSessionRequest header;
+    header.mutable_header()->set_filename("big.off");
+    header.mutable_header()->set_total_bytes(3 << 19);
+    ASSERT_TRUE(upload->Write(header));
+    std::this_thread::sleep_for(attempt * 100ms);
+    st = probe();
+    if (st.error_code() == StatusCode::RESOURCE_EXHAUSTED) break;
+    upload_ctx->TryCancel();
+    upload->Finish();
+  }
+  EXPECT_EQ(st.error_code(), StatusCode::RESOURCE_EXHAUSTED) << st.error_message();
+  EXPECT_TRUE(contains(st.error_message(), "--max-upload-inflight-mb")) << st.error_message();
   const auto wait_for = [&](StatusCode code) {
-    grpc::Status st;
-    for (int i = 0; i < 1000; ++i) {  // until the server has read the header (≤ 20 s)
+    for (int i = 0; i < 1000; ++i) {  // ≤ 20 s
       st = probe();
       if (st.error_code() == code) break;
       std::this_thread::sleep_for(20ms);
     }
     return st;
   };
-  grpc::Status st = wait_for(StatusCode::RESOURCE_EXHAUSTED);
-  EXPECT_EQ(st.error_code(), StatusCode::RESOURCE_EXHAUSTED) << st.error_message();
-  EXPECT_TRUE(contains(st.error_message(), "--max-upload-inflight-mb")) << st.error_message();
   by.check();
   // The upload ends: its share comes back, and the same import fits.
   upload_ctx->TryCancel();
