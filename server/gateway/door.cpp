@@ -420,7 +420,7 @@ void HttpGateway::Impl::set_call(Connection& c, const std::shared_ptr<GrpcCall>&
 }
 
 void HttpGateway::Impl::watch_peer(const ConnectionPtr& c, std::weak_ptr<GrpcCall> call) {
-  c->stream.socket().async_wait(tcp::socket::wait_read, [this, c, call](beast::error_code ec) {
+  c->stream.socket().async_wait(tcp::socket::wait_read, [c, call](beast::error_code ec) {
     if (ec) return;  // cancelled: the call ended first
     auto live = call.lock();
     if (!live) return;
