@@ -12,9 +12,11 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <memory>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -25,6 +27,21 @@ namespace pb = ::hdeform::v1;
 inline std::string data_path(const std::string& rel) {
   return std::string(HDEFORM_TEST_DATA) + "/" + rel;
 }
+
+// A fresh folder under the system's temp folder, removed with everything in it.
+struct TempDir {
+  std::filesystem::path path;
+  TempDir() {
+    std::string tmpl = (std::filesystem::temp_directory_path() / "hdeform-test-XXXXXX").string();
+    if (!::mkdtemp(tmpl.data())) throw std::runtime_error("mkdtemp failed");
+    path = tmpl;
+  }
+  TempDir(const TempDir&) = delete;
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path, ec);
+  }
+};
 
 inline std::string slurp(const std::string& path) {
   std::ifstream in(path, std::ios::binary);

@@ -15,18 +15,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    std::string tmpl = (fs::temp_directory_path() / "hdeform-durable-XXXXXX").string();
-    path = ::mkdtemp(tmpl.data());
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-};
-
 hdeform::service::ServerOptions durable(const fs::path& dir) {
   hdeform::service::ServerOptions o;
   o.state_dir = (dir / "state").string();

@@ -28,24 +28,12 @@ using hdeform::service::open_sqlite_state;
 using hdeform::service::StateBackend;
 using hdeform::service::StateError;
 namespace fs = std::filesystem;
+using hdeform::testing::TempDir;
 using Clock = std::chrono::steady_clock;
 
 namespace {
 
 // ---- helpers: temp folders, files, sockets ----
-
-struct TempDir {
-  fs::path path;
-  TempDir() {
-    std::string tmpl = (fs::temp_directory_path() / "hdeform-state-XXXXXX").string();
-    if (!::mkdtemp(tmpl.data())) throw std::runtime_error("mkdtemp failed");
-    path = tmpl;
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-};
 
 std::string slurp(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
