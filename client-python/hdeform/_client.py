@@ -34,8 +34,14 @@ def _rpc(fn, *args, **kwargs):
         raise from_rpc_error(e) from None
 
 
-def _metadata(token):
-    return (("authorization", f"Bearer {token}"),) if token else ()
+def _metadata(token, session=None):
+    """Call metadata: the token, and for a call of a session its id as `x-session-id`, by
+    which a load balancer sends every call of a session to the replica that holds it
+    (docs/deployment.md "Session affinity")."""
+    md = (("authorization", f"Bearer {token}"),) if token else ()
+    if session:
+        md += (("x-session-id", session.split("/", 1)[-1]),)
+    return md
 
 
 def _units(units):
@@ -126,11 +132,16 @@ class Client:
         return [LibraryMesh(m.name, m.path, m.has_benchmark) for m in r.meshes]
 
     def _create(self, header, data=b""):
+        # The id is chosen here so that the creating call is routed by it, like every later
+        # call of the session (docs/deployment.md).
+        if not header.session_id:
+            header.session_id = uuid.uuid4().hex[:24]
         def requests():
             yield pb.CreateSessionRequest(header=header)
             for i in range(0, len(data), CHUNK):
                 yield pb.CreateSessionRequest(chunk=data[i:i + CHUNK])
-        info = _rpc(self.stub.CreateSession, requests())
+        info = _rpc(self.stub.CreateSession, requests(),
+                    metadata=_metadata(None, header.session_id))
         s = Session(self, info, info.edit_token, view_token=info.view_token, owned=True)
         self._created.add(s)
         return s
@@ -159,7 +170,7 @@ class Client:
         (default: the client's token, e.g. the operator token)."""
         token = token if token is not None else self.token
         info = _rpc(self.stub.GetSession, pb.GetSessionRequest(name=name),
-                    metadata=_metadata(token))
+                    metadata=_metadata(token, name))
         return Session(self, info, token, owned=False)
 
     def sessions(self):
@@ -241,12 +252,12 @@ class Session:
             request.request_id = uuid.uuid4().hex
         stub = getattr(self.client.stub, method)
         try:
-            return _rpc(stub, request, metadata=_metadata(self.token))
+            return _rpc(stub, request, metadata=_metadata(self.token, self.name))
         except Error as e:
             if not retry or e.code != grpc.StatusCode.UNAVAILABLE:
                 raise
             time.sleep(0.5)
-            return _rpc(stub, request, metadata=_metadata(self.token))
+            return _rpc(stub, request, metadata=_metadata(self.token, self.name))
 
     # --- state ----------------------------------------------------------------------------
     @property
@@ -301,7 +312,7 @@ class Session:
                                 glb_compression=_GLB_COMPRESSION[compression])
         try:
             return b"".join(c.data for c in self.client.stub.GetMesh(
-                req, metadata=_metadata(self.token)))
+                req, metadata=_metadata(self.token, self.name)))
         except grpc.RpcError as e:
             raise from_rpc_error(e) from None
 
@@ -501,7 +512,7 @@ class Session:
             end_s=float(end), up={"y": pb.UP_AXIS_Y, "z": pb.UP_AXIS_Z}[up])
         try:
             data = b"".join(c.data for c in self.client.stub.ExportAnimation(
-                req, metadata=_metadata(self.token)))
+                req, metadata=_metadata(self.token, self.name)))
         except grpc.RpcError as e:
             raise from_rpc_error(e) from None
         if path is not None:
@@ -543,7 +554,7 @@ class Watch:
         self._call = session.client.stub.WatchSession(
             pb.WatchSessionRequest(name=session.name,
                                    format=pb.FrameFormat(encoding=encoding_value(encoding))),
-            metadata=_metadata(session.token))
+            metadata=_metadata(session.token, session.name))
         self.deleted = False
         self.state = None
         first = self._next()
