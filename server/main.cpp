@@ -3,15 +3,18 @@
 #include "engine/runtime/process_environment.h"
 #include "service/access/access.h"
 #include "service/rpc/server.h"
+#include "service/state/state_backend.h"
 
 #include "gateway/http_gateway.h"
 
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
+#include <chrono>
 #include <csignal>
 #include <cstdlib>
 #include <cstdio>
+#include <ctime>
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -63,6 +66,10 @@ std::string default_state_dir() {
 int main(int argc, char** argv) {
   hdeform::ensure_process_environment(argv);  // before any allocation or OpenMP loop
   CLI::App app{"hdeform-server: interactive harmonic surface deformation over gRPC"};
+  app.footer(
+      "Each option also reads the environment variable shown as Env: (e.g. HDEFORM_BIND, "
+      "HDEFORM_PORT, HDEFORM_HTTP_PORT, HDEFORM_STATE_REDIS); the command line wins over "
+      "the variable, and an empty variable counts as unset.");
   int port = 50051;
   std::string bind = "127.0.0.1";
   std::string mesh_dir;
@@ -205,22 +212,30 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   std::string state_dir = default_state_dir(), state_redis, admin_token;
   bool no_state = false;
+  int state_redis_wait = 30;
+  // One store at most, checked after parsing: CLI11's excludes() would also count
+  // HDEFORM_NO_STATE=false.
   auto* state_dir_opt =
       app.add_option("--state-dir", state_dir,
                      "folder for durable sessions (SQLite + uploaded meshes); default: "
                      "$XDG_DATA_HOME/hdeform or ~/.local/share/hdeform")
           ->envname("HDEFORM_STATE_DIR")
           ->capture_default_str();
-  auto* no_state_opt =
-      app.add_flag("--no-state", no_state, "keep sessions in memory only (lost on restart)")
-          ->envname("HDEFORM_NO_STATE");
-  auto* redis_opt =
-      app.add_option("--state-redis", state_redis,
-                     "keep session state in Redis (redis://[:PASSWORD@]HOST[:PORT][/DB]) so "
-                     "that replicas can take over each other's sessions")
-          ->envname("HDEFORM_STATE_REDIS");
-  no_state_opt->excludes(state_dir_opt)->excludes(redis_opt);
-  redis_opt->excludes(state_dir_opt);
+  app.add_flag("--no-state", no_state,
+               "keep sessions in memory only (lost on restart); not with --state-dir or "
+               "--state-redis")
+      ->envname("HDEFORM_NO_STATE");
+  app.add_option("--state-redis", state_redis,
+                 "keep session state in Redis (redis://[:PASSWORD@]HOST[:PORT][/DB]) so that "
+                 "replicas can take over each other's sessions; not with --state-dir; an "
+                 "empty value is none")
+      ->envname("HDEFORM_STATE_REDIS");
+  app.add_option("--state-redis-wait", state_redis_wait,
+                 "seconds to keep trying at start while the --state-redis server cannot be "
+                 "reached (0 = fail at once); a refused password fails at once")
+      ->envname("HDEFORM_STATE_REDIS_WAIT")
+      ->check(CLI::Range(0, 600))
+      ->capture_default_str();
   // No capture_default_str and never logged: the value is a secret. Prefer the variable
   // (a command line is visible to every local user in `ps`).
   app.add_option("--admin-token", admin_token,
@@ -288,6 +303,15 @@ int main(int argc, char** argv) {
       ->envname("HDEFORM_ALLOWED_HOSTS")
       ->delimiter(',');
   CLI11_PARSE(app, argc, argv);
+  {
+    const char* redis = "--state-redis / HDEFORM_STATE_REDIS";
+    const char* dir = "--state-dir / HDEFORM_STATE_DIR";
+    const bool has_dir = state_dir_opt->count() > 0;
+    if (no_state && (has_dir || !state_redis.empty()))
+      return app.exit(
+          CLI::ExcludesError("--no-state / HDEFORM_NO_STATE", has_dir ? dir : redis));
+    if (has_dir && !state_redis.empty()) return app.exit(CLI::ExcludesError(redis, dir));
+  }
 
   spdlog::set_level(spdlog::level::from_str(log_level));
   raise_open_file_limit();
@@ -334,6 +358,27 @@ int main(int argc, char** argv) {
   options.tls_cert_file = tls_cert;
   options.tls_key_file = tls_key;
   options.tls_client_ca_file = tls_client_ca;
+
+  // A replica may start before its Redis (compose, orchestrators): wait for it here, where
+  // SIGINT/SIGTERM (blocked above) can still end the wait.
+  if (!options.state_redis.empty() && state_redis_wait > 0) {
+    auto pause = [&signals](std::chrono::milliseconds d) {
+      const timespec ts{static_cast<std::time_t>(d.count() / 1000),
+                        static_cast<long>(d.count() % 1000) * 1'000'000};
+      const int sig = sigtimedwait(&signals, nullptr, &ts);
+      if (sig <= 0) return true;  // timed out (or another signal)
+      spdlog::info("signal {}: shutting down while waiting for Redis", sig);
+      return false;
+    };
+    try {
+      if (!hdeform::service::wait_for_redis_state(
+              options.state_redis, std::chrono::seconds(state_redis_wait), pause))
+        return 0;
+    } catch (const std::exception& e) {
+      spdlog::critical("{}", e.what());
+      return 1;
+    }
+  }
 
   std::unique_ptr<hdeform::service::Server> server;
   try {

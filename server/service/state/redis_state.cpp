@@ -10,6 +10,7 @@
 #include <spdlog/spdlog.h>
 #include <sys/time.h>
 
+#include <algorithm>
 #include <cctype>
 #include <charconv>
 #include <atomic>
@@ -80,6 +81,14 @@ bool percent_decode(std::string_view in, std::string* out) {
     i += 2;
   }
   return true;
+}
+
+// host:port[/db], for messages (never the password).
+std::string where(const RedisUrl& url) {
+  std::string out = url.host.find(':') != std::string::npos ? "[" + url.host + "]" : url.host;
+  out += ":" + std::to_string(url.port);
+  if (url.db != 0) out += "/" + std::to_string(url.db);
+  return out;
 }
 
 // redis://[[USER]:PASSWORD@]HOST[:PORT][/DB]; HOST may be a bracketed IPv6 address.
@@ -197,12 +206,64 @@ Reply send(redisContext* c, std::initializer_list<std::string_view> args) {
       redisCommandArgv(c, static_cast<int>(argv.size()), argv.data(), lens.data())));
 }
 
+// Redis could not be reached (yet), as opposed to refusing us: wait_for_redis_state tries
+// again. why() is the cause alone, for the waiting message.
+class Unreachable : public StateError {
+ public:
+  Unreachable(const std::string& message, std::string why)
+      : StateError(message), why_(std::move(why)) {}
+  const std::string& why() const { return why_; }
+
+ private:
+  std::string why_;
+};
+
+// `who` names the server in messages ("redis HOST:PORT").
+void check_setup_reply(redisContext* c, const Reply& r, const std::string& who,
+                       const char* what) {
+  if (!r) {
+    const std::string why = lower_first(c->errstr);
+    throw Unreachable(who + ": " + what + ": " + why, why);
+  }
+  if (r->type == REDIS_REPLY_ERROR) {
+    const std::string text(r->str, r->len);
+    // A Redis that is starting answers LOADING until it has read its dataset.
+    if (text.rfind("LOADING", 0) == 0)
+      throw Unreachable(who + ": " + what + " failed: " + text, "still loading its dataset");
+    throw StateError(who + ": " + what + " failed: " + text);
+  }
+}
+
+// A fresh connection with AUTH, SELECT and PING done.
+Context connect_to(const RedisUrl& url, const std::string& who) {
+  const timeval timeout{kTimeoutSeconds, 0};
+  Context c(redisConnectWithTimeout(url.host.c_str(), url.port, timeout));
+  if (!c) throw StateError(who + ": cannot allocate a connection");
+  if (c->err) {
+    const std::string why = lower_first(c->errstr);
+    throw Unreachable(who + ": cannot connect: " + why, why);
+  }
+  if (redisSetTimeout(c.get(), timeout) != REDIS_OK)
+    throw StateError(who + ": cannot set the timeout: " + lower_first(c->errstr));
+  if (!url.password.empty()) {
+    // The reply text never contains the password, so it is safe to show.
+    Reply r = url.user.empty() ? send(c.get(), {"AUTH", url.password})
+                               : send(c.get(), {"AUTH", url.user, url.password});
+    check_setup_reply(c.get(), r, who, "AUTH");
+  }
+  if (url.db != 0) {
+    const std::string db = std::to_string(url.db);
+    Reply r = send(c.get(), {"SELECT", db});
+    check_setup_reply(c.get(), r, who, "SELECT");
+  }
+  // Proves at once that a Redis server (and one that accepts us) is at the other end.
+  check_setup_reply(c.get(), send(c.get(), {"PING"}), who, "PING");
+  return c;
+}
+
 class RedisState final : public StateBackend {
  public:
-  explicit RedisState(const std::string& url) : url_(parse_url(url)) {
-    where_ = url_.host.find(':') != std::string::npos ? "[" + url_.host + "]" : url_.host;
-    where_ += ":" + std::to_string(url_.port);
-    if (url_.db != 0) where_ += "/" + std::to_string(url_.db);
+  explicit RedisState(const std::string& url) : url_(parse_url(url)), where_(where(url_)) {
     std::lock_guard lock(mu_);
     SigpipeGuard guard;
     connect_locked();
@@ -340,27 +401,9 @@ class RedisState final : public StateBackend {
 
   // A fresh connection with AUTH and SELECT done; replaces ctx_ only when all succeeded.
   void connect_locked() {
-    const timeval timeout{kTimeoutSeconds, 0};
-    Context c(redisConnectWithTimeout(url_.host.c_str(), url_.port, timeout));
-    if (!c) throw StateError(describe() + ": cannot allocate a connection");
-    if (c->err) throw StateError(describe() + ": cannot connect: " + lower_first(c->errstr));
-    if (redisSetTimeout(c.get(), timeout) != REDIS_OK)
-      throw StateError(describe() + ": cannot set the timeout: " + lower_first(c->errstr));
-    if (!url_.password.empty()) {
-      // The reply text never contains the password, so it is safe to show.
-      Reply r = url_.user.empty() ? send(c.get(), {"AUTH", url_.password})
-                                  : send(c.get(), {"AUTH", url_.user, url_.password});
-      check_setup_reply(c.get(), r, "AUTH");
-    }
-    if (url_.db != 0) {
-      const std::string db = std::to_string(url_.db);
-      Reply r = send(c.get(), {"SELECT", db});
-      check_setup_reply(c.get(), r, "SELECT");
-    }
-    // Proves at once that a Redis server (and one that accepts us) is at the other end.
-    check_setup_reply(c.get(), send(c.get(), {"PING"}), "PING");
+    Context c = connect_to(url_, describe());
     Reply marked = send(c.get(), {"SET", kMarker, "1", "NX"});
-    check_setup_reply(c.get(), marked, "SET marker");
+    check_setup_reply(c.get(), marked, describe(), "SET marker");
     if (marked->type == REDIS_REPLY_STATUS && connected_before_) {
       ++generation_;
       spdlog::warn("state: {}: the store is empty again (restarted without persistence?)",
@@ -368,12 +411,6 @@ class RedisState final : public StateBackend {
     }
     connected_before_ = true;
     ctx_ = std::move(c);
-  }
-
-  void check_setup_reply(redisContext* c, const Reply& r, const char* what) const {
-    if (!r) throw StateError(describe() + ": " + what + ": " + lower_first(c->errstr));
-    if (r->type == REDIS_REPLY_ERROR)
-      throw StateError(describe() + ": " + what + " failed: " + std::string(r->str, r->len));
   }
 
   // Runs one command. A broken connection is dropped, reconnected once and the command
@@ -415,6 +452,40 @@ class RedisState final : public StateBackend {
 
 std::unique_ptr<StateBackend> open_redis_state(const std::string& url) {
   return std::make_unique<RedisState>(url);
+}
+
+bool wait_for_redis_state(const std::string& url_text, std::chrono::seconds wait,
+                          const std::function<bool(std::chrono::milliseconds)>& pause) {
+  using Clock = std::chrono::steady_clock;
+  using std::chrono::milliseconds;
+  const RedisUrl url = parse_url(url_text);  // an invalid URL fails at once
+  const std::string who = "redis " + where(url);
+  const auto start = Clock::now();
+  const auto deadline = start + wait;
+  auto next_log = start;
+  for (;;) {
+    try {
+      SigpipeGuard guard;
+      connect_to(url, who);
+      return true;
+    } catch (const Unreachable& e) {
+      const auto now = Clock::now();
+      if (now >= deadline) {
+        const auto waited = std::chrono::duration_cast<std::chrono::seconds>(
+            now - start + milliseconds(500));
+        throw StateError(std::string(e.what()) + " (still not reachable after waiting " +
+                         std::to_string(waited.count()) + " s: --state-redis-wait)");
+      }
+      if (now >= next_log) {
+        const auto left = std::chrono::ceil<std::chrono::seconds>(deadline - now);
+        spdlog::warn("state: {} not reachable yet ({}); retrying for up to {} s", who, e.why(),
+                     left.count());
+        next_log = now + std::chrono::seconds(2);
+      }
+      const auto rest = std::chrono::duration_cast<milliseconds>(deadline - now);
+      if (!pause(std::min(milliseconds(500), rest + milliseconds(1)))) return false;
+    }
+  }
 }
 
 }  // namespace hdeform::service

@@ -8,7 +8,9 @@
 // server). Failures throw StateError with a message that names the store and the problem.
 #pragma once
 
+#include <chrono>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <cstdint>
 #include <optional>
@@ -74,5 +76,15 @@ std::unique_ptr<StateBackend> open_sqlite_state(const std::filesystem::path& dir
 // Connects at once (StateError when the server cannot be reached), reconnects once per
 // call after a broken connection; every command has a 2 s timeout.
 std::unique_ptr<StateBackend> open_redis_state(const std::string& url);
+
+// For a replica that may start before its Redis (--state-redis-wait): returns true once a
+// connection to `url` is set up (AUTH, SELECT, PING), trying again while Redis cannot be
+// reached (connecting fails, the connection breaks or times out, or Redis is still loading
+// its dataset) for up to `wait`, with one log line at most every 2 s. Between attempts it
+// calls pause(d), which sleeps up to d and returns false to give up (then this returns
+// false). Throws StateError at once for any other problem (invalid URL, AUTH or SELECT
+// refused), and when `wait` runs out, naming the host and the time waited.
+bool wait_for_redis_state(const std::string& url, std::chrono::seconds wait,
+                          const std::function<bool(std::chrono::milliseconds)>& pause);
 
 }  // namespace hdeform::service
