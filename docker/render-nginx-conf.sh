@@ -10,6 +10,8 @@
 #   NGINX_ERROR_LOG  /dev/stderr
 #   NGINX_ACCESS_LOG /dev/stdout
 #   NGINX_TEMP_DIR   /var/lib/nginx
+#   NGINX_TLS_CERT, NGINX_TLS_KEY  PEM certificate (chain) and key: both doors then take TLS
+#                    only (unset: plain HTTP, for loopback or a private network only)
 # Usage: [VAR=value …] docker/render-nginx-conf.sh > nginx.conf
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
@@ -21,6 +23,18 @@ pid_file=${NGINX_PID_FILE:-/run/nginx.pid}
 error_log=${NGINX_ERROR_LOG:-/dev/stderr}
 access_log=${NGINX_ACCESS_LOG:-/dev/stdout}
 temp_dir=${NGINX_TEMP_DIR:-/var/lib/nginx}
+tls_cert=${NGINX_TLS_CERT:-}
+tls_key=${NGINX_TLS_KEY:-}
+if { [ -n "$tls_cert" ] && [ -z "$tls_key" ]; } || { [ -z "$tls_cert" ] && [ -n "$tls_key" ]; }; then
+  echo "render-nginx-conf: set both NGINX_TLS_CERT and NGINX_TLS_KEY, or neither" >&2
+  exit 1
+fi
+ssl="" tls_files=""
+if [ -n "$tls_cert" ]; then
+  ssl=" ssl"
+  tls_files="        ssl_certificate ${tls_cert};"$'\n'"        ssl_certificate_key ${tls_key};"
+  tls_files+=$'\n'"        ssl_protocols TLSv1.2 TLSv1.3;"
+fi
 
 server_lines() {
   local out="" u
@@ -42,9 +56,11 @@ while IFS= read -r line || [ -n "$line" ]; do
   case "$line" in
     *@UPSTREAM_SERVERS@*) printf '%s\n' "$servers"; continue ;;
     *@UPSTREAM_HTTP_SERVERS@*) printf '%s\n' "$http_servers"; continue ;;
+    *@TLS_FILES@*) [ -n "$tls_files" ] && printf '%s\n' "$tls_files"; continue ;;
   esac
   line=${line//@HTTP_LISTEN@/$http_listen}
   line=${line//@LISTEN@/$listen}
+  line=${line//@SSL@/$ssl}
   line=${line//@PID_FILE@/$pid_file}
   line=${line//@ERROR_LOG@/$error_log}
   line=${line//@ACCESS_LOG@/$access_log}

@@ -1,13 +1,15 @@
 #!/usr/bin/env bash
-# Installs every Debian 12 package hdeform needs to build, test and run.
-# Idempotent: apt-get skips what is already installed. Run as root.
+# Installs the Debian 12 packages hdeform needs. Idempotent: apt-get skips what is already
+# installed. Run as root.
+#   install-deps.sh          everything: build, tests, benchmarks, viewer, containers (CI)
+#   install-deps.sh build    only what `cmake --build` of hdeform-server and hdeform needs
+#                            (docker/Dockerfile's build stage)
+#   install-deps.sh web      only what the viewer's `npm ci && npm run build` needs
+#                            (docker/Dockerfile's web stage)
 set -euo pipefail
 
-packages=(
-  # build
+build=(
   build-essential cmake pkg-config
-  # sanitizer builds (scripts/sanitize.sh): clang with its ASan/UBSan runtime and OpenMP
-  clang libclang-rt-14-dev libomp-dev
   # engine
   libeigen3-dev libsuitesparse-dev libopenblas0-pthread libblas-dev liblapack-dev
   libtinygltf-dev libstb-dev
@@ -17,18 +19,34 @@ packages=(
   # compact frame encodings (FrameEncoding MESHOPT)
   libmeshoptimizer-dev
   # durable state: SQLite (embedded default), Redis (replicas)
-  libsqlite3-dev libhiredis-dev redis-server
+  libsqlite3-dev libhiredis-dev
+)
+# The viewer: protoc for its generated stubs; Node.js and npm unless the machine has its own
+# (this machine image ships Node.js 20 with npm, which Debian's npm conflicts with).
+web=(protobuf-compiler)
+command -v npm >/dev/null 2>&1 || web+=(nodejs npm)
+tests=(
+  # sanitizer builds (scripts/sanitize.sh, scripts/tsan.sh): clang with its runtimes, OpenMP
+  clang libclang-rt-14-dev libomp-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
-  # routing test (docker/ nginx config; curl plays the browser), browser tests
-  nginx-light curl chromium python3
+  # real peers: Redis (state), nginx (routing), curl (plays the browser), Chromium (viewer)
+  redis-server nginx-light curl chromium python3
   # test certificates (TLS tests)
   openssl
   # the Python client (client-python/: stubs from grpc_python_plugin, tests with pytest)
   python3-grpcio python3-protobuf python3-numpy python3-pytest
+  # the container suite (scripts/container-test.sh): podman with runc, a base image made by
+  # debootstrap, the compose file run by podman-compose
+  podman buildah runc debootstrap podman-compose
 )
-# The machine image ships Node.js 20 (with npm); Debian's npm conflicts with it.
-command -v npm >/dev/null 2>&1 || packages+=(nodejs npm)
+
+case "${1:-all}" in
+  build) packages=("${build[@]}") ;;
+  web) packages=("${web[@]}") ;;
+  all) packages=("${build[@]}" "${web[@]}" "${tests[@]}") ;;
+  *) echo "usage: install-deps.sh [build|web|all]" >&2; exit 2 ;;
+esac
 
 missing=()
 for p in "${packages[@]}"; do
@@ -44,4 +62,4 @@ if [ ${#missing[@]} -gt 0 ]; then
   apt-get update -qq
   apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
-echo "install-deps: all packages present"
+echo "install-deps: all packages present (${1:-all})"
