@@ -36,6 +36,9 @@ tests=(
   openssl
   # the Python client (client-python/: stubs from grpc_python_plugin, tests with pytest)
   python3-grpcio python3-protobuf python3-numpy python3-pytest
+  # its documented pip install (CTest python_pip_install): venv with pip and setuptools, and
+  # wheel for pip's bdist_wheel (without it: "invalid command 'bdist_wheel'")
+  python3-venv python3-wheel
   # the container suite (scripts/container-test.sh): podman with runc, a base image made by
   # debootstrap, the compose file run by podman-compose
   podman buildah runc debootstrap podman-compose

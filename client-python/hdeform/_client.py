@@ -1,6 +1,7 @@
 """connect(), Client and Session: the hdeform.v1.Deformation service with numpy in and out."""
-import csv
+import decimal
 import itertools
+import math
 import os
 import time
 import uuid
@@ -10,11 +11,12 @@ from dataclasses import dataclass
 import grpc
 import numpy as np
 
+from . import _checks
 from ._errors import Error, from_rpc_error
 from ._frames import Frame, Measures, decode, encoding_value
-from ._meshio import parse_off, ply_bytes
+from ._meshio import parse_off, ply_bytes, stl_bytes
 from ._proto import pb, pb_grpc
-from ._selectors import region
+from ._selectors import Selector, region
 from ._server import LocalServer
 from ._transforms import to_transform, Transform
 
@@ -22,16 +24,67 @@ CHUNK = 1 << 20  # upload chunks (gRPC's default limit is 4 MiB per message)
 _UNITS = {"area": pb.BETA_UNITS_AREA, "raw": pb.BETA_UNITS_RAW}
 _FORMATS = {"glb": pb.MESH_FORMAT_GLB, "obj": pb.MESH_FORMAT_OBJ, "off": pb.MESH_FORMAT_OFF,
             "ply": pb.MESH_FORMAT_PLY}
+_SAVE_FORMATS = sorted(_FORMATS) + ["stl"]  # STL: written here from the exact mesh (no RPC for it)
 _GLB_COMPRESSION = {None: pb.GLB_COMPRESSION_NONE, "none": pb.GLB_COMPRESSION_NONE,
                     "quantized": pb.GLB_COMPRESSION_QUANTIZED,
                     "meshopt": pb.GLB_COMPRESSION_MESHOPT}
+# Calls that change nothing: a deadline on any other one may leave its change applied.
+_READS = frozenset(("GetSession", "Sweep", "ListHistory", "ListSnapshots", "GetTimeline",
+                    "PoseAt"))
+_EASINGS = {"linear": pb.EASING_LINEAR, "smoothstep": pb.EASING_SMOOTHSTEP}
+_UP = {"y": pb.UP_AXIS_Y, "z": pb.UP_AXIS_Z}
 
 
-def _rpc(fn, *args, **kwargs):
+def _timeout_seconds(timeout, what="timeout"):
+    """None (no deadline) or seconds > 0; math.inf means no deadline."""
+    if timeout is None:
+        return None
+    t = _checks.number(timeout, what, finite=False)
+    if not t > 0:
+        raise ValueError(f"{what}: seconds > 0, None or math.inf (no deadline), got {t!r}")
+    return None if math.isinf(t) else t
+
+
+class _Deadline:
+    """One deadline over every RPC of a public call (a retry, history's pages, update's
+    double=True read), so `timeout` bounds the whole call."""
+
+    def __init__(self, timeout, method, expired="no answer within"):
+        self.timeout = timeout
+        self.method = method
+        self.expired = expired
+        self._end = None if timeout is None else time.monotonic() + timeout
+
+    def remaining(self):
+        # never 0 or less: gRPC then answers DEADLINE_EXCEEDED itself, the error we want
+        return None if self._end is None else max(self._end - time.monotonic(), 1e-6)
+
+    def error(self, e, change=False):
+        """The hdeform.Error for a grpc.RpcError, naming the timeout when it expired."""
+        err = from_rpc_error(e)
+        if err.code == grpc.StatusCode.DEADLINE_EXCEEDED and self.timeout is not None:
+            msg = (f"{self.method}: {self.expired} timeout={self.timeout:g} s "
+                   f"(gRPC: {err.message or 'deadline exceeded'})")
+            if change:
+                msg += "; the server may still apply the change"
+            err = type(err)(msg, err.code)
+        return err
+
+
+def _rpc(fn, *args, deadline=None, change=False, **kwargs):
     try:
-        return fn(*args, **kwargs)
+        return fn(*args, timeout=deadline.remaining() if deadline else None, **kwargs)
     except grpc.RpcError as e:
-        raise from_rpc_error(e) from None
+        raise (deadline.error(e, change) if deadline else from_rpc_error(e)) from None
+
+
+def _rpc_bytes(fn, request, deadline, metadata):
+    """A server stream of chunks (GetMesh, ExportAnimation) joined into bytes."""
+    try:
+        return b"".join(c.data for c in fn(request, metadata=metadata,
+                                           timeout=deadline.remaining()))
+    except grpc.RpcError as e:
+        raise deadline.error(e) from None
 
 
 def _metadata(token, session=None):
@@ -44,24 +97,72 @@ def _metadata(token, session=None):
     return md
 
 
-def _units(units):
-    if units not in _UNITS:
-        raise ValueError(f"units: 'area' or 'raw', got {units!r}")
-    return _UNITS[units]
+def _units(units, what="units"):
+    return _UNITS[_checks.choice(units, _UNITS, what)]
 
 
-def _beta_proto(value, units="area", local=None):
+def _beta_proto(value, units="area", local=None, vertex_count=None):
+    # Checked here, before the RPC (and the factorization it starts).
     b = pb.Beta(units=_units(units))
     if isinstance(value, str):
         if value != "auto":
             raise ValueError(f"beta: a number in [0, 1) or 'auto', got {value!r}")
         b.automatic = True
     else:
-        b.value = float(value)
-    for entry in local or ():
-        b.local.append(pb.LocalBeta(region=region(entry["region"]), beta=float(entry["beta"]),
-                                    falloff_radius=float(entry.get("falloff_radius", 0.0))))
+        b.value = _checks.beta(value, "beta")
+    if local is not None and not isinstance(local, (list, tuple)):
+        raise TypeError("local: expected a list of {'region': …, 'beta': b, "
+                        f"'falloff_radius': r}} dicts, got {type(local).__name__}")
+    for i, entry in enumerate(local or ()):
+        what = f"local[{i}]"
+        if not isinstance(entry, dict) or "region" not in entry or "beta" not in entry:
+            raise TypeError(f"{what}: expected a dict with 'region' and 'beta' (and "
+                            f"'falloff_radius'), got {entry!r:.80}")
+        unknown = set(entry) - {"region", "beta", "falloff_radius"}
+        if unknown:
+            raise ValueError(f"{what}: unknown keys {sorted(unknown)}")
+        radius = _checks.number(entry.get("falloff_radius", 0.0), f"{what}.falloff_radius")
+        if radius < 0:
+            raise ValueError(f"{what}.falloff_radius: must be >= 0, got {radius!r}")
+        b.local.append(pb.LocalBeta(
+            region=region(entry["region"], f"{what}.region", vertex_count),
+            beta=_checks.beta(entry["beta"], f"{what}.beta"), falloff_radius=radius))
     return b
+
+
+def _betas(betas, what="betas"):
+    if isinstance(betas, (str, bytes)) or not hasattr(betas, "__iter__"):
+        raise TypeError(f"{what}: expected a list of numbers, got {type(betas).__name__}")
+    values = [_checks.beta(b, f"{what}[{i}]") for i, b in enumerate(betas)]
+    if not values:
+        raise ValueError(f"{what}: no values")
+    return values
+
+
+# The CLI's sweep CSV (client-cli/output.cpp, sweep_csv): these column names, β in its
+# shortest round-trip form (std::to_chars), measures as "%.17g", flips as an integer, "\n".
+_CSV_COLUMNS = ["beta", "E", "E_iso_N", "E_conf_N", "E_area_pct", "max_e_iso", "max_e_conf",
+                "max_ef2", "flips"]
+
+
+def _shortest(v):
+    """std::to_chars(double): the shortest digits that read back as v, in fixed or
+    scientific notation, whichever is shorter (fixed on a tie); "0", not Python's "0.0"."""
+    if not math.isfinite(v):
+        return "nan" if math.isnan(v) else ("-inf" if v < 0 else "inf")
+    if v == 0:
+        return "-0" if math.copysign(1.0, v) < 0 else "0"
+    sign, digits, exp = decimal.Decimal(repr(v)).normalize().as_tuple()
+    ds = "".join(map(str, digits))
+    if exp >= 0:
+        fixed = str(int(abs(v)))  # libstdc++ prints an integral value's exact digits
+    elif len(ds) + exp > 0:
+        fixed = ds[:len(ds) + exp] + "." + ds[len(ds) + exp:]
+    else:
+        fixed = "0." + "0" * -(len(ds) + exp) + ds
+    e = exp + len(ds) - 1
+    sci = ds[0] + ("." + ds[1:] if len(ds) > 1 else "") + f"e{'-' if e < 0 else '+'}{abs(e):02d}"
+    return ("-" if sign else "") + (fixed if len(fixed) <= len(sci) else sci)
 
 
 @dataclass
@@ -78,10 +179,12 @@ class SweepRow:
 
 
 class SweepResult(list):
-    """Sweep rows (SweepRow) in request order."""
+    """Sweep rows (SweepRow) in request order. records() and to_dataframe() use the Measures
+    field names (`columns`); to_csv() writes the CLI's CSV (`csv_columns`)."""
 
     columns = ["beta", "e", "e_iso_n", "e_conf_n", "e_area_pct", "max_e_iso", "max_e_conf",
                "max_ef2", "flips"]
+    csv_columns = _CSV_COLUMNS
 
     def records(self):
         """One dict per row: beta and the seven measures."""
@@ -89,25 +192,46 @@ class SweepResult(list):
 
     def to_dataframe(self):
         """A pandas DataFrame (needs pandas: apt-get install python3-pandas)."""
-        import pandas  # noqa: PLC0415 - optional dependency
+        try:
+            import pandas  # noqa: PLC0415 - optional dependency
+        except ImportError as e:
+            raise ImportError(
+                "SweepResult.to_dataframe() needs pandas: apt-get install python3-pandas "
+                "(for Debian's /usr/bin/python3 or a venv made with --system-site-packages); "
+                "records() and to_csv() need nothing", name="pandas") from e
         return pandas.DataFrame.from_records(self.records(), columns=self.columns)
 
-    def to_csv(self, path):
+    def to_csv(self, path=None):
+        """The rows as `hdeform sweep --csv` writes them (same header and numbers): written
+        to `path`, or returned as a string without one."""
+        lines = [",".join(_CSV_COLUMNS)]
+        for r in self:
+            m = r.measures
+            lines.append(",".join(
+                [_shortest(r.beta)] +
+                [format(float(v), ".17g") for v in (m.e, m.e_iso_n, m.e_conf_n, m.e_area_pct,
+                                                      m.max_e_iso, m.max_e_conf, m.max_ef2)] +
+                [str(int(m.flips))]))
+        text = "\n".join(lines) + "\n"
+        if path is None:
+            return text
         with open(os.fspath(path), "w", newline="") as f:
-            w = csv.DictWriter(f, fieldnames=self.columns)
-            w.writeheader()
-            w.writerows(self.records())
+            f.write(text)
+        return None
 
 
 class Client:
     """A connection to an hdeform-server (make one with hdeform.connect()). As a context
     manager it deletes, on exit, the sessions it created (unless kept with Session.keep()) and
-    stops its private server."""
+    stops its private server. `call_timeout`: the deadline in seconds of every call that does
+    not pass its own `timeout=` (None: no deadline)."""
 
-    def __init__(self, address, token=None, credentials=None, server=None, ready_timeout=30.0):
+    def __init__(self, address, token=None, credentials=None, server=None, ready_timeout=30.0,
+                 call_timeout=None):
         self.address = address
         self.token = token
         self.server = server
+        self.call_timeout = _timeout_seconds(call_timeout, "call_timeout")
         options = [("grpc.max_receive_message_length", -1),
                    ("grpc.max_send_message_length", -1)]
         if credentials is not None:
@@ -125,13 +249,20 @@ class Client:
                             f"(waited {ready_timeout:g} s)",
                             grpc.StatusCode.UNAVAILABLE) from None
 
+    def _deadline(self, timeout, method):
+        """A call's deadline: its own timeout=, else call_timeout; math.inf: none."""
+        if timeout is None:
+            return _Deadline(self.call_timeout, method)
+        return _Deadline(_timeout_seconds(timeout), method)
+
     # --- sessions -------------------------------------------------------------------------
-    def meshes(self):
+    def meshes(self, timeout=None):
         """The server's mesh library."""
-        r = _rpc(self.stub.ListMeshes, pb.ListMeshesRequest())
+        r = _rpc(self.stub.ListMeshes, pb.ListMeshesRequest(),
+                 deadline=self._deadline(timeout, "ListMeshes"))
         return [LibraryMesh(m.name, m.path, m.has_benchmark) for m in r.meshes]
 
-    def _create(self, header, data=b""):
+    def _create(self, header, data=b"", timeout=None):
         # The id is chosen here so that the creating call is routed by it, like every later
         # call of the session (docs/deployment.md).
         if not header.session_id:
@@ -141,42 +272,49 @@ class Client:
             for i in range(0, len(data), CHUNK):
                 yield pb.CreateSessionRequest(chunk=data[i:i + CHUNK])
         info = _rpc(self.stub.CreateSession, requests(),
-                    metadata=_metadata(None, header.session_id))
+                    metadata=_metadata(None, header.session_id),
+                    deadline=self._deadline(timeout, "CreateSession"), change=True)
         s = Session(self, info, info.edit_token, view_token=info.view_token, owned=True)
         self._created.add(s)
         return s
 
-    def open(self, mesh, session_id=""):
+    def open(self, mesh, session_id="", timeout=None):
         """A new session on a library mesh (a name from meshes(), e.g. "cactus")."""
-        return self._create(pb.CreateSessionHeader(library_mesh=mesh, session_id=session_id))
+        if not isinstance(mesh, str):
+            raise TypeError(f"mesh: a library mesh name (str), got {type(mesh).__name__}")
+        return self._create(pb.CreateSessionHeader(library_mesh=mesh, session_id=session_id),
+                            timeout=timeout)
 
-    def upload(self, V, F, session_id="", filename="mesh.ply"):
-        """A new session on the mesh (V n×3, F m×3), sent as a binary PLY of doubles: vertex
-        ids and frame rows are V's rows."""
+    def upload(self, V, F, session_id="", filename="mesh.ply", timeout=None):
+        """A new session on the mesh (V n×3, F m×3 triangles; quads and other polygons are
+        fan-triangulated as the server's file readers do, see hdeform.triangulate), sent as a
+        binary PLY of doubles: vertex ids and frame rows are V's rows."""
         data = ply_bytes(V, F)
         return self._create(pb.CreateSessionHeader(filename=filename, total_bytes=len(data),
-                                                   session_id=session_id), data)
+                                                   session_id=session_id), data, timeout)
 
-    def upload_file(self, path, session_id=""):
+    def upload_file(self, path, session_id="", timeout=None):
         """A new session on a mesh file (.obj .off .ply .stl .glb, or a self-contained .gltf)."""
         with open(os.fspath(path), "rb") as f:
             data = f.read()
         return self._create(pb.CreateSessionHeader(filename=os.path.basename(os.fspath(path)),
                                                    total_bytes=len(data),
-                                                   session_id=session_id), data)
+                                                   session_id=session_id), data, timeout)
 
-    def session(self, name, token=None):
+    def session(self, name, token=None, timeout=None):
         """Attach to an existing session ("sessions/ID" or "ID") with its edit or view token
         (default: the client's token, e.g. the operator token)."""
         token = token if token is not None else self.token
         info = _rpc(self.stub.GetSession, pb.GetSessionRequest(name=name),
-                    metadata=_metadata(token, name))
+                    metadata=_metadata(token, name),
+                    deadline=self._deadline(timeout, "GetSession"))
         return Session(self, info, token, owned=False)
 
-    def sessions(self):
+    def sessions(self, timeout=None):
         """Names of the sessions the client's token opens (all with the operator token)."""
         r = _rpc(self.stub.ListSessions, pb.ListSessionsRequest(),
-                 metadata=_metadata(self.token))
+                 metadata=_metadata(self.token),
+                 deadline=self._deadline(timeout, "ListSessions"))
         return [s.name for s in r.sessions]
 
     # --- lifetime -------------------------------------------------------------------------
@@ -205,20 +343,23 @@ class Client:
 
 
 def connect(address=None, *, token=None, server=None, mesh_dir=None, state_dir=None,
-            server_args=(), credentials=None, timeout=30.0):
+            server_args=(), credentials=None, timeout=30.0, call_timeout=None):
     """A Client. With an address ("host:port"): that server, presenting `token` (an operator
     token, or a session token for Client.session()). Without: a private hdeform-server
     (`server`, else $HDEFORM_SERVER, PATH, the build tree) on a free loopback port, with a
     random operator token the client presents, stopped by close()/the context's exit/at exit.
     That server gets a clean environment (none of the caller's HDEFORM_* settings): configure
-    it with `server_args`."""
+    it with `server_args`. `timeout`: seconds to start the server / reach it. `call_timeout`:
+    the default deadline of every later call (None: none; a call's timeout= overrides it)."""
+    call_timeout = _timeout_seconds(call_timeout, "call_timeout")  # before starting anything
     if address is not None:
-        return Client(address, token=token, credentials=credentials, ready_timeout=timeout)
+        return Client(address, token=token, credentials=credentials, ready_timeout=timeout,
+                      call_timeout=call_timeout)
     srv = LocalServer(server, mesh_dir=mesh_dir, state_dir=state_dir, args=server_args,
                       timeout=timeout)
     try:
         return Client(srv.address, token=token or srv.admin_token, server=srv,
-                      ready_timeout=timeout)
+                      ready_timeout=timeout, call_timeout=call_timeout)
     except BaseException:
         srv.stop(keep_log=True)
         raise
@@ -227,7 +368,8 @@ def connect(address=None, *, token=None, server=None, mesh_dir=None, state_dir=N
 class Session:
     """One server session. Keeps its tokens (`token` is the one it presents; `edit_token` /
     `view_token` when this client created it). As a context manager it deletes the session
-    on exit if this client created it."""
+    on exit if this client created it. Every method that calls the server takes `timeout=`
+    (seconds; default: the client's call_timeout, None = no deadline)."""
 
     def __init__(self, client, info, token, view_token=None, owned=False):
         # Who this script is in the session's history and to other editors: its changes
@@ -244,29 +386,35 @@ class Session:
         self._kept = False
         self._sequence = itertools.count(1)
 
-    def _call(self, method, request):
+    def _call(self, method, request, timeout=None):
+        """One unary RPC of this session; `timeout`: a public call's timeout= or its
+        _Deadline (shared by the RPCs of one public call)."""
+        deadline = (timeout if isinstance(timeout, _Deadline)
+                    else self.client._deadline(timeout, method))
         # A change carries a request id, so one retry after UNAVAILABLE (the answer may have
         # been lost after the server applied it) is answered, never applied twice.
         retry = "request_id" in request.DESCRIPTOR.fields_by_name
+        change = method not in _READS
         if retry and not request.request_id:
             request.request_id = uuid.uuid4().hex
         stub = getattr(self.client.stub, method)
+        md = _metadata(self.token, self.name)
         try:
-            return _rpc(stub, request, metadata=_metadata(self.token, self.name))
+            return _rpc(stub, request, metadata=md, deadline=deadline, change=change)
         except Error as e:
             if not retry or e.code != grpc.StatusCode.UNAVAILABLE:
                 raise
             time.sleep(0.5)
-            return _rpc(stub, request, metadata=_metadata(self.token, self.name))
+            return _rpc(stub, request, metadata=md, deadline=deadline, change=change)
 
     # --- state ----------------------------------------------------------------------------
     @property
     def id(self):
         return self.name.split("/", 1)[-1]
 
-    def refresh(self):
+    def refresh(self, timeout=None):
         """Re-read the session's state (self.info) from the server."""
-        self.info = self._call("GetSession", pb.GetSessionRequest(name=self.name))
+        self.info = self._call("GetSession", pb.GetSessionRequest(name=self.name), timeout)
         return self
 
     vertex_count = property(lambda self: self.info.vertex_count)
@@ -300,58 +448,74 @@ class Session:
         return np.array([[a.x, a.y, a.z], [b.x, b.y, b.z]])
 
     # --- meshes ---------------------------------------------------------------------------
-    def mesh_bytes(self, format="glb", rest=False, compression=None):  # noqa: A002 - the proto's name
-        """The rest or current mesh as a file (glb, obj, off, ply). compression (GLB only):
-        "quantized" (KHR_mesh_quantization) or "meshopt" (EXT_meshopt_compression), see
-        docs/api.md "Compressed GLB"; hdeform does not read those back."""
-        if format not in _FORMATS:
-            raise ValueError(f"format: one of {sorted(_FORMATS)}, got {format!r}")
-        if compression not in _GLB_COMPRESSION:
-            raise ValueError(f"compression: None, 'quantized' or 'meshopt', got {compression!r}")
+    def mesh_bytes(self, format="glb", rest=False, compression=None,  # noqa: A002 - proto's name
+                   timeout=None):
+        """The rest or current mesh as a file (glb, obj, off, ply, stl). compression (GLB
+        only): "quantized" (KHR_mesh_quantization) or "meshopt" (EXT_meshopt_compression),
+        see docs/api.md "Compressed GLB"; hdeform does not read those back. STL is written
+        here from the exact mesh (binary, float32: STL's own precision)."""
+        _checks.choice(format, _SAVE_FORMATS, "format")
+        _checks.choice(compression, _GLB_COMPRESSION, "compression")
+        if format == "stl":
+            if compression not in (None, "none"):
+                raise ValueError("compression: GLB only, not for STL")
+            return stl_bytes(*self.mesh(rest=rest, timeout=timeout))
         req = pb.GetMeshRequest(name=self.name, rest=rest, format=_FORMATS[format],
                                 glb_compression=_GLB_COMPRESSION[compression])
-        try:
-            return b"".join(c.data for c in self.client.stub.GetMesh(
-                req, metadata=_metadata(self.token, self.name)))
-        except grpc.RpcError as e:
-            raise from_rpc_error(e) from None
+        deadline = (timeout if isinstance(timeout, _Deadline)
+                    else self.client._deadline(timeout, "GetMesh"))
+        return _rpc_bytes(self.client.stub.GetMesh, req, deadline,
+                          _metadata(self.token, self.name))
 
-    def mesh(self, rest=False):
+    def mesh(self, rest=False, timeout=None):
         """(V float64 n×3, F int64 m×3) of the rest or current mesh, exact doubles, in engine
         vertex order (= Frame.V order except for glTF uploads)."""
-        return parse_off(self.mesh_bytes("off", rest=rest))
+        return parse_off(self.mesh_bytes("off", rest=rest, timeout=timeout))
 
-    def rest(self):
+    def rest(self, timeout=None):
         """mesh(rest=True)."""
-        return self.mesh(rest=True)
+        return self.mesh(rest=True, timeout=timeout)
 
-    def save(self, path, rest=False, compression=None):
-        """Write the current (or rest) mesh; the extension picks the format. compression: as
-        mesh_bytes (a .glb only)."""
+    def save(self, path, rest=False, compression=None, timeout=None):
+        """Write the current (or rest) mesh; the extension picks the format (.glb .obj .off
+        .ply .stl). compression: as mesh_bytes (a .glb only)."""
         ext = os.path.splitext(os.fspath(path))[1].lower().lstrip(".")
-        data = self.mesh_bytes(ext, rest=rest, compression=compression)
+        if ext not in _SAVE_FORMATS:
+            raise ValueError(f"path: the extension picks the format, one of "
+                             f"{' '.join('.' + f for f in _SAVE_FORMATS)}, got {os.fspath(path)!r}")
+        data = self.mesh_bytes(ext, rest=rest, compression=compression, timeout=timeout)
         with open(os.fspath(path), "wb") as f:
             f.write(data)
 
     # --- editing --------------------------------------------------------------------------
-    def constrain(self, fixed=None, handles=(), expected_version=0, discard_timeline=False):
+    def constrain(self, fixed=None, handles=(), expected_version=0, discard_timeline=False,
+                  timeout=None):
         """Set the fixed region and the handle regions. A region: a selector (hdeform.ids,
-        box, sphere, half_space, sel_file, …), a dict ({"box": (min, max)}), an id array, or
-        a list of selectors (their union). Resets every handle transform to identity.
-        New constraints drop the timeline's keys (undo() brings them back); keys another
-        client set are dropped only with discard_timeline=True (else hdeform.Error ABORTED)."""
-        c = pb.Constraints(handles=[region(h) for h in handles])
+        box, sphere, half_space, sel_file, …), a dict ({"box": (min, max)}), an id array, a
+        boolean mask over the vertices, or a list of selectors (their union). Resets every
+        handle transform to identity. New constraints drop the timeline's keys (undo() brings
+        them back); keys another client set are dropped only with discard_timeline=True (else
+        hdeform.Error ABORTED)."""
+        # An array or a selector here would be read as one handle per element: refused.
+        if isinstance(handles, (Selector, dict, np.ndarray, str, bytes)) or not hasattr(
+                handles, "__iter__"):
+            raise TypeError("handles: expected a list with one region per handle, got "
+                            f"{type(handles).__name__} (a single handle: handles=[region])")
+        handles = list(handles)
+        n = self.vertex_count
+        c = pb.Constraints(handles=[region(h, f"handles[{i}]", n) for i, h in enumerate(handles)])
         if fixed is not None:
-            c.fixed.CopyFrom(region(fixed))
+            c.fixed.CopyFrom(region(fixed, "fixed", n))
         self.info = self._call("SetConstraints", pb.SetConstraintsRequest(
             name=self.name, constraints=c, expected_version=expected_version,
-            client_id=self.client_id, discard_timeline=discard_timeline))
+            client_id=self.client_id, discard_timeline=discard_timeline), timeout)
         return self
 
     @property
     def beta(self):
-        """β's value (the pick when automatic; see beta_automatic, beta_units). Set a number
-        (area units) or "auto"; set_beta() for raw units and local entries."""
+        """β's value (the pick when automatic; see beta_automatic, beta_units). Assigning
+        (a number in area units, or "auto") is a shorthand for set_beta(value): an RPC and a
+        new factorization, with the client's call_timeout."""
         return self.info.beta.value
 
     @beta.setter
@@ -366,12 +530,14 @@ class Session:
     def beta_units(self):
         return "raw" if self.info.beta.units == pb.BETA_UNITS_RAW else "area"
 
-    def set_beta(self, value, units="area", local=None, expected_version=0):
+    def set_beta(self, value, units="area", local=None, expected_version=0, timeout=None):
         """β = value (0 ≤ β < 1, or "auto") in `units` ("area" or "raw"); `local`: a list of
-        {"region": …, "beta": b, "falloff_radius": r}."""
+        {"region": …, "beta": b, "falloff_radius": r}. The server refactors the system: on a
+        large mesh this takes a while, which `timeout` bounds."""
+        beta = _beta_proto(value, units, local, self.vertex_count)  # checked before the RPC
         self.info = self._call("SetBeta", pb.SetBetaRequest(
-            name=self.name, beta=_beta_proto(value, units, local),
-            expected_version=expected_version, client_id=self.client_id))
+            name=self.name, beta=beta, expected_version=expected_version,
+            client_id=self.client_id), timeout)
         return self
 
     def _transforms(self, transforms, single):
@@ -390,143 +556,159 @@ class Session:
 
     def update(self, transforms=None, *, rotate=None, translate=None, scale=None, pivot=None,
                matrix=None, energies=False, encoding="float32", double=False, dragging=False,
-               expected_version=0):
+               expected_version=0, timeout=None):
         """Move the handles and solve: a Frame. For one handle pass rotate= (quaternion
         w, x, y, z or 3×3), translate=, scale=, pivot=, matrix= (4×4); for several,
         transforms=[one per handle]. double=True also reads the result's exact doubles
-        (GetMesh OFF) into frame.V instead of the float32 buffer (engine vertex order)."""
+        (GetMesh OFF) into frame.V instead of the float32 buffer (engine vertex order);
+        `timeout` bounds both calls."""
         ts = self._transforms(transforms, dict(rotate=rotate, translate=translate, scale=scale,
                                                 pivot=pivot, matrix=matrix))
+        fmt = pb.FrameFormat(encoding=encoding_value(encoding))
+        deadline = self.client._deadline(timeout, "UpdateHandles")
         seq = next(self._sequence)
         raw = self._call("UpdateHandles", pb.UpdateHandlesRequest(
             name=self.name, sequence=seq, transforms=ts, energies=energies, dragging=dragging,
-            expected_version=expected_version, client_id=self.client_id,
-            format=pb.FrameFormat(encoding=encoding_value(encoding))))
+            expected_version=expected_version, client_id=self.client_id, format=fmt), deadline)
         frame = decode(raw)
         self.info.version = raw.version
         if double:
-            frame.V = self.mesh()[0]
+            deadline.method = "GetMesh (update's double=True)"
+            frame.V = self.mesh(timeout=deadline)[0]
         return frame
 
-    def sweep(self, betas, units="area", transforms=None):
+    def sweep(self, betas, units="area", transforms=None, timeout=None):
         """Measures for each β (the session is not changed) at the current transforms or at
-        `transforms` (one per handle): a SweepResult (list of SweepRow; .to_dataframe())."""
-        req = pb.SweepRequest(name=self.name, betas=[float(b) for b in betas],
-                              units=_units(units))
+        `transforms` (one per handle): a SweepResult (list of SweepRow; .to_csv(),
+        .to_dataframe())."""
+        req = pb.SweepRequest(name=self.name, betas=_betas(betas), units=_units(units))
         if transforms is not None:
             req.transforms.extend(self._transforms(transforms, {}))
-        r = self._call("Sweep", req)
+        r = self._call("Sweep", req, timeout)
         return SweepResult(SweepRow(row.beta, Measures.from_proto(row.measures))
                            for row in r.rows)
 
     # --- history and snapshots (docs/api.md "History and snapshots") --------------------
-    def undo(self, step=0, discard_timeline=False):
+    def undo(self, step=0, discard_timeline=False, timeout=None):
         """Revert this script's latest change (or history step `step`, any author): a move,
         β, constraints, the timeline, a snapshot save or delete. Refused (hdeform.Error, code
         ABORTED) when a later change touched what it would revert. discard_timeline: as in
         constrain(), for a step that changed the constraints."""
         self.info = self._call("Undo", pb.UndoRequest(name=self.name, client_id=self.client_id,
                                                       step=step,
-                                                      discard_timeline=discard_timeline))
+                                                      discard_timeline=discard_timeline),
+                               timeout)
         return self
 
-    def redo(self, step=0, discard_timeline=False):
+    def redo(self, step=0, discard_timeline=False, timeout=None):
         """Re-apply this script's latest undone change (or undone step `step`)."""
         self.info = self._call("Redo", pb.UndoRequest(name=self.name, client_id=self.client_id,
                                                       step=step,
-                                                      discard_timeline=discard_timeline))
+                                                      discard_timeline=discard_timeline),
+                               timeout)
         return self
 
-    def history(self, limit=None):
+    def history(self, limit=None, timeout=None):
         """The session's history steps, newest first (hdeform.v1.HistoryStep messages: id,
-        kind, author, time_unix_ms, summary, undone, …); all of them, or the newest `limit`."""
+        kind, author, time_unix_ms, summary, undone, …); all of them, or the newest `limit`.
+        `timeout` bounds all the pages together."""
+        deadline = self.client._deadline(timeout, "ListHistory")
         steps, token = [], ""
         while limit is None or len(steps) < limit:
             page = self._call("ListHistory", pb.ListHistoryRequest(
                 name=self.name, page_size=500 if limit is None else min(500, limit - len(steps)),
-                page_token=token))
+                page_token=token), deadline)
             steps.extend(page.steps)
             token = page.next_page_token
             if not token:
                 break
         return steps
 
-    def save_snapshot(self, name):
+    def save_snapshot(self, name, timeout=None):
         """Keep the constraints, β and transforms under `name` (replaces one of that name)."""
         return self._call("SaveSnapshot", pb.SaveSnapshotRequest(
-            name=self.name, snapshot=name, client_id=self.client_id))
+            name=self.name, snapshot=name, client_id=self.client_id), timeout)
 
-    def snapshots(self):
+    def snapshots(self, timeout=None):
         """{name: hdeform.v1.NamedSnapshot} of this session."""
-        r = self._call("ListSnapshots", pb.ListSnapshotsRequest(name=self.name))
+        r = self._call("ListSnapshots", pb.ListSnapshotsRequest(name=self.name), timeout)
         return {s.name: s for s in r.snapshots}
 
-    def restore_snapshot(self, name, discard_timeline=False):
+    def restore_snapshot(self, name, discard_timeline=False, timeout=None):
         """Make snapshot `name` the session's state (an undoable history step).
         discard_timeline: as in constrain(), when its constraints differ."""
         self.info = self._call("RestoreSnapshot", pb.RestoreSnapshotRequest(
             name=self.name, snapshot=name, client_id=self.client_id,
-            discard_timeline=discard_timeline))
+            discard_timeline=discard_timeline), timeout)
         return self
 
-    def delete_snapshot(self, name):
+    def delete_snapshot(self, name, timeout=None):
         """Remove snapshot `name` (an undoable history step: undo() brings it back)."""
         self._call("DeleteSnapshot", pb.DeleteSnapshotRequest(name=self.name, snapshot=name,
-                                                              client_id=self.client_id))
+                                                              client_id=self.client_id),
+                   timeout)
 
     # --- timeline and animation (docs/api.md "Timeline and animation") ------------------
-    def set_timeline(self, keys, easing="linear"):
+    def set_timeline(self, keys, easing="linear", timeout=None):
         """Replace the session's timeline. `keys`: (time_s, transforms) or (time_s, transforms,
         beta) tuples, or dicts time=/transforms=/beta=; transforms one per handle as in
         update(); beta a number in area units or (value, "raw"|"area"), from that key on.
         An empty list clears it. Returns the hdeform.v1.Timeline as stored."""
-        t = pb.Timeline(easing={"linear": pb.EASING_LINEAR,
-                                "smoothstep": pb.EASING_SMOOTHSTEP}[easing])
-        for key in keys:
+        t = pb.Timeline(easing=_EASINGS[_checks.choice(easing, _EASINGS, "easing")])
+        for i, key in enumerate(keys):
             if isinstance(key, dict):
-                time, transforms, beta = key["time"], key["transforms"], key.get("beta")
+                if "time" not in key or "transforms" not in key:
+                    raise TypeError(f"keys[{i}]: a dict needs 'time' and 'transforms', got "
+                                    f"{sorted(key)}")
+                time_s, transforms, beta = key["time"], key["transforms"], key.get("beta")
+            elif isinstance(key, (list, tuple)) and len(key) in (2, 3):
+                time_s, transforms, beta = (tuple(key) + (None,))[:3]
             else:
-                time, transforms, beta = (tuple(key) + (None,))[:3]
-            k = t.keys.add(time_s=float(time))
+                raise TypeError(f"keys[{i}]: expected (time_s, transforms[, beta]) or a dict, "
+                                f"got {key!r:.80}")
+            k = t.keys.add(time_s=_checks.number(time_s, f"keys[{i}] time"))
             k.transforms.extend(self._transforms(transforms, {}))
             if beta is not None:
                 value, units = beta if isinstance(beta, tuple) else (beta, "area")
-                k.beta.CopyFrom(pb.Beta(value=float(value), units=_units(units)))
+                k.beta.CopyFrom(pb.Beta(value=_checks.beta(value, f"keys[{i}] beta"),
+                                        units=_units(units, f"keys[{i}] beta units")))
         return self._call("SetTimeline", pb.SetTimelineRequest(
-            name=self.name, timeline=t, client_id=self.client_id))
+            name=self.name, timeline=t, client_id=self.client_id), timeout)
 
-    def timeline(self):
+    def timeline(self, timeout=None):
         """The session's hdeform.v1.Timeline (no keys: none)."""
-        return self._call("GetTimeline", pb.GetTimelineRequest(name=self.name))
+        return self._call("GetTimeline", pb.GetTimelineRequest(name=self.name), timeout)
 
-    def pose_at(self, time_s):
+    def pose_at(self, time_s, timeout=None):
         """The interpolated pose at `time_s`: an hdeform.v1.Keyframe (transforms per handle,
         beta when a key set one). update(transforms=list(k.transforms)) shows it."""
-        return self._call("PoseAt", pb.PoseAtRequest(name=self.name, time_s=float(time_s)))
+        return self._call("PoseAt", pb.PoseAtRequest(
+            name=self.name, time_s=_checks.number(time_s, "time_s")), timeout)
 
-    def export_animation(self, path=None, fps=24, energies=False, up="y", start=0.0, end=0.0):
+    def export_animation(self, path=None, fps=24, energies=False, up="y", start=0.0, end=0.0,
+                         timeout=None):
         """The timeline as an animated GLB (bytes; also written to `path` if given): one morph
         target per sampled frame, each a full deformation, driven by a weights animation."""
         req = pb.ExportAnimationRequest(
-            name=self.name, fps=float(fps), energies=energies, start_s=float(start),
-            end_s=float(end), up={"y": pb.UP_AXIS_Y, "z": pb.UP_AXIS_Z}[up])
-        try:
-            data = b"".join(c.data for c in self.client.stub.ExportAnimation(
-                req, metadata=_metadata(self.token, self.name)))
-        except grpc.RpcError as e:
-            raise from_rpc_error(e) from None
+            name=self.name, fps=_checks.number(fps, "fps"), energies=energies,
+            start_s=_checks.number(start, "start"), end_s=_checks.number(end, "end"),
+            up=_UP[_checks.choice(up, _UP, "up")])
+        data = _rpc_bytes(self.client.stub.ExportAnimation, req,
+                          self.client._deadline(timeout, "ExportAnimation"),
+                          _metadata(self.token, self.name))
         if path is not None:
             with open(path, "wb") as f:
                 f.write(data)
         return data
 
-    def watch(self, encoding="float32"):
+    def watch(self, encoding="float32", timeout=None):
         """A Watch: iterate it for every Frame of this session (from any client); it is
-        subscribed when watch() returns."""
-        return Watch(self, encoding)
+        subscribed when watch() returns. `timeout`: the stream's whole life in seconds (not
+        the client's call_timeout: a watch is meant to last); None = until cancelled."""
+        return Watch(self, encoding, timeout)
 
-    def delete(self):
-        self._call("DeleteSession", pb.DeleteSessionRequest(name=self.name))
+    def delete(self, timeout=None):
+        self._call("DeleteSession", pb.DeleteSessionRequest(name=self.name), timeout)
         self.deleted = True
 
     def keep(self):
@@ -547,14 +729,17 @@ class Session:
 
 class Watch:
     """A WatchSession stream: iterate for Frames; `state` is the latest session state
-    (hdeform.v1.Session); iteration ends when the session is deleted or cancel() is called."""
+    (hdeform.v1.Session); iteration ends when the session is deleted or cancel() is called.
+    With a timeout, the stream ends with hdeform.DeadlineExceeded when it expires."""
 
-    def __init__(self, session, encoding="float32"):
+    def __init__(self, session, encoding="float32", timeout=None):
         self.session = session
+        fmt = pb.FrameFormat(encoding=encoding_value(encoding))
+        self._deadline = _Deadline(_timeout_seconds(timeout), "WatchSession",
+                                   "the stream ended at its")
         self._call = session.client.stub.WatchSession(
-            pb.WatchSessionRequest(name=session.name,
-                                   format=pb.FrameFormat(encoding=encoding_value(encoding))),
-            metadata=_metadata(session.token, session.name))
+            pb.WatchSessionRequest(name=session.name, format=fmt),
+            metadata=_metadata(session.token, session.name), timeout=self._deadline.remaining())
         self.deleted = False
         self.state = None
         first = self._next()
@@ -569,7 +754,7 @@ class Watch:
         except grpc.RpcError as e:
             if e.code() == grpc.StatusCode.CANCELLED:
                 return None
-            raise from_rpc_error(e) from None
+            raise self._deadline.error(e) from None
 
     def __iter__(self):
         while True:

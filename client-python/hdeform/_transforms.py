@@ -5,16 +5,51 @@ from typing import Any, Optional
 
 import numpy as np
 
+from ._checks import floats, number
 from ._proto import pb
 
+_AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
 
-def axis_angle(axis, degrees):
-    """The unit quaternion (w, x, y, z) of a rotation by `degrees` about `axis`."""
-    a = np.asarray(axis, dtype=np.float64).reshape(3)
+
+def _named_axis(text):
+    t = text.strip().lower()
+    sign = -1.0 if t[:1] == "-" else 1.0
+    t = t[1:] if t[:1] in ("-", "+") else t
+    if t not in _AXES:
+        raise ValueError("axis_angle axis: 'x', 'y', 'z' (or '-x', …) or 3 numbers, "
+                         f"got {text!r}")
+    return sign * np.asarray(_AXES[t]) + 0.0  # + 0.0: no -0 components
+
+
+def axis_angle(axis, degrees=None):
+    """The unit quaternion (w, x, y, z) of a rotation by `degrees` about `axis`: 3 numbers or
+    "x", "y", "z", "-x", …; or the CLI's text, axis_angle("x,30") / axis_angle("1,0,0,30")."""
+    if isinstance(axis, str) and degrees is None:
+        text = axis
+        parts = [p.strip() for p in text.split(",")]
+        if len(parts) == 2:
+            axis, degrees = parts[0], parts[1]
+        elif len(parts) == 4:
+            axis, degrees = parts[:3], parts[3]
+        else:
+            raise ValueError(f"axis_angle: expected 'AXIS,DEG' or 'X,Y,Z,DEG', got {text!r}")
+        try:
+            degrees = float(degrees)
+            if not isinstance(axis, str):
+                axis = [float(v) for v in axis]
+        except ValueError:
+            raise ValueError("axis_angle: expected 'AXIS,DEG' or 'X,Y,Z,DEG' with numbers, "
+                             f"got {text!r}") from None
+    if degrees is None:
+        raise TypeError("axis_angle: missing degrees (axis_angle('x', 30))")
+    a = _named_axis(axis) if isinstance(axis, str) else floats(axis, "axis_angle axis", (3,))
     norm = np.linalg.norm(a)
     if not norm > 0:
-        raise ValueError("axis_angle: the axis must be non-zero")
-    half = np.radians(float(degrees)) / 2
+        raise ValueError("axis_angle axis: must be non-zero")
+    if not np.isfinite(norm):
+        raise ValueError("axis_angle axis: too long")
+    # fmod(…, 720) as the CLI does, so huge angles lose no precision in the half angle
+    half = np.radians(np.fmod(number(degrees, "axis_angle degrees"), 720.0)) / 2
     return np.concatenate([[np.cos(half)], np.sin(half) * a / norm])
 
 
@@ -38,7 +73,13 @@ def _matrix_to_quaternion(m):
 
 def quaternion(rotate):
     """A unit quaternion (w, x, y, z) from 4 numbers (w, x, y, z) or a 3×3 rotation matrix."""
-    a = np.asarray(rotate, dtype=np.float64)
+    try:
+        a = np.asarray(rotate, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError("rotate: expected a quaternion (w, x, y, z) or a 3×3 rotation matrix "
+                        f"(use hdeform.axis_angle(axis, degrees)), got {rotate!r:.60}") from None
+    if not np.isfinite(a).all():
+        raise ValueError("rotate: expected finite numbers")
     if a.shape == (4,):
         q = a
     elif a.shape == (3, 3):
@@ -67,21 +108,25 @@ class Transform:
     def to_proto(self):
         t = pb.HandleTransform()
         if self.pivot is not None:
-            p = np.asarray(self.pivot, dtype=np.float64).reshape(3)
+            p = floats(self.pivot, "pivot", (3,))
             t.pivot.CopyFrom(pb.Vec3(x=p[0], y=p[1], z=p[2]))
         if self.matrix is not None:
-            m = np.asarray(self.matrix, dtype=np.float64)
-            if m.shape != (4, 4):
-                raise ValueError(f"matrix: expected 4×4, got shape {m.shape}")
+            m = floats(self.matrix, "matrix", (4, 4))
             t.matrix.extend(m.reshape(-1).tolist())
         if self.rotate is not None:
             q = quaternion(self.rotate)
             t.rotation.CopyFrom(pb.Quaternion(w=q[0], x=q[1], y=q[2], z=q[3]))
         if self.translate is not None:
-            v = np.asarray(self.translate, dtype=np.float64).reshape(3)
+            v = floats(self.translate, "translate", (3,))
             t.translation.CopyFrom(pb.Vec3(x=v[0], y=v[1], z=v[2]))
         if self.scale is not None:
-            s = np.asarray(self.scale, dtype=np.float64)
+            try:
+                s = np.asarray(self.scale, dtype=np.float64)
+            except (TypeError, ValueError):
+                raise TypeError(f"scale: expected 1, 3 or 3×3 numbers, got {self.scale!r:.60}") \
+                    from None
+            if not np.isfinite(s).all():
+                raise ValueError("scale: expected finite numbers")
             if s.size == 1:
                 t.uniform_scale = float(s.reshape(-1)[0])
             elif s.shape == (3,):
@@ -105,6 +150,10 @@ def to_transform(spec) -> Optional[Transform]:
     if isinstance(spec, Transform):
         return spec
     if isinstance(spec, dict):
+        unknown = set(spec) - {"rotate", "translate", "scale", "pivot", "matrix"}
+        if unknown:
+            raise ValueError(f"transform dict: unknown keys {sorted(unknown)} (rotate, "
+                             "translate, scale, pivot, matrix)")
         return Transform(**spec)
     return Transform(matrix=spec)
 

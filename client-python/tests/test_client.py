@@ -240,7 +240,8 @@ def test_examples(tmp_path, script, args):
     assert r.returncode == 0, r.stderr
     if script == "beta_study.py":
         lines = (tmp_path / "study.csv").read_text().splitlines()
-        assert lines[0].startswith("beta,e,") and len(lines) == 3
+        assert lines[0] == "beta,E,E_iso_N,E_conf_N,E_area_pct,max_e_iso,max_e_conf,max_ef2,flips"
+        assert len(lines) == 3 and lines[1].startswith("0,") and lines[2].startswith("0.1,")
     else:
         assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [
             "bar.glb", "cactus.glb", "cylinder.glb", "measures.csv", "plane.glb"]
