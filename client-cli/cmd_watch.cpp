@@ -9,6 +9,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <algorithm>
+#include <cctype>
 #include <iostream>
 #include <map>
 #include <memory>
@@ -62,6 +63,44 @@ std::string state_line(const pb::Session& st) {
   return s.str();
 }
 
+// Who is here: one entry per participant, "name(client_id)" with its role and held handles.
+std::string presence_line(const pb::Presence& p) {
+  std::ostringstream s;
+  s << "presence version=" << p.version() << " participants=" << p.participants_size();
+  for (const auto& who : p.participants()) {
+    s << " " << (who.display_name().empty() ? "anonymous" : who.display_name()) << "("
+      << who.client_id() << (who.editor() ? ",editor" : ",viewer")
+      << (who.watching() ? ",watching" : "");
+    if (who.held_handles_size() > 0) {
+      s << ",holds=";
+      for (int i = 0; i < who.held_handles_size(); ++i)
+        s << (i ? "+" : "") << who.held_handles(i);
+    }
+    s << ")";
+  }
+  return s.str();
+}
+
+std::string step_line(const pb::HistoryStep& st) {
+  std::string kind = pb::StepKind_Name(st.kind());
+  kind = kind.substr(kind.rfind("STEP_KIND_") == 0 ? 10 : 0);
+  std::transform(kind.begin(), kind.end(), kind.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::ostringstream s;
+  s << "step id=" << st.id() << " kind=" << kind << " version=" << st.version()
+    << " author=" << (st.author().empty() ? "anonymous" : st.author()) << " summary=\""
+    << st.summary() << "\"";
+  return s.str();
+}
+
+std::string timeline_line(const pb::Timeline& t) {
+  std::ostringstream s;
+  s << "timeline version=" << t.version() << " keys=" << t.keys_size() << " easing="
+    << (t.easing() == pb::EASING_SMOOTHSTEP ? "smoothstep" : "linear");
+  if (t.keys_size() > 0) s << " end_s=" << shortest(t.keys(t.keys_size() - 1).time_s());
+  return s.str();
+}
+
 }  // namespace
 
 Command add_watch_command(CLI::App& app, const GlobalOptions& global) {
@@ -69,7 +108,8 @@ Command add_watch_command(CLI::App& app, const GlobalOptions& global) {
   auto* cmd = app.add_subcommand(
       "watch", "print the frames and state changes of a live session (needs --server)");
   cmd->add_option("SESSION", opts->session, "sessions/ID or ID")->required();
-  cmd->add_option("--count", opts->count, "stop after N events (default: until the session ends)");
+  cmd->add_option("--count", opts->count,
+                  "stop after N printed events (lines) (default: until the session ends)");
   cmd->add_option("--for", opts->duration, "stop after S seconds");
   cmd->add_option("--encoding", opts->encoding,
                   "frame buffers: float32 (exact), quantized (16-bit positions, 8-bit "
@@ -159,7 +199,16 @@ Command add_watch_command(CLI::App& app, const GlobalOptions& global) {
             std::cout << "deleted " << ev.deleted() << std::endl;
             deleted = true;
             break;
-          default: break;
+          case pb::SessionEvent::kPresence:
+            std::cout << presence_line(ev.presence()) << std::endl;
+            break;
+          case pb::SessionEvent::kStep:
+            std::cout << step_line(ev.step()) << std::endl;
+            break;
+          case pb::SessionEvent::kTimeline:
+            std::cout << timeline_line(ev.timeline()) << std::endl;
+            break;
+          default: continue;  // an event this client does not know: neither printed nor counted
         }
         ++events;
         if (!bad_frame.empty() || deleted || (o.count > 0 && events >= o.count)) {

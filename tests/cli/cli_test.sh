@@ -362,6 +362,11 @@ remote)
     || fail "watch printed no frame line"
   grep -q "^state $SESSION " "$TMP/watch" || fail "watch printed no state line"
   grep -Eq ' encoding=float32 bytes=[0-9]+$' "$TMP/watch" || fail "watch: no float32 frame"
+  # On joining: the state once, then who is here; the move shows as a history step.
+  [ "$(sed -n 2p "$TMP/watch" | cut -d' ' -f1)" = presence ] \
+    || fail "watch: the second line is not the presence line (the join state twice?)"
+  grep -Eq '^step id=[0-9]+ kind=move version=[0-9]+ author=[^ ]+ summary="' "$TMP/watch" \
+    || fail "watch printed no step line for the move"
   for _ in $(seq 1 100); do
     grep -q '^frame seq=1 ' "$TMP/watch-meshopt" && break
     kill -0 "$WATCH_MESHOPT_PID" 2>/dev/null || break  # exited: a frame did not decode

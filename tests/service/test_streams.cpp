@@ -166,6 +166,44 @@ TEST(ServiceStreams, TwoWatchersSeeTheSameFrames) {
   EXPECT_TRUE(a.status.ok()) << a.status.error_message();
 }
 
+// A watcher is told the state once on joining (then who is here); the watchers already there
+// get the new observer count.
+TEST(ServiceStreams, AJoiningWatcherGetsTheStateOnce) {
+  TestServer t;
+  const pb::Session s = constrained_cactus(t);
+  pb::WatchSessionRequest wreq;
+  wreq.set_name(s.name());
+  grpc::ClientContext first_ctx;
+  auto first = t.stub->WatchSession(&first_ctx, wreq);
+  pb::SessionEvent ev;
+  ASSERT_TRUE(first->Read(&ev));
+  ASSERT_TRUE(ev.has_state());
+  EXPECT_EQ(ev.state().observers(), 1);
+  ASSERT_TRUE(first->Read(&ev));
+  EXPECT_TRUE(ev.has_presence());
+
+  grpc::ClientContext second_ctx;
+  auto second = t.stub->WatchSession(&second_ctx, wreq);
+  pb::Frame f;
+  ASSERT_TRUE(second->Read(&ev));
+  ASSERT_TRUE(ev.has_state());
+  EXPECT_EQ(ev.state().observers(), 2);
+  ASSERT_TRUE(t.update(s.name(), 1, {translation(0, 0, 0.01)}, &f).ok());
+  int states = 0;
+  while (second->Read(&ev) && !ev.has_frame()) states += ev.has_state();
+  EXPECT_TRUE(ev.has_frame());
+  EXPECT_EQ(states, 0) << "the newcomer was sent its join state again";
+
+  bool saw_two = false;
+  while (first->Read(&ev) && !ev.has_frame())
+    if (ev.has_state()) saw_two = saw_two || ev.state().observers() == 2;
+  EXPECT_TRUE(saw_two) << "the first watcher did not see the second one arrive";
+  first_ctx.TryCancel();
+  second_ctx.TryCancel();
+  first->Finish();
+  second->Finish();
+}
+
 TEST(ServiceStreams, SlowWatcherSkipsToTheNewestFrame) {
   TestServer t;
   const pb::Session s = constrained_cactus(t);

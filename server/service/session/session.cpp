@@ -921,20 +921,22 @@ pb::Session Session::describe() const {
   return out;
 }
 
-void Session::broadcast(std::shared_ptr<const pb::SessionEvent> event) {
+void Session::broadcast(std::shared_ptr<const pb::SessionEvent> event,
+                        const EventSink* except) {
   std::vector<std::shared_ptr<EventSink>> sinks;
   {
     std::lock_guard lock(mutex_);
     sinks = watchers_;
   }
-  for (auto& s : sinks) s->push(event);
+  for (auto& s : sinks)
+    if (s.get() != except) s->push(event);
 }
 
-void Session::broadcast_state() {
+void Session::broadcast_state(const EventSink* except) {
   if (observers() == 0) return;
   auto event = std::make_shared<pb::SessionEvent>();
   *event->mutable_state() = describe();
-  broadcast(std::move(event));
+  broadcast(std::move(event), except);
 }
 
 // ---- history and snapshots ----
@@ -1314,7 +1316,8 @@ void Session::add_watcher(std::shared_ptr<EventSink> sink) {
     *event->mutable_timeline() = std::move(t);
     sink->push(std::move(event));
   }
-  broadcast_state();  // the others see the new observer count
+  // The others see the new observer count; the newcomer's own first event already has it.
+  broadcast_state(sink.get());
 }
 
 void Session::remove_watcher(const EventSink* sink) {

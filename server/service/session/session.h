@@ -320,8 +320,10 @@ class Session : public std::enable_shared_from_this<Session> {
   void describe_locked(pb::Session* out) const;
   // A state change under the lock: new version, stale frame dropped, `out` describes it.
   void changed_locked(pb::Session* out);
-  void broadcast(std::shared_ptr<const pb::SessionEvent> event);
-  void broadcast_state();
+  // To every watcher but `except` (one that was just told the same thing).
+  void broadcast(std::shared_ptr<const pb::SessionEvent> event,
+                 const EventSink* except = nullptr);
+  void broadcast_state(const EventSink* except = nullptr);
   std::shared_ptr<const ConstraintSet> constraint_set_for(const Constraints& c,
                                                           const std::string& key);
   // Validates a proto β and resolves its local entries (automatic: value not yet picked).
