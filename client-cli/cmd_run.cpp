@@ -229,7 +229,7 @@ Command run_job(std::shared_ptr<RunOptions> opts, const GlobalOptions& global) {
           for (double b : job.betas) {
             auto line = [&](const TransformEntry& t) {
               std::cout << "[" << ++n << "/" << total << "] " << shown(m.name) << " "
-                        << shown(c.name) << " " << shown(t.name) << " beta=" << beta_tag(b)
+                        << shown(c.name) << " " << shown(t.name) << " \u03b2=" << beta_tag(b)
                         << "\n";
             };
             if (stills)

@@ -4,7 +4,10 @@
 
 #include <google/protobuf/util/json_util.h>
 
+#include <cmath>
 #include <ctime>
+#include <numbers>
+#include <sstream>
 
 namespace hdeform::cli {
 
@@ -27,6 +30,50 @@ std::string transform_json(const pb::HandleTransform& t) {
   o.preserve_proto_field_names = true;
   if (!google::protobuf::util::MessageToJsonString(t, &out, o).ok()) return "{}";
   return out;
+}
+
+void put_vec(std::ostream& out, const pb::Vec3& v) {
+  out << g6(v.x()) << ' ' << g6(v.y()) << ' ' << g6(v.z());
+}
+
+// For people, as the command line takes it: "translate 0 0.05 0.02, rotate 25° about 1 0 0,
+// scale 1, pivot centroid", 6 significant digits (--json has the exact numbers). A stream,
+// not string concatenation: GCC 12 reports a false -Wrestrict on long + chains.
+std::string transform_text(const pb::HandleTransform& t) {
+  std::ostringstream s;
+  if (t.matrix_size() == 16) {
+    s << "matrix";
+    for (double v : t.matrix()) s << ' ' << g6(v);
+  } else {
+    s << "translate ";
+    put_vec(s, t.translation());
+    const auto& q = t.rotation();
+    const double n = std::sqrt(q.w() * q.w() + q.x() * q.x() + q.y() * q.y() + q.z() * q.z());
+    const double sin_half = std::sqrt(q.x() * q.x() + q.y() * q.y() + q.z() * q.z());
+    if (t.has_rotation() && n > 0 && sin_half > 1e-12 * n) {
+      const double deg = 2 * std::atan2(sin_half, q.w()) * 180 / std::numbers::pi;
+      s << ", rotate " << g6(deg) << "\u00b0 about " << g6(q.x() / sin_half) << ' '
+        << g6(q.y() / sin_half) << ' ' << g6(q.z() / sin_half);
+    } else {
+      s << ", no rotation";
+    }
+    s << ", scale ";
+    switch (t.scale_case()) {
+      case pb::HandleTransform::kUniformScale: s << g6(t.uniform_scale()); break;
+      case pb::HandleTransform::kAxisScale: put_vec(s, t.axis_scale()); break;
+      case pb::HandleTransform::kStretch:
+        s << "stretch";
+        for (double v : t.stretch().m()) s << ' ' << g6(v);
+        break;
+      default: s << '1';
+    }
+  }
+  s << ", pivot ";
+  if (t.has_pivot())
+    put_vec(s, t.pivot());
+  else
+    s << "centroid";
+  return s.str();
 }
 
 const char* units_name(pb::BetaUnits u) { return u == pb::BETA_UNITS_RAW ? "raw" : "area"; }
@@ -66,7 +113,7 @@ void print_session(std::ostream& out, const pb::Session& s) {
     out << "constraints: none\n";
   out << "beta:        " << beta_text(s.beta()) << "\n";
   for (int i = 0; i < s.transforms_size(); ++i) {
-    out << "handle " << i << ":    " << transform_json(s.transforms(i)) << "\n";
+    out << "handle " << i << ":    " << transform_text(s.transforms(i)) << "\n";
   }
   out << "observers:   " << s.observers() << "\n"
       << "created:     " << utc_time(s.create_time_unix_ms()) << "\n"

@@ -594,7 +594,10 @@ PY
   cat get
   grep -qx "name: *$SESSION" get || fail "sessions get: name"
   grep -qx "constraints: 446 fixed, 1 handle(s)" get || fail "sessions get: constraints"
-  grep -q '^handle 0: .*"translation"' get || fail "sessions get: the handle's transform"
+  # the move (--translate 0,0.05,0.02 --rotate x,25) as the command line takes it: no JSON,
+  # no 17-digit noise
+  grep -Eq '^handle 0: +translate 0 0.05 0.02, rotate 25° about 1 0 0, scale 1, pivot centroid$' get \
+    || fail "sessions get: the handle's transform"
   "$HDEFORM" "${R[@]}" --token "$VIEW" sessions get "${SESSION#sessions/}" --json >get.json \
     || fail "sessions get ID --json exited $?"
   "$PY" -c 'import json,sys; s=json.load(open("get.json")); assert s["name"]==sys.argv[1] and s["beta"]["units"]=="area" and s["triangles"]==10518, s' \
