@@ -10,7 +10,7 @@
 // The mesh is an open tube of rings × around vertices (default 84,000), written as OFF and
 // uploaded through the page; the bottom tenth is fixed, the top tenth is the handle.
 import { spawn } from "node:child_process";
-import { mkdtempSync, rmSync, writeFileSync } from "node:fs";
+import { existsSync, mkdtempSync, rmSync, writeFileSync } from "node:fs";
 import { createRequire } from "node:module";
 import { tmpdir } from "node:os";
 import { join, resolve } from "node:path";
@@ -50,7 +50,13 @@ const meshPath = join(work, `tube-${rings * around}.off`);
 writeFileSync(meshPath, lines.join("\n") + "\n");
 
 // ---- server and browser ---------------------------------------------------------------------
-const server = spawn(serverBin, ["--port", "0", "--http-port", "0", "--no-state", "--web-root", join(viewerDir, "dist")], {
+// The page with its test hook (window.hdeform): `npm run build:test` → VIEWER/dist-test.
+const webRoot = resolve(args["web-root"] ?? join(viewerDir, "dist-test"));
+if (!existsSync(join(webRoot, "index.html"))) {
+  console.error(`chromium_drag: no ${webRoot}/index.html: run \`npm run build:test\` in ${viewerDir} (or pass --web-root)`);
+  process.exit(2);
+}
+const server = spawn(serverBin, ["--port", "0", "--http-port", "0", "--no-state", "--web-root", webRoot], {
   stdio: ["ignore", "pipe", "pipe"],
 });
 const httpPort = await new Promise((ok, fail) => {

@@ -2,6 +2,9 @@
 // driven by playwright-core; no browser downloads) against a real hdeform-server.
 //
 //   node e2e.mjs --server PATH/hdeform-server --viewer PATH/web-viewer --artifacts DIR
+//     [--web-root DIR]        the page under test: a `vite build --mode test` (window.hdeform);
+//                             default web-viewer/dist-test (npm run build:test)
+//     [--prod-web-root DIR]   the production build (no hook), default web-viewer/dist
 //
 // Flow: open the cactus from the library; select a fixed region (bottom) and a handle (top)
 // through the page's test hook (window.hdeform.selectBox — the same assign() path the
@@ -40,6 +43,7 @@ import { severalEditorsChecks } from "./several_editors_checks.mjs";
 import { historyChecks } from "./history_checks.mjs";
 import { weightsChecks } from "./weights_checks.mjs";
 import { timelineChecks } from "./timeline_checks.mjs";
+import { finishedEditorChecks } from "./finished_editor_checks.mjs";
 
 /**
  * A flat 7×5 grid (x = 0.5 i, y = 0.5 j) as GLB in two vertex blocks that both carry the
@@ -98,6 +102,10 @@ const serverBin = args.server ?? process.env.HDEFORM_SERVER;
 const viewerDir = resolve(args.viewer ?? process.env.HDEFORM_VIEWER ?? "web-viewer");
 const artifacts = resolve(args.artifacts ?? process.env.HDEFORM_ARTIFACTS ?? "test-artifacts");
 const chromiumPath = args.chromium ?? process.env.HDEFORM_CHROMIUM ?? "/usr/bin/chromium";
+// The pages under test need the test hook: the tests' build. The production build is checked
+// for its absence (finished_editor_checks.mjs).
+const webRoot = resolve(args["web-root"] ?? join(viewerDir, "dist-test"));
+const prodWebRoot = resolve(args["prod-web-root"] ?? join(viewerDir, "dist"));
 if (!serverBin) throw new Error("--server PATH/hdeform-server is required");
 mkdirSync(artifacts, { recursive: true });
 
@@ -121,12 +129,12 @@ class StopHere {}
 // Durable sessions go to a temporary --state-dir (never the user's ~/.local/share/hdeform);
 // the restart in step 10 reuses it, and the ports.
 const stateDir = mkdtempSync(join(tmpdir(), "hdeform-e2e-state-"));
-function startServer({ grpcPort = 0, httpPort = 0, tag = "server" } = {}) {
+function startServer({ grpcPort = 0, httpPort = 0, tag = "server", root = webRoot, durable = true } = {}) {
   const extra = process.env.HDEFORM_SERVER_ARGS ? process.env.HDEFORM_SERVER_ARGS.split(" ").filter(Boolean) : [];
   const proc = spawn(
     serverBin,
     // --web-root: the viewer under test (by default a server serves its own source tree's).
-    ["--port", String(grpcPort), "--http-port", String(httpPort), "--state-dir", stateDir, "--web-root", join(viewerDir, "dist"), ...extra],
+    ["--port", String(grpcPort), "--http-port", String(httpPort), ...(durable ? ["--state-dir", stateDir] : ["--no-state"]), "--web-root", root, ...extra],
     { stdio: ["ignore", "pipe", "pipe"] },
   );
   const output = [];
@@ -314,9 +322,9 @@ try {
   const helpers = { context, base, log, check, sleep, shot, watchPage, waitLoaded, waitIdle, positions, maxDiff, artifacts, requireViewer: require };
   // `--only history` runs just the history checks (history_checks.mjs), `--only weights` just
   // the weight preview's (weights_checks.mjs), `--only timeline` the timeline strip's
-  // (timeline_checks.mjs).
+  // (timeline_checks.mjs), `--only finished` issue 37's (finished_editor_checks.mjs).
   const only = args.only;
-  if (only !== undefined && !["editor", "history", "weights", "timeline"].includes(only)) throw new Error(`--only ${only}: one of editor, history, weights, timeline`);
+  if (only !== undefined && !["editor", "history", "weights", "timeline", "finished"].includes(only)) throw new Error(`--only ${only}: one of editor, history, weights, timeline, finished`);
   if (only === undefined || only === "editor") {
     await editorChecks(helpers);
     await severalEditorsChecks(helpers);
@@ -324,6 +332,16 @@ try {
   if (only === undefined || only === "editor" || only === "history") await historyChecks(helpers);
   if (only === undefined || only === "editor" || only === "weights") await weightsChecks(helpers);
   if (only === undefined || only === "editor" || only === "timeline") await timelineChecks(helpers);
+  if (only === undefined || only === "editor" || only === "finished") {
+    // The production build, served by a server of its own (in-memory sessions).
+    const prodServer = startServer({ tag: "server-prod", root: prodWebRoot, durable: false });
+    try {
+      const prodBase = `http://127.0.0.1:${(await prodServer.port).http}/`;
+      await finishedEditorChecks({ ...helpers, prodBase, prodDist: prodWebRoot, testDist: webRoot });
+    } finally {
+      prodServer.proc.kill("SIGTERM");
+    }
+  }
   if (only !== undefined) throw new StopHere();
 
   // 1. Open the cactus from the library.

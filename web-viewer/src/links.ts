@@ -70,3 +70,14 @@ export function showEditorLink(sessionName: string): void {
   url.hash = tokenFragment(tokens().edit, tokens().view);
   history.replaceState(null, "", url);
 }
+
+/**
+ * The address bar becomes this session's watch link (the token the page holds is the view
+ * token), so a reload opens it watch-only at once and the address no longer says `edit=`.
+ */
+export function showWatchLink(sessionName: string): void {
+  const url = new URL(window.location.href);
+  url.search = linkQuery(sessionName, true, window.location.search).toString();
+  url.hash = tokenFragment("", tokens().view);
+  history.replaceState(null, "", url);
+}

@@ -164,7 +164,9 @@ requestAnimationFrame(frame);
 state.setMode("orbit");
 if (link.session) void loader.openByName(link.session, link.edit, link.view);
 
-installTestHook(app, {
+// window.hdeform (state, tokens, any call with the page's token) is for the browser tests only:
+// built into `vite build --mode test` bundles; production ones leave the hook's code out.
+if (import.meta.env.MODE === "test") installTestHook(app, {
   sync,
   frameApply,
   display,

@@ -6,7 +6,8 @@ import { accessError } from "./access_error";
 import type { App } from "./app";
 import { $ } from "./dom";
 import { BetaUnits, MeshFormat, type Session } from "./gen/hdeform/v1/deform_pb";
-import { showEditorLink } from "./links";
+import { showEditorLink, showWatchLink } from "./links";
+import { tokenRole } from "./token_role";
 import type { Sync } from "./sync/sync";
 import { isIdentity } from "./transforms";
 import { parseGlb } from "./viewport/glb";
@@ -27,6 +28,7 @@ export class SessionLoader {
     // keeps the link's (GetSession never returns them).
     if (s.editToken || s.viewToken) setTokens(s.editToken, s.viewToken);
     state.labelsDirty = false;
+    banner.clear("no-mesh");
     status.set(`loading ${s.meshName || s.name}…`);
     const base = await parseGlb(await fetchMesh(client, s.name, true, MeshFormat.GLB));
     const diag = new THREE.Box3().setFromArray(base.positions).getSize(new THREE.Vector3()).length() || 1;
@@ -84,7 +86,20 @@ export class SessionLoader {
     try {
       setRoutingSession(name);
       setTokens(edit, view);
-      const s = await this.app.client.getSession({ name });
+      const { client, state, banner } = this.app;
+      // A view token pasted as `#edit=` opens the session (it reads) but every edit would be
+      // refused: ask what the token may do (in parallel with GetSession) and watch if it reads only.
+      const role = edit && !state.watchOnly ? tokenRole(client, name) : Promise.resolve("unknown");
+      const s = await client.getSession({ name });
+      if ((await role) === "view") {
+        setTokens("", edit); // it opened the session, so it is the view token
+        state.becomeWatcher();
+        showWatchLink(name);
+        banner.notice(
+          "This link carries the session's view token, not its edit token: opened watch-only. Ask for its Share link to edit.",
+          "access",
+        );
+      }
       await this.load(s);
     } catch (err) {
       this.app.banner.show(`Could not open ${name}: ${accessError(err, name)}`, "open");

@@ -47,6 +47,8 @@ export interface StateEvents {
   pose: number;
   /** The handle-weight preview was turned on or off. */
   weightsToggle: boolean;
+  /** The page became watch-only (its link's token turned out to be the view token). */
+  access: void;
 }
 
 export class SessionState extends Emitter<StateEvents> {
@@ -74,8 +76,24 @@ export class SessionState extends Emitter<StateEvents> {
   /** The field shown while the preview is on (null: not yet answered, or none). */
   weights: HandleWeightField | null = null;
 
-  constructor(readonly watchOnly: boolean) {
+  private watching: boolean;
+
+  constructor(watchOnly: boolean) {
     super();
+    this.watching = watchOnly;
+  }
+
+  /** No editing: the page holds no edit token (or was asked to watch). */
+  get watchOnly(): boolean {
+    return this.watching;
+  }
+
+  /** From now on watch-only (never back: a page gets no new token). */
+  becomeWatcher(): void {
+    if (this.watching) return;
+    this.watching = true;
+    this.emit("access", undefined);
+    this.setMode("orbit");
   }
 
   /** The newest version seen: of the session, or of a frame (handle moves bump it too). */

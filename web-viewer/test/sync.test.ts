@@ -22,7 +22,7 @@ function setup(window = 1, format?: SyncOptions["format"]) {
     format,
     timing: FAST,
   });
-  const events: { [K in keyof SyncEvents]: SyncEvents[K][] } = { link: [], frame: [], skippedFrame: [], state: [], error: [], clearError: [], revert: [], presence: [], step: [], timeline: [] };
+  const events: { [K in keyof SyncEvents]: SyncEvents[K][] } = { link: [], frame: [], skippedFrame: [], state: [], error: [], clearError: [], revert: [], presence: [], step: [], timeline: [], opened: [] };
   for (const k of Object.keys(events) as (keyof SyncEvents)[]) sync.on(k, (p) => (events[k] as unknown[]).push(p));
   sync.open("sessions/s");
   opened.push(sync);
@@ -288,6 +288,11 @@ describe("sync, connection", () => {
     await settle();
     assert.equal(events.frame.length, 0);
     assert.equal(sync.busy, false);
+  });
+  it("announces each switch of session (the page forgets the old one's people)", () => {
+    const { sync, events } = setup();
+    sync.open("sessions/other");
+    assert.deepEqual(events.opened, ["sessions/s", "sessions/other"]);
   });
 });
 

@@ -39,8 +39,21 @@ export function setupEditors(app: App, sync: Sync): Editors {
     state.emit("handles", undefined); // the gizmo of a held handle does not start drags
     for (const l of listeners) l();
   };
-  const lease = new HandleLease(client, () => identity.participant(), adopt);
+  // A late GrabHandles / ReleaseHandles answer of the previous session must not list its people.
+  const lease = new HandleLease(client, () => identity.participant(), (p, name) => {
+    if (name === sync.sessionName) adopt(p);
+  });
   sync.on("presence", adopt);
+  // Another session: its people come with its own presence (whose versions may be lower than
+  // the old session's, so the model must forget that one's too).
+  sync.on("opened", () => {
+    void lease.release();
+    presence.clear();
+    state.heldColours = new Map();
+    state.emit("colours", undefined);
+    state.emit("handles", undefined);
+    for (const l of listeners) l();
+  });
 
   // Another editor's frame: it names every handle's transform; move the gizmos of the handles
   // this page is not dragging.

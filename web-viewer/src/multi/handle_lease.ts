@@ -24,7 +24,8 @@ export class HandleLease {
   constructor(
     private readonly client: GrabClient,
     private readonly participant: () => MessageInitShape<typeof ParticipantSchema>,
-    private readonly presence: (p: Presence) => void,
+    /** A Presence from an answer, with the session it is of (answers may outlive a switch). */
+    private readonly presence: (p: Presence, name: string) => void,
   ) {}
 
   get holding(): number[] {
@@ -39,7 +40,7 @@ export class HandleLease {
       this.supported = true;
       this.name = name;
       this.held = handles;
-      if (res.presence) this.presence(res.presence);
+      if (res.presence) this.presence(res.presence, name);
       clearInterval(this.timer);
       this.timer = setInterval(() => void this.renew(), RENEW_MS);
       return { ok: true };
@@ -62,7 +63,7 @@ export class HandleLease {
     this.held = [];
     try {
       const res = await this.client.releaseHandles({ name, clientId: this.participant().clientId ?? "", handles: held });
-      if (res.presence) this.presence(res.presence);
+      if (res.presence) this.presence(res.presence, name);
     } catch {
       /* the lease runs out by itself */
     }

@@ -1,5 +1,5 @@
-// Errors: one banner, never a blank canvas. A kind ("rejected", "lost", …) lets the success
-// of the same kind of call clear only its own error.
+// Errors (and amber notices): one banner over the top of the canvas, never a blank canvas. A
+// kind ("rejected", "lost", …) lets the success of the same kind of call clear only its own error.
 import { describeError, isAbort } from "../api";
 import { $ } from "../dom";
 
@@ -20,11 +20,21 @@ export class Banner {
   }
 
   show(message: string, kind = "error"): void {
+    this.put(message, kind, false);
+    console.warn(`[hdeform] ${message}`);
+  }
+
+  /** Something to know rather than a failure (amber, not red): e.g. "open a mesh first". */
+  notice(message: string, kind: string): void {
+    this.put(message, kind, true);
+  }
+
+  private put(message: string, kind: string, notice: boolean): void {
     this.message = message;
     this.kind = kind;
     $("banner-text").textContent = message;
+    $("banner").classList.toggle("notice", notice);
     $("banner").classList.remove("hidden");
-    console.warn(`[hdeform] ${message}`);
   }
 
   /** Hides the banner; with `kind`, only when it shows an error of that kind. */
@@ -33,4 +43,9 @@ export class Banner {
     $("banner").classList.add("hidden");
     this.kind = "";
   }
+}
+
+/** A button that needs a mesh was pressed before one is open: say so (a page never acts silently). */
+export function openMeshFirst(banner: Banner): void {
+  banner.notice("Open a mesh first: pick one at the top and click Open, or Upload… your own.", "no-mesh");
 }

@@ -9,16 +9,23 @@ import { $ } from "../dom";
 import { BetaUnits } from "../gen/hdeform/v1/deform_pb";
 import { LatestWins } from "../latest_wins";
 import { reloadAfterConflict } from "../conflict";
+import { autoFit, faithful } from "./number_box";
 
 export function setupBetaPanel(app: App): void {
   const { state, banner, status, edits } = app;
   const input = $<HTMLInputElement>("beta");
   const num = $<HTMLInputElement>("beta-num");
   const raw = $<HTMLInputElement>("beta-raw");
+  const fit = autoFit(num, 4);
+  // The β to send: the slider's, or a typed one finer than the slider's 0.01 steps.
+  let wanted = state.beta.value;
   const show = () => {
     if (sender.busy) return; // the user is still sliding: keep their value
+    wanted = state.beta.value;
     input.value = String(state.beta.value);
-    if (document.activeElement !== num) num.value = String(Number(state.beta.value.toFixed(3)));
+    // The server's β as it is (another client may set 0.9875): not rounded to the slider's step.
+    if (document.activeElement !== num) num.value = faithful(state.beta.value);
+    fit();
     raw.checked = state.beta.units === BetaUnits.RAW;
   };
   const sender = new LatestWins<{ value: number; units: BetaUnits }>(async ({ value, units }) => {
@@ -42,17 +49,24 @@ export function setupBetaPanel(app: App): void {
     }
   });
   state.on("beta", show);
-  const current = () => ({ value: Number(input.value), units: raw.checked ? BetaUnits.RAW : BetaUnits.AREA });
+  const current = () => ({ value: wanted, units: raw.checked ? BetaUnits.RAW : BetaUnits.AREA });
   input.addEventListener("input", () => {
-    num.value = String(Number(Number(input.value).toFixed(3)));
+    wanted = Number(input.value);
+    num.value = faithful(Number(input.value));
+    fit();
     sender.send(current());
   });
-  input.addEventListener("change", () => sender.send(current()));
+  input.addEventListener("change", () => {
+    wanted = Number(input.value);
+    sender.send(current());
+  });
   num.addEventListener("change", () => {
     const v = Math.min(0.99, Math.max(0, Number(num.value)));
     if (!Number.isFinite(v)) return show();
+    wanted = v;
     input.value = String(v);
-    num.value = String(v);
+    num.value = faithful(v);
+    fit();
     sender.send(current());
   });
   raw.addEventListener("change", () => sender.send(current()));

@@ -7,16 +7,19 @@ import { drawLegend, fmt, scaleTop, type EnergyMapping } from "../colormap";
 import { $ } from "../dom";
 import { energyTop } from "../energy_scale";
 import type { MeshDisplay } from "../viewport/mesh_display";
+import { autoFit } from "./number_box";
 
 export function setupDisplayPanel({ state, edits }: App, display: MeshDisplay): void {
   const select = $<HTMLSelectElement>("energy-map");
   const trunc = $<HTMLInputElement>("energy-trunc");
   const legend = $<HTMLCanvasElement>("legend");
   let truncTouched = false; // the user typed a truncation value
+  const fitTrunc = autoFit(trunc, 5); // 3.57e-25 whole, not "3.57e-2"
   const readTruncation = () => (state.truncation = Number(trunc.value) || 0);
   const defaultTruncation = () => {
     if (!state.mesh?.energies) return;
     trunc.value = fmt(scaleTop("linear", state.mesh.energies, 0) / 2);
+    fitTrunc();
     readTruncation();
   };
   const showLegend = () => {

@@ -5,6 +5,7 @@ import { Code, ConnectError } from "@connectrpc/connect";
 import { describeError } from "../api";
 import { askingToDropKeys, dropsOthersKeys, reloadAfterConflict } from "../conflict";
 import { regionColourCss } from "../region_colours";
+import { openMeshFirst } from "./banner";
 import type { App } from "../app";
 import { $ } from "../dom";
 
@@ -39,7 +40,7 @@ export function setupRegionsPanel(app: App): { applyConstraints: () => Promise<v
   async function applyConstraints(): Promise<void> {
     const mesh = state.mesh;
     const name = state.sessionName;
-    if (!mesh || !name) return;
+    if (!mesh || !name) return openMeshFirst(banner);
     // Compact handle labels so the handles sent are 1..k without gaps.
     const used = new Set<number>();
     for (let v = 0; v < mesh.n; v++) if (mesh.labels[v] > 0) used.add(mesh.labels[v]);

@@ -10,7 +10,8 @@ export function setupSessionBar({ state, status }: App): void {
     if (!link) return;
     try {
       await navigator.clipboard.writeText(link);
-      status.set(`copied ${link}`);
+      // Never the link itself: the status line is on screen (shared screens, screenshots).
+      status.set(watch ? "Watch link copied (read-only)" : "Share link copied: it lets whoever opens it edit");
     } catch {
       window.prompt("Copy this link", link);
     }
@@ -28,8 +29,10 @@ export function setupSessionBar({ state, status }: App): void {
       status.set(`${mesh.n} vertices · ${mesh.m} triangles · version ${state.version} · ${session.observers} watching`);
     }
   });
-  if (state.watchOnly) {
-    document.body.classList.add("watch");
-    $("watch-badge").classList.remove("hidden");
-  }
+  const showAccess = () => {
+    document.body.classList.toggle("watch", state.watchOnly);
+    $("watch-badge").classList.toggle("hidden", !state.watchOnly);
+  };
+  state.on("access", showAccess);
+  showAccess();
 }

@@ -6,6 +6,7 @@ import { drawChart } from "../chart";
 import { $ } from "../dom";
 import { BetaUnits, type Measures } from "../gen/hdeform/v1/deform_pb";
 import { toProtoTransforms } from "../transforms";
+import { openMeshFirst } from "./banner";
 
 const BETAS = [0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 0.95];
 
@@ -22,7 +23,7 @@ export function setupSweepPanel({ state, client, banner }: App): { rows: () => n
   state.on("beta", draw);
   select.addEventListener("change", draw);
   button.addEventListener("click", async () => {
-    if (!state.sessionName) return;
+    if (!state.sessionName || !state.mesh) return openMeshFirst(banner);
     button.disabled = true;
     button.textContent = "Sweeping…";
     try {

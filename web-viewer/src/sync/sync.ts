@@ -67,6 +67,8 @@ export interface SyncEvents {
   step: HistoryStep;
   /** The session's timeline was set or cleared (WatchSession timeline events; on join too). */
   timeline: Timeline;
+  /** open(): the page switched to this session (what it knew of the previous one is stale). */
+  opened: string;
 }
 
 /** The pose an UpdateHandles sends, read when the request is built. */
@@ -183,6 +185,7 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
     this.confirmed = null;
     this.order.reset();
     this.wakeSent();
+    this.emit("opened", name);
   }
 
   get participant(): MessageInitShape<typeof ParticipantSchema> | undefined {
