@@ -25,7 +25,7 @@ access_log=${NGINX_ACCESS_LOG:-/dev/stdout}
 temp_dir=${NGINX_TEMP_DIR:-/var/lib/nginx}
 tls_cert=${NGINX_TLS_CERT:-}
 tls_key=${NGINX_TLS_KEY:-}
-if { [ -n "$tls_cert" ] && [ -z "$tls_key" ]; } || { [ -z "$tls_cert" ] && [ -n "$tls_key" ]; }; then
+if [ "${tls_cert:+set}" != "${tls_key:+set}" ]; then
   echo "render-nginx-conf: set both NGINX_TLS_CERT and NGINX_TLS_KEY, or neither" >&2
   exit 1
 fi
