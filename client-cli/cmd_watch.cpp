@@ -35,6 +35,7 @@ std::string frame_encoding_name(pb::FrameEncoding e) {
     case pb::FRAME_ENCODING_QUANTIZED: return "quantized";
     case pb::FRAME_ENCODING_MESHOPT: return "meshopt";
     case pb::FRAME_ENCODING_MESHOPT_DELTA: return "meshopt-delta";
+    case pb::FRAME_ENCODING_FLOAT64: return "float64";
     default: return std::to_string(static_cast<int>(e));
   }
 }

@@ -29,6 +29,13 @@ std::vector<float> float32s(const std::string& bytes) {
   return out;
 }
 
+// FLOAT64 buffers rounded to the float32 this struct holds (a watcher's view).
+std::vector<float> float64s(const std::string& bytes) {
+  std::vector<double> wide(bytes.size() / sizeof(double));
+  if (!wide.empty()) std::memcpy(wide.data(), bytes.data(), wide.size() * sizeof(double));
+  return std::vector<float>(wide.begin(), wide.end());
+}
+
 void dequantize(const unsigned char* vertices, std::size_t n, const v1::Box& box,
                 DecodedFrame& out) {
   const double lo[3] = {box.min().x(), box.min().y(), box.min().z()};
@@ -149,6 +156,18 @@ DecodedFrame decode_frame(const v1::Frame& frame, std::size_t n, std::size_t t) 
       if (!frame.normals().empty()) {
         expect_size(frame.normals(), 12 * n, "normals");
         out.normals = float32s(frame.normals());
+      }
+      if (!frame.energies().empty()) {
+        expect_size(frame.energies(), 4 * t, "energies");
+        out.energies = float32s(frame.energies());
+      }
+      return out;
+    case v1::FRAME_ENCODING_FLOAT64:
+      expect_size(frame.positions(), 24 * n, "positions");
+      out.positions = float64s(frame.positions());
+      if (!frame.normals().empty()) {
+        expect_size(frame.normals(), 24 * n, "normals");
+        out.normals = float64s(frame.normals());
       }
       if (!frame.energies().empty()) {
         expect_size(frame.energies(), 4 * t, "energies");

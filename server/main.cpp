@@ -1,5 +1,6 @@
 // hdeform-server: the gRPC service on TCP (and optionally the gRPC-Web/HTTP gateway with
 // the web viewer). Every flag also reads an HDEFORM_* environment variable.
+#include "common/ready_file.h"
 #include "engine/runtime/process_environment.h"
 #include "service/access/access.h"
 #include "service/rpc/server.h"
@@ -22,6 +23,7 @@
 #include <sys/resource.h>
 #include <string>
 #include <thread>
+#include <unistd.h>
 
 namespace {
 
@@ -65,6 +67,7 @@ std::string default_state_dir() {
 
 int main(int argc, char** argv) {
   hdeform::ensure_process_environment(argv);  // before any allocation or OpenMP loop
+  const int parent_at_start = getppid();
   CLI::App app{"hdeform-server: interactive harmonic surface deformation over gRPC"};
   app.footer(
       "Each option also reads the environment variable shown as Env: (e.g. HDEFORM_BIND, "
@@ -241,6 +244,13 @@ int main(int argc, char** argv) {
   app.add_option("--admin-token", admin_token,
                  "operator token: opens every session, lists all (prefer the variable)")
       ->envname("HDEFORM_ADMIN_TOKEN");
+  std::string ready_file;
+  app.add_option("--ready-file", ready_file,
+                 "once serving, write {\"grpc\": host:port, \"http\": host:port|null} here "
+                 "(atomically): how a parent learns the ports of --port 0");
+  bool with_parent = false;
+  app.add_flag("--exit-with-parent", with_parent,
+               "shut down (as on SIGTERM) when the process that started this one exits");
   bool gen_token = false;
   app.add_flag("--gen-token", gen_token,
                "print a new random operator token (256 bits, hex) and exit");
@@ -322,6 +332,14 @@ int main(int argc, char** argv) {
   sigaddset(&signals, SIGINT);
   sigaddset(&signals, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  if (with_parent) {
+    try {
+      hdeform::exit_with_parent(parent_at_start);
+    } catch (const std::exception& e) {
+      spdlog::critical("{}", e.what());
+      return 1;
+    }
+  }
 
   hdeform::service::ServerOptions options;
   options.listen_address = host_port(bind, port);
@@ -415,6 +433,18 @@ int main(int argc, char** argv) {
     std::cout << (tls_cert.empty() ? "hdeform-server http on " : "hdeform-server https on ")
               << host_port(bind, gateway->port())
               << (web_root.empty() ? " (API only)" : " (viewer: " + web_root + ")") << std::endl;
+  }
+
+  if (!ready_file.empty()) {
+    try {
+      hdeform::write_ready_file(ready_file, host_port(bind, server->port()),
+                                gateway ? host_port(bind, gateway->port()) : "");
+    } catch (const std::exception& e) {
+      spdlog::critical("{}", e.what());
+      if (gateway) gateway->stop();
+      server->shutdown();
+      return 1;
+    }
   }
 
   int sig = 0;

@@ -15,9 +15,11 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <random>
 #include <set>
+#include <sstream>
 #include <thread>
 
 namespace hdeform::testing {
@@ -435,6 +437,84 @@ TEST(FrameEncodingService, UpdateHandlesAnswersInTheEncodingAskedAndDecodesToThe
   EXPECT_EQ(f.sequence(), 4);
   EXPECT_TRUE(f.has_measures());
   EXPECT_GT(f.version(), exact.version());
+}
+
+// FLOAT64: the solve's own doubles, checked against GetMesh's OBJ (%.17g, an independent
+// path to the same solve; the cactus is an OBJ, so base order is engine order).
+TEST(FrameEncodingService, Float64FramesAreTheSolvesDoublesAndWatchersRefuseThem) {
+  TestServer t;
+  const auto s = constrained_cactus(t);
+  const std::size_t n = s.vertex_count(), tris = s.triangle_count();
+  pb::Frame f32, f64;
+  {
+    grpc::ClientContext ctx;
+    ASSERT_TRUE(t.stub->UpdateHandles(&ctx, move(s.name(), 1, pb::FRAME_ENCODING_FLOAT32), &f32).ok());
+  }
+  {
+    grpc::ClientContext ctx;
+    const auto st = t.stub->UpdateHandles(&ctx, move(s.name(), 2, pb::FRAME_ENCODING_FLOAT64), &f64);
+    ASSERT_TRUE(st.ok()) << st.error_message();
+  }
+  ASSERT_EQ(f64.encoding(), pb::FRAME_ENCODING_FLOAT64);
+  EXPECT_TRUE(f64.exact());
+  EXPECT_TRUE(f64.has_measures());
+  EXPECT_EQ(f64.sequence(), 2);
+  ASSERT_EQ(f64.positions().size(), 24 * n);
+  ASSERT_EQ(f64.normals().size(), 24 * n);
+  EXPECT_EQ(f64.energies(), f32.energies());  // energies stay float32
+  std::vector<double> p(3 * n), nrm(3 * n);
+  std::memcpy(p.data(), f64.positions().data(), f64.positions().size());
+  std::memcpy(nrm.data(), f64.normals().data(), f64.normals().size());
+  const auto d32 = decode_frame(f32, n, tris);
+  std::size_t not_float = 0;
+  for (std::size_t i = 0; i < 3 * n; ++i) {
+    EXPECT_EQ(static_cast<float>(p[i]), d32.positions[i]) << i;  // same solve, rounded
+    EXPECT_EQ(static_cast<float>(nrm[i]), d32.normals[i]) << i;
+    not_float += static_cast<double>(static_cast<float>(p[i])) != p[i];
+  }
+  EXPECT_GT(not_float, n);  // doubles, not widened floats
+
+  std::istringstream obj(t.deformed(s.name(), pb::MESH_FORMAT_OBJ));
+  std::string line;
+  std::size_t v = 0;
+  while (std::getline(obj, line)) {
+    if (line.rfind("v ", 0) != 0) continue;
+    std::istringstream xyz(line.substr(2));
+    double c[3];
+    xyz >> c[0] >> c[1] >> c[2];
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(c[k], p[3 * v + k]) << "vertex " << v;
+    ++v;
+  }
+  EXPECT_EQ(v, n);
+
+  // The CLI's decoder reads it (rounded to its float32 frame).
+  EXPECT_EQ(decode_frame(f64, n, tris).positions, d32.positions);
+
+  // Watchers share float32 frames: FLOAT64 there is refused, naming the stream.
+  grpc::ClientContext wctx;
+  pb::WatchSessionRequest wreq;
+  wreq.set_name(s.name());
+  wreq.mutable_format()->set_encoding(pb::FRAME_ENCODING_FLOAT64);
+  auto reader = t.stub->WatchSession(&wctx, wreq);
+  pb::SessionEvent ev;
+  EXPECT_FALSE(reader->Read(&ev));
+  const auto st = reader->Finish();
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("WatchSession: frame encoding FLOAT64"), std::string::npos)
+      << st.error_message();
+
+  // A Deform stream's frames come as doubles too.
+  grpc::ClientContext dctx;
+  auto stream = t.stub->Deform(&dctx);
+  auto req = deform_request(s.name(), 3, cactus_transform());
+  req.mutable_format()->set_encoding(pb::FRAME_ENCODING_FLOAT64);
+  ASSERT_TRUE(stream->Write(req));
+  pb::Frame fd;
+  ASSERT_TRUE(stream->Read(&fd));
+  EXPECT_EQ(fd.encoding(), pb::FRAME_ENCODING_FLOAT64);
+  EXPECT_EQ(fd.positions(), f64.positions());  // same transforms, same exact solve
+  stream->WritesDone();
+  EXPECT_TRUE(stream->Finish().ok());
 }
 
 TEST(FrameEncodingService, UnknownEncodingsAreInvalidArgumentsEverywhere) {

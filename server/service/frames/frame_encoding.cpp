@@ -33,15 +33,22 @@ void check_frame_format(const v1::FrameFormat& format, const char* where, bool i
   if (!v1::FrameEncoding_IsValid(format.encoding()))
     fail(grpc::StatusCode::INVALID_ARGUMENT,
          std::string(where) + ": unknown frame encoding " + std::to_string(format.encoding()) +
-             " (this server knows FLOAT32 = 0, QUANTIZED = 1, MESHOPT = 2, MESHOPT_DELTA = 3)");
+             " (this server knows FLOAT32 = 0, QUANTIZED = 1, MESHOPT = 2, MESHOPT_DELTA = 3, "
+             "FLOAT64 = 4)");
   if (format.encoding() == v1::FRAME_ENCODING_MESHOPT_DELTA && !in_order_stream)
     fail(grpc::StatusCode::INVALID_ARGUMENT,
          std::string(where) +
              ": frame encoding MESHOPT_DELTA needs a stream that carries every frame it encodes "
              "(WatchSession); use MESHOPT here");
+  if (format.encoding() == v1::FRAME_ENCODING_FLOAT64 && in_order_stream)
+    fail(grpc::StatusCode::INVALID_ARGUMENT,
+         std::string(where) +
+             ": frame encoding FLOAT64 is for a client's own frames (UpdateHandles, Deform); "
+             "watchers share float32 frames: use FLOAT32 here");
 }
 
 v1::FrameEncoding encoding_for(const v1::Frame& frame, const v1::FrameFormat& format) {
+  if (format.encoding() == v1::FRAME_ENCODING_FLOAT64) return v1::FRAME_ENCODING_FLOAT64;
   if (format.exact_as_float32() && frame.exact()) return v1::FRAME_ENCODING_FLOAT32;
   return format.encoding();
 }
@@ -231,7 +238,11 @@ std::string meshopt_encode(std::string_view vertices, std::size_t vertex_size) {
 bool encode_frame_to(const v1::Frame& frame, const v1::FrameFormat& format, bool omit_buffers,
                      v1::Frame* out) {
   const v1::FrameEncoding encoding = encoding_for(frame, format);
-  if (!omit_buffers && encoding == v1::FRAME_ENCODING_FLOAT32) return false;
+  // FLOAT64 buffers are made by the session (Session::Update::float64); the frame's own
+  // `encoding` says which it carries.
+  if (!omit_buffers &&
+      (encoding == v1::FRAME_ENCODING_FLOAT32 || encoding == v1::FRAME_ENCODING_FLOAT64))
+    return false;
   out->Clear();
   copy_frame_header(frame, out);
   if (omit_buffers || frame.superseded()) return true;

@@ -59,16 +59,23 @@ Eigen::MatrixXd FrameLayout::to_base(const Eigen::MatrixXd& engine_rows) const {
 
 int FrameLayout::triangle_count() const { return static_cast<int>(layout_.input_triangles.rows()); }
 
-std::string FrameLayout::pack_vertices(const Vertices& rows) const {
-  std::string out(sizeof(float) * 3 * static_cast<std::size_t>(input_vertices_), '\0');
-  auto* f = reinterpret_cast<float*>(out.data());
+template <typename Scalar>
+std::string FrameLayout::pack_rows(const Vertices& rows) const {
+  std::string out(sizeof(Scalar) * 3 * static_cast<std::size_t>(input_vertices_), '\0');
+  auto* f = reinterpret_cast<Scalar*>(out.data());
   for (int i = 0; i < input_vertices_; ++i) {
     const int e = input_vertex(i);
-    f[3 * i + 0] = static_cast<float>(rows(e, 0));
-    f[3 * i + 1] = static_cast<float>(rows(e, 1));
-    f[3 * i + 2] = static_cast<float>(rows(e, 2));
+    f[3 * i + 0] = static_cast<Scalar>(rows(e, 0));
+    f[3 * i + 1] = static_cast<Scalar>(rows(e, 1));
+    f[3 * i + 2] = static_cast<Scalar>(rows(e, 2));
   }
   return out;
+}
+
+std::string FrameLayout::pack_vertices(const Vertices& rows) const { return pack_rows<float>(rows); }
+
+std::string FrameLayout::pack_vertices64(const Vertices& rows) const {
+  return pack_rows<double>(rows);
 }
 
 std::string FrameLayout::pack_vertex_scalars(const Eigen::MatrixXd& rows, int col) const {

@@ -26,6 +26,8 @@ class FrameLayout {
 
   // float32 LE, 3 per base-GLB vertex, from engine-order rows.
   std::string pack_vertices(const Vertices& engine_rows) const;
+  // float64 LE, 3 per base-GLB vertex (FRAME_ENCODING_FLOAT64), from engine-order rows.
+  std::string pack_vertices64(const Vertices& engine_rows) const;
   // float32 LE, 1 per base-GLB vertex, from column `col` of engine-order rows.
   std::string pack_vertex_scalars(const Eigen::MatrixXd& engine_rows, int col) const;
   // float32 LE, 1 per base-GLB triangle.
@@ -58,6 +60,8 @@ class FrameLayout {
 
  private:
   int input_vertex(int i) const { return identity_ ? i : layout_.input_to_engine[i]; }
+  template <typename Scalar>
+  std::string pack_rows(const Vertices& engine_rows) const;
 
   LoadedMesh layout_;
   std::shared_ptr<const PreparedMesh> mesh_;

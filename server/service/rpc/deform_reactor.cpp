@@ -146,6 +146,7 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
             u.beta = request->has_beta() ? &request->beta() : nullptr;
             u.handles = &request->handles();
             u.client_id = request->client_id();
+            u.float64 = format.encoding() == v1::FRAME_ENCODING_FLOAT64;
             frame = session_->update(u);
             // Handle moves are saved as SessionStore::moved() says; a β change is an
             // accepted change like SetBeta: durable before its frame goes out.

@@ -361,6 +361,8 @@ grpc::ServerUnaryReactor* DeformService::UpdateHandles(grpc::CallbackServerConte
         u.client_id = request->client_id();
         u.sequenced = true;
         u.coalesce = request->coalesce();
+        u.float64 = request->format().encoding() == v1::FRAME_ENCODING_FLOAT64 &&
+                    !request->omit_buffers();
         if (*ticket && (*ticket)->superseded()) {
           *response = s.supersede(u);
           store_.moved(s);

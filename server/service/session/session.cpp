@@ -3,6 +3,7 @@
 #include "service/session/handle_update.h"
 
 #include "engine/deform/auto_beta.h"
+#include "service/frames/frame_encoding.h"
 #include "service/infra/service_error.h"
 #include "service/session/convert.h"
 
@@ -595,6 +596,16 @@ std::shared_ptr<pb::Frame> Session::update(const Update& given) {
     auto event = std::make_shared<pb::SessionEvent>();
     *event->mutable_frame() = *out;
     broadcast(std::move(event));
+  }
+  if (u.float64) {
+    auto out64 = std::make_shared<pb::Frame>();
+    copy_frame_header(*out, out64.get());
+    out64->set_encoding(pb::FRAME_ENCODING_FLOAT64);
+    out64->set_positions(mesh_->layout->pack_vertices64(frame->positions));
+    if (frame->normals.rows() == frame->positions.rows())
+      out64->set_normals(mesh_->layout->pack_vertices64(frame->normals));
+    out64->set_energies(out->energies());
+    return out64;
   }
   return out;
 }

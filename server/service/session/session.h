@@ -151,6 +151,9 @@ class Session : public std::enable_shared_from_this<Session> {
     // is stale: it commits no move (see Move::newer).
     bool sequenced = false;
     bool coalesce = false;
+    // The frame returned carries the solve's doubles (FRAME_ENCODING_FLOAT64); observers still
+    // get the float32 frame.
+    bool float64 = false;
   };
   // Solves, commits the transforms (bumping the version) and sends the frame to every
   // observer. Returns the frame. A stale update (Update::coalesce) moves nothing: it is
