@@ -18,6 +18,7 @@ namespace hdeform::detail {
 
 // glTF 2.0 enumerations: accessor.componentType, bufferView.target, primitive.mode.
 inline constexpr int kComponentByte = 5120;
+inline constexpr int kComponentUnsignedByte = 5121;
 inline constexpr int kComponentUnsignedShort = 5123;
 inline constexpr int kComponentUnsignedInt = 5125;
 inline constexpr int kComponentFloat = 5126;

@@ -13,7 +13,7 @@ namespace {
 
 constexpr std::size_t kMeshChunkBytes = 1u << 20;
 
-// A file streamed in ≤ 1 MiB chunks once it is produced (GetMesh, ExportAnimation).
+// A file streamed in ≤ 1 MiB chunks once it is produced (GetMesh, ExportAnimation, ExportRig).
 class ChunkWriter : public grpc::ServerWriteReactor<v1::MeshChunk> {
  public:
   void OnWriteDone(bool ok) override {
@@ -29,13 +29,15 @@ class ChunkWriter : public grpc::ServerWriteReactor<v1::MeshChunk> {
 
  protected:
   // Starts streaming `data` (once), or ends the call with `status` when it is not OK.
-  void produced(const grpc::Status& status, std::string data) {
+  // `report`: ExportRig's, on the first chunk.
+  void produced(const grpc::Status& status, std::string data, v1::RigReport report = {}) {
     if (!status.ok()) {
       Finish(status);
       return;
     }
     std::lock_guard lock(mutex_);
     data_ = std::move(data);
+    report_ = std::move(report);
     next_locked();
   }
 
@@ -46,7 +48,10 @@ class ChunkWriter : public grpc::ServerWriteReactor<v1::MeshChunk> {
       return;
     }
     chunk_.Clear();
-    if (offset_ == 0) chunk_.set_total_bytes(static_cast<std::int64_t>(data_.size()));
+    if (offset_ == 0) {
+      chunk_.set_total_bytes(static_cast<std::int64_t>(data_.size()));
+      if (report_.joints() > 0) chunk_.mutable_rig_report()->Swap(&report_);
+    }
     const std::size_t n = std::min(kMeshChunkBytes, data_.size() - offset_);
     chunk_.set_data(data_.substr(offset_, n));
     offset_ += n;
@@ -56,6 +61,7 @@ class ChunkWriter : public grpc::ServerWriteReactor<v1::MeshChunk> {
 
   std::mutex mutex_;
   std::string data_;
+  v1::RigReport report_;
   std::size_t offset_ = 0;
   v1::MeshChunk chunk_;
 };
@@ -124,7 +130,51 @@ class AnimationWriter final : public ChunkWriter {
   Session::AnimationPlan plan_;
 };
 
+// ExportRig: one pool task (the current pose and each key are one solve each, a timeline
+// has at most 256 keys) that stops before the next solve when the client leaves or its
+// deadline passes, the session is deleted or the server stops. Counted with the Sweeps.
+class RigWriter final : public ChunkWriter {
+ public:
+  RigWriter(DeformService* svc, grpc::CallbackServerContext* ctx, std::shared_ptr<Session> session,
+            v1::ExportRigRequest request)
+      : svc_(svc), ctx_(ctx), session_(std::move(session)), request_(std::move(request)) {
+    svc_->pool().submit([this] { run(); });
+  }
+
+ private:
+  void run() {
+    Session::RigExport rig;
+    const auto status = guarded(
+        [&] {
+          rig = session_->export_rig(request_, [this] {
+            if (ctx_->IsCancelled()) throw Cancelled("ExportRig cancelled by the client");
+            if (std::chrono::system_clock::now() > ctx_->deadline())
+              fail(grpc::StatusCode::DEADLINE_EXCEEDED, "ExportRig deadline exceeded");
+            if (svc_->stopping()) fail(grpc::StatusCode::UNAVAILABLE, "the server is stopping");
+            if (session_->closed())
+              fail(grpc::StatusCode::NOT_FOUND, session_->name() + " was deleted");
+          });
+        },
+        "ExportRig");
+    --svc_->running_sweeps();
+    release_freed_memory();
+    produced(status, std::move(rig.glb), std::move(rig.report));
+  }
+
+  DeformService* svc_;
+  grpc::CallbackServerContext* ctx_;
+  std::shared_ptr<Session> session_;
+  v1::ExportRigRequest request_;
+};
+
 }  // namespace
+
+grpc::ServerWriteReactor<v1::MeshChunk>* new_rig_writer(DeformService* svc,
+                                                        grpc::CallbackServerContext* ctx,
+                                                        std::shared_ptr<Session> session,
+                                                        const v1::ExportRigRequest& request) {
+  return new RigWriter(svc, ctx, std::move(session), request);
+}
 
 grpc::ServerWriteReactor<v1::MeshChunk>* new_mesh_writer(std::shared_ptr<Session> session,
                                                          const v1::GetMeshRequest& request) {

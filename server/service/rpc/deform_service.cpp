@@ -718,6 +718,25 @@ grpc::ServerWriteReactor<v1::MeshChunk>* DeformService::ExportAnimation(
   return new_animation_writer(this, ctx, std::move(session), std::move(plan));
 }
 
+grpc::ServerWriteReactor<v1::MeshChunk>* DeformService::ExportRig(
+    grpc::CallbackServerContext* ctx, const v1::ExportRigRequest* request) {
+  std::shared_ptr<Session> session;
+  const auto status = guarded(
+      [&] {
+        session = session_for(*ctx, request->name(), Access::kEdit, "ExportRig");
+        if (++running_sweeps_ > options_.request.max_concurrent_sweeps) {
+          --running_sweeps_;
+          fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
+               "too many sweeps and exports running (" +
+                   std::to_string(options_.request.max_concurrent_sweeps) +
+                   ", --max-sweeps); retry later");
+        }
+      },
+      "ExportRig");
+  if (!status.ok()) return failed_stream<v1::MeshChunk>(status);
+  return new_rig_writer(this, ctx, std::move(session), *request);
+}
+
 // Grabs run on the session's strand: they are ordered with SetConstraints, which renumbers
 // the handles and ends every grab.
 grpc::ServerUnaryReactor* DeformService::GrabHandles(grpc::CallbackServerContext* ctx,

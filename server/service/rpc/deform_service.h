@@ -121,6 +121,8 @@ class DeformService final : public v1::Deformation::CallbackService {
                                    v1::Keyframe* response) override;
   grpc::ServerWriteReactor<v1::MeshChunk>* ExportAnimation(
       grpc::CallbackServerContext* ctx, const v1::ExportAnimationRequest* request) override;
+  grpc::ServerWriteReactor<v1::MeshChunk>* ExportRig(
+      grpc::CallbackServerContext* ctx, const v1::ExportRigRequest* request) override;
   grpc::ServerUnaryReactor* RotateTokens(grpc::CallbackServerContext* ctx,
                                          const v1::RotateTokensRequest* request,
                                          v1::Session* response) override;

@@ -1,6 +1,6 @@
 // The streaming calls' reactors, one file each (DeformService creates them): the upload
 // of CreateSession, the Deform and WatchSession streams, and the chunked file writers of
-// GetMesh and ExportAnimation. Each deletes itself when its call is done.
+// GetMesh, ExportAnimation and ExportRig. Each deletes itself when its call is done.
 #pragma once
 
 #include "hdeform/v1/deform.grpc.pb.h"
@@ -34,5 +34,10 @@ grpc::ServerWriteReactor<v1::MeshChunk>* new_animation_writer(DeformService* svc
                                                               grpc::CallbackServerContext* ctx,
                                                               std::shared_ptr<Session> session,
                                                               Session::AnimationPlan plan);
+// ExportRig: the rig built on the pool (its report on the first chunk), then streamed.
+grpc::ServerWriteReactor<v1::MeshChunk>* new_rig_writer(DeformService* svc,
+                                                        grpc::CallbackServerContext* ctx,
+                                                        std::shared_ptr<Session> session,
+                                                        const v1::ExportRigRequest& request);
 
 }  // namespace hdeform::service

@@ -24,6 +24,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <functional>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -130,6 +131,14 @@ class Session : public std::enable_shared_from_this<Session> {
     std::size_t next = 0;
   };
   AnimationPlan animation_plan(const pb::ExportAnimationRequest& request) const;
+  // ExportRig (session_rig.cpp): the skinned GLB and its report. Solves the current pose and
+  // each key once (at their β); `keep_going` is called before each solve and may throw to stop.
+  struct RigExport {
+    std::string glb;
+    pb::RigReport report;
+  };
+  RigExport export_rig(const pb::ExportRigRequest& request,
+                       const std::function<void()>& keep_going) const;
   void animation_frame(AnimationPlan& plan) const;
   std::string animation_finish(AnimationPlan& plan) const;
 
