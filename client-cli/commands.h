@@ -13,6 +13,7 @@ namespace hdeform::cli {
 using Command = std::function<int()>;
 
 Command add_deform_command(CLI::App& app, const GlobalOptions& global);
+Command add_rig_command(CLI::App& app, const GlobalOptions& global);
 Command add_sweep_command(CLI::App& app, const GlobalOptions& global);
 Command add_run_command(CLI::App& app, const GlobalOptions& global);
 Command add_animate_command(CLI::App& app, const GlobalOptions& global);

@@ -564,6 +564,27 @@ std::size_t SessionClient::export_animation(const std::string& path,
   return bytes.size();
 }
 
+pb::RigReport SessionClient::export_rig(const std::string& path, const pb::ExportRigRequest& request,
+                                        std::size_t* size) {
+  pb::ExportRigRequest req = request;
+  req.set_name(name_);
+  std::string bytes;
+  pb::RigReport report;
+  call("ExportRig", [&](grpc::ClientContext& ctx) {
+    bytes.clear();
+    auto reader = conn_->stub().ExportRig(&ctx, req);
+    pb::MeshChunk chunk;
+    while (reader->Read(&chunk)) {
+      if (chunk.has_rig_report()) report = chunk.rig_report();
+      bytes += chunk.data();
+    }
+    return reader->Finish();
+  }, timeout(), "solving each pose and writing the rig");
+  write_file(path, bytes);
+  if (size) *size = bytes.size();
+  return report;
+}
+
 void SessionClient::remove() {
   pb::DeleteSessionRequest req;
   req.set_name(name_);

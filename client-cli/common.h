@@ -150,6 +150,9 @@ class SessionClient {
   pb::Timeline set_timeline(const pb::Timeline& timeline);
   // ExportAnimation into `path` (an animated GLB); returns the number of bytes.
   std::size_t export_animation(const std::string& path, const pb::ExportAnimationRequest& request);
+  // ExportRig into `path`; returns the report (the first chunk's) and the file's size.
+  pb::RigReport export_rig(const std::string& path, const pb::ExportRigRequest& request,
+                           std::size_t* bytes);
   void remove();
 
  private:

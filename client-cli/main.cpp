@@ -83,6 +83,7 @@ int main(int argc, char** argv) {
   reg(add_sweep_command);
   reg(add_run_command);
   reg(add_animate_command);
+  reg(add_rig_command);
   reg(add_watch_command);
   reg(add_list_command);
   reg(add_sessions_command);

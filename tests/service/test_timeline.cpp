@@ -407,3 +407,109 @@ TEST(Timeline, TravelsWithExportImportButNotInNamedSnapshots) {
 
 }  // namespace
 }  // namespace hdeform::testing
+
+namespace hdeform::testing {
+namespace {
+
+// ExportRig (docs/api.md "Rig export"): the report on the first chunk, the key TRS, limits
+// and bad inputs. The GLB itself is checked by tinygltf here and by the Khronos validator and
+// three.js in tests/browser/rig_glb.mjs.
+grpc::Status export_rig(Timeline& f, const pb::ExportRigRequest& request, std::string* glb,
+                        pb::RigReport* report, const std::string& token = "") {
+  auto ctx = as(token.empty() ? f.s.edit_token() : token);
+  pb::ExportRigRequest r = request;
+  r.set_name(f.s.name());
+  auto reader = f.t.bare_stub->ExportRig(ctx.get(), r);
+  pb::MeshChunk chunk;
+  glb->clear();
+  bool first = true;
+  while (reader->Read(&chunk)) {
+    EXPECT_EQ(chunk.has_rig_report(), first);
+    if (first && report) *report = chunk.rig_report();
+    first = false;
+    glb->append(chunk.data());
+  }
+  return reader->Finish();
+}
+
+TEST(RigExport, ReportsEveryPoseAndAnimatesTheKeysAboutTheBindPivots) {
+  Timeline f;
+  ASSERT_TRUE(f.set(three_keys()).ok());
+  std::string glb;
+  pb::RigReport report;
+  const auto st = export_rig(f, {}, &glb, &report);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_EQ(report.joints(), 3);
+  EXPECT_EQ(report.influences(), 4);
+  ASSERT_EQ(report.poses_size(), 4);  // current, then keys at 0, 1, 2 s
+  EXPECT_TRUE(report.poses(0).current());
+  EXPECT_EQ(report.poses(2).time_s(), 1.0);
+  EXPECT_LT(report.poses(1).max(), 1e-12);  // key 0 is the rest pose: LBS and solve agree
+  EXPECT_GT(report.poses(3).max(), report.poses(3).rms());
+  EXPECT_GT(report.bbox_diagonal(), 0);
+
+  const tinygltf::Model m = load(glb);
+  ASSERT_EQ(m.skins.size(), 1u);
+  EXPECT_EQ(m.skins[0].joints.size(), 3u);
+  ASSERT_EQ(m.animations.size(), 1u);
+  // Handle 0 at key 1 is a pure translation (0, 0, 0.5): its joint sits at bind + t, bind
+  // being the handle's pivot (here its rest centroid, Session.pivots).
+  const int joint0 = m.skins[0].joints[1];
+  int found = 0;
+  for (const auto& ch : m.animations[0].channels) {
+    if (ch.target_node != joint0 || ch.target_path != "translation") continue;
+    ++found;
+    const auto& sampler = m.animations[0].samplers[static_cast<std::size_t>(ch.sampler)];
+    const float* t = floats(m, sampler.output);
+    const auto& pivot = f.s.pivots(0);
+    EXPECT_NEAR(t[3 + 0], pivot.x(), 1e-6);
+    EXPECT_NEAR(t[3 + 1], pivot.y(), 1e-6);
+    EXPECT_NEAR(t[3 + 2], pivot.z() + 0.5, 1e-6);
+  }
+  EXPECT_EQ(found, 1);
+
+  pb::ExportRigRequest still;
+  still.set_skip_animation(true);
+  still.set_influences(8);
+  ASSERT_TRUE(export_rig(f, still, &glb, &report).ok());
+  EXPECT_EQ(report.poses_size(), 1);
+  EXPECT_EQ(report.influences(), 8);
+  EXPECT_TRUE(load(glb).animations.empty());
+}
+
+TEST(RigExport, BadInputsAndLimitsAreNamedAndTheServerGoesOn) {
+  service::ServerOptions options;
+  options.request.max_animation_bytes = 20'000;
+  Timeline f(options);
+  std::string glb;
+  pb::ExportRigRequest r;
+  r.set_influences(5);
+  expect_status(export_rig(f, r, &glb, nullptr), grpc::StatusCode::INVALID_ARGUMENT,
+                "ExportRig influences: 5 is not 4 or 8");
+  r.set_influences(4);
+  r.set_up(static_cast<pb::UpAxis>(7));
+  expect_status(export_rig(f, r, &glb, nullptr), grpc::StatusCode::INVALID_ARGUMENT,
+                "ExportRig up: unknown up axis 7");
+  r.set_up(pb::UP_AXIS_Z);
+  expect_status(export_rig(f, r, &glb, nullptr, f.s.view_token()),
+                grpc::StatusCode::PERMISSION_DENIED, "");
+  // A sheared handle has no glTF TRS.
+  pb::HandleTransform shear;
+  for (double v : {1.0, 0.2, 0.0, 0.2, 1.0, 0.0, 0.0, 0.0, 1.0}) shear.mutable_stretch()->add_m(v);
+  ASSERT_TRUE(f.update("", {0}, {shear}).ok());
+  expect_status(export_rig(f, r, &glb, nullptr), grpc::StatusCode::FAILED_PRECONDITION,
+                "handle 0 (the current pose) has a stretch that is not axis-aligned");
+  ASSERT_TRUE(f.update("", {0}, {moved(0, 0, 0.5)}).ok());
+  EXPECT_TRUE(export_rig(f, r, &glb, nullptr).ok());
+  // 169 vertices fit in 20 KB; 256 keys of two handles do not.
+  pb::Timeline many;
+  for (int k = 0; k < 256; ++k) *many.add_keys() = key(k, {moved(0, 0, 0), moved(0, 0, 0)});
+  ASSERT_TRUE(f.set(many).ok());
+  expect_status(export_rig(f, r, &glb, nullptr), grpc::StatusCode::RESOURCE_EXHAUSTED,
+                "(--max-animation-bytes)");
+  r.set_skip_animation(true);
+  EXPECT_TRUE(export_rig(f, r, &glb, nullptr).ok());
+}
+
+}  // namespace
+}  // namespace hdeform::testing

@@ -71,13 +71,23 @@ JointPose joint_pose(const HandleTransform& t, const Eigen::Vector3d& pivot,
                      const Eigen::Vector3d& bind) {
   JointPose out;
   const Eigen::Matrix3d& S = t.stretch;
-  out.axis_aligned = S(0, 1) == 0 && S(0, 2) == 0 && S(1, 2) == 0 && S(1, 0) == 0 &&
-                     S(2, 0) == 0 && S(2, 1) == 0;
+  const double off = std::max({std::abs(S(0, 1)), std::abs(S(0, 2)), std::abs(S(1, 2)),
+                               std::abs(S(1, 0)), std::abs(S(2, 0)), std::abs(S(2, 1))});
+  out.axis_aligned = off <= kAxisAlignedTolerance * S.diagonal().cwiseAbs().maxCoeff();
   out.rotation = t.rotation.normalized();
   out.scale = S.diagonal();
   // T(τ) R S T(−b) x = τ + R S (x − b) must equal p + R S (x − p) + t for every x.
   out.translation = pivot + t.translation + t.linear() * (bind - pivot);
   return out;
+}
+
+HandleTransform as_transform(const JointPose& pose, const Eigen::Vector3d& bind) {
+  HandleTransform t;
+  t.pivot = bind;
+  t.rotation = pose.rotation;
+  t.stretch = pose.scale.asDiagonal();
+  t.translation = pose.translation - bind;
+  return t;
 }
 
 Vertices skin_positions(const Vertices& V, const SkinWeights& w,

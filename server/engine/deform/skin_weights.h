@@ -54,9 +54,15 @@ struct JointPose {
   Eigen::Vector3d scale = Eigen::Vector3d::Ones();
   bool axis_aligned = true;
 };
-// `pivot`: the transform's resolved pivot p; `bind`: the joint's bind position b.
+// `pivot`: the transform's resolved pivot p; `bind`: the joint's bind position b. Off-diagonal
+// entries of S up to kAxisAlignedTolerance × its largest diagonal entry count as axis-aligned
+// and are dropped (a 4×4 matrix given to 6 digits, like the benchmark's .def files, leaves
+// ~1e-6 after its polar decomposition); what that costs shows in the LBS error of the pose.
+inline constexpr double kAxisAlignedTolerance = 1e-3;
 JointPose joint_pose(const HandleTransform& t, const Eigen::Vector3d& pivot,
                      const Eigen::Vector3d& bind);
+// The handle transform a joint's TRS stands for (pivot b): what engines play.
+HandleTransform as_transform(const JointPose& pose, const Eigen::Vector3d& bind);
 
 // The LBS surface: x'_v = Σ_s w_vs A_{joint vs} x_v, with A_0 the identity (the fixed root)
 // and A_{j+1} handle j's affine map x ↦ p_j + R_j S_j (x − p_j) + t_j. `V`: the rest positions

@@ -84,9 +84,13 @@ Session::RigExport Session::export_rig(const pb::ExportRigRequest& request,
   };
   // Each joint binds at the handle's pivot in the current pose.
   in.bind = pivots_of(transforms);
-  auto trs_of = [&](const std::vector<HandleTransform>& ts, const std::string& pose) {
+  // A pose's joints as glTF TRS, and the transforms those TRS stand for (what an engine plays
+  // and what the report measures).
+  auto trs_of = [&](const std::vector<HandleTransform>& ts, const std::string& pose,
+                    std::vector<HandleTransform>* played) {
     const std::vector<Eigen::Vector3d> p = pivots_of(ts);
     std::vector<JointTrs> out_trs(ts.size());
+    played->resize(ts.size());
     for (std::size_t j = 0; j < ts.size(); ++j) {
       const JointPose jp = joint_pose(ts[j], p[j], in.bind[j]);
       if (!jp.axis_aligned)
@@ -95,29 +99,32 @@ Session::RigExport Session::export_rig(const pb::ExportRigRequest& request,
                  ") has a stretch that is not axis-aligned; a glTF joint scales along its own "
                  "axes only: use a uniform or per-axis scale");
       out_trs[j] = {jp.translation, jp.rotation, jp.scale};
+      (*played)[j] = as_transform(jp, in.bind[j]);
     }
     return out_trs;
   };
-  // The exact solve of a pose against its LBS: the report's row.
-  auto measure = [&](const std::vector<HandleTransform>& ts, const SessionBeta& b,
+  // The exact solve of a pose against the LBS of what the joints play: the report's row.
+  auto measure = [&](const std::vector<HandleTransform>& ts,
+                     const std::vector<HandleTransform>& played, const SessionBeta& b,
                      pb::RigPoseError* row) {
     keep_going();
     const hdeform::Frame f =
         solve(*cs, ts, b, {.energies = false, .normals = false, .measures = false});
-    const SkinError e =
-        skin_error(skin_positions(in.V, w, ts, pivots_of(ts)), base_rows(layout, f.positions));
+    const SkinError e = skin_error(skin_positions(in.V, w, played, in.bind),
+                                   base_rows(layout, f.positions));
     row->set_max(diagonal > 0 ? e.max / diagonal : e.max);
     row->set_rms(diagonal > 0 ? e.rms / diagonal : e.rms);
   };
-  in.pose = trs_of(transforms, "the current pose");
+  std::vector<HandleTransform> played;
+  in.pose = trs_of(transforms, "the current pose", &played);
   auto* current = out.report.add_poses();
   current->set_current(true);
-  measure(transforms, beta, current);
+  measure(transforms, played, beta, current);
   for (std::size_t k = 0; k < keys.keys.size(); ++k) {
     const double t = keys.keys[k].time;
     const std::vector<HandleTransform> ts = keys.pose_at(t);
     in.key_times.push_back(t);
-    in.keys.push_back(trs_of(ts, "key " + std::to_string(k)));
+    in.keys.push_back(trs_of(ts, "key " + std::to_string(k), &played));
     SessionBeta b = beta;
     if (const auto key_beta = keys.beta_at(t)) {
       b = SessionBeta();
@@ -125,7 +132,7 @@ Session::RigExport Session::export_rig(const pb::ExportRigRequest& request,
     }
     auto* row = out.report.add_poses();
     row->set_time_s(t);
-    measure(ts, b, row);
+    measure(ts, played, b, row);
   }
   keep_going();
   out.glb = rig_glb(in);
