@@ -39,6 +39,9 @@ tests=(
   # its documented pip install (CTest python_pip_install): venv with pip and setuptools, and
   # wheel for pip's bdist_wheel (without it: "invalid command 'bdist_wheel'")
   python3-venv python3-wheel
+  # its type check (CTest python_mypy: mypy --strict), and its optional extras the tests
+  # exercise: SweepResult.plot / Frame.plot_measures (matplotlib), from_meshio / to_meshio
+  mypy python3-matplotlib python3-meshio
   # the container suite (scripts/container-test.sh): podman with runc, a base image made by
   # debootstrap, the compose file run by podman-compose
   podman buildah runc debootstrap podman-compose

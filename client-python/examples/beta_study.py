@@ -3,7 +3,7 @@ list of β, printed and written as CSV.
 
     python3 beta_study.py [--data DIR] [--csv OUT.csv] [--server HOST:PORT --token T]
 
-Without --server it starts a private hdeform-server (HDEFORM_SERVER, PATH or the build tree).
+Without --server it starts a private hdeform-server (HDEFORM_SERVER, the build tree or PATH).
 """
 import argparse
 import os

@@ -7,7 +7,7 @@
                         handles=[hdeform.sel_file("cactus.sel", 2)])
             s.set_beta(0.1)                  # an RPC and a factorization
             frame = s.update(translate=(0, 0, 0.1))
-            frame.V, frame.N, frame.measures
+            frame.V, frame.N, frame.measures  # V, N: the solve's doubles
 
 See docs/python.md.
 """
@@ -37,16 +37,19 @@ from ._errors import (  # noqa: E402
 from ._selectors import (  # noqa: E402
     Selector, ids, base_ids, box, sphere, half_space, sel, sel_file, FIXED, HANDLE)
 from ._transforms import Transform, transform, axis_angle, read_def  # noqa: E402
-from ._frames import Frame, Measures  # noqa: E402
+from ._frames import Encoding, Frame, FrameDecodeError, Measures  # noqa: E402
+from ._records import Beta, HistoryStep, Keyframe, Snapshot, Timeline  # noqa: E402
 from ._client import Client, Session, Watch, SweepRow, SweepResult, LibraryMesh, connect  # noqa: E402
 from ._server import LocalServer, find_server  # noqa: E402
 from ._meshio import ply_bytes, parse_off, stl_bytes, triangulate  # noqa: E402
+from ._interop import from_meshio  # noqa: E402
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "connect", "Client", "Session", "Watch", "Frame", "Measures", "SweepRow", "SweepResult",
-    "LibraryMesh", "LocalServer", "find_server",
+    "connect", "Client", "Session", "Watch", "Frame", "FrameDecodeError", "Encoding",
+    "Measures", "SweepRow", "SweepResult", "LibraryMesh", "LocalServer", "find_server",
+    "Beta", "HistoryStep", "Keyframe", "Snapshot", "Timeline", "from_meshio",
     "Selector", "ids", "base_ids", "box", "sphere", "half_space", "sel", "sel_file", "FIXED",
     "HANDLE", "Transform", "transform", "axis_angle", "read_def", "ply_bytes", "parse_off",
     "stl_bytes", "triangulate",

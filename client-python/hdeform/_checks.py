@@ -2,11 +2,15 @@
 argument instead of a numpy error or a server round trip."""
 import math
 import numbers
+from typing import Collection, Mapping, Tuple, TypeVar, Union
 
 import numpy as np
+import numpy.typing as npt
+
+T = TypeVar("T")
 
 
-def number(value, what, finite=True):
+def number(value: object, what: str, finite: bool = True) -> float:
     """A float from a real number (not a bool, not a string)."""
     # bool is an int in Python: `beta=True` is a mistake, not 1.0
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
@@ -17,7 +21,8 @@ def number(value, what, finite=True):
     return v
 
 
-def floats(value, what, shape, finite=True):
+def floats(value: object, what: str, shape: Tuple[int, ...], finite: bool = True
+           ) -> npt.NDArray[np.float64]:
     """A float64 array of `shape` (e.g. (3,) or (4, 4)) from numbers."""
     try:
         a = np.asarray(value, dtype=np.float64)
@@ -34,11 +39,11 @@ def floats(value, what, shape, finite=True):
     return a
 
 
-def _shape(shape):
+def _shape(shape: Tuple[int, ...]) -> str:
     return "×".join(str(n) for n in shape) if shape else "scalar"
 
 
-def beta(value, what="beta"):
+def beta(value: object, what: str = "beta") -> float:
     """A β value: finite, 0 ≤ β < 1 (either units)."""
     v = number(value, what)
     if not 0 <= v < 1:
@@ -46,7 +51,7 @@ def beta(value, what="beta"):
     return v
 
 
-def choice(value, options, what):
+def choice(value: T, options: Union[Mapping[T, object], Collection[T]], what: str) -> T:
     """value if it is one of `options` (a dict or a collection) else a ValueError naming them."""
     try:
         ok = value in options

@@ -1,24 +1,32 @@
 """connect(), Client and Session: the hdeform.v1.Deformation service with numpy in and out."""
 import decimal
 import itertools
+import json
 import math
 import os
+import struct
 import time
 import uuid
+import warnings
 import weakref
 from dataclasses import dataclass
+from typing import (Any, Callable, Dict, Iterable, Iterator, List, Literal, Optional, Sequence,
+                    Tuple, Union)
 
 import grpc
 import numpy as np
+import numpy.typing as npt
 
 from . import _checks
 from ._errors import Error, from_rpc_error
-from ._frames import Frame, Measures, decode, encoding_value
+from ._frames import (Encoding, Float64Array, Frame, Int64Array, Measures, PathLike, decode,
+                      encoding_value)
 from ._meshio import parse_off, ply_bytes, stl_bytes
 from ._proto import pb, pb_grpc
-from ._selectors import Selector, region
+from ._records import HistoryStep, Keyframe, Snapshot, Timeline
+from ._selectors import RegionLike, Selector, region
 from ._server import LocalServer
-from ._transforms import to_transform, Transform
+from ._transforms import Transform, TransformLike, to_transform
 
 CHUNK = 1 << 20  # upload chunks (gRPC's default limit is 4 MiB per message)
 _UNITS = {"area": pb.BETA_UNITS_AREA, "raw": pb.BETA_UNITS_RAW}
@@ -34,8 +42,12 @@ _READS = frozenset(("GetSession", "Sweep", "ListHistory", "ListSnapshots", "GetT
 _EASINGS = {"linear": pb.EASING_LINEAR, "smoothstep": pb.EASING_SMOOTHSTEP}
 _UP = {"y": pb.UP_AXIS_Y, "z": pb.UP_AXIS_Z}
 
+WatchEncoding = Literal["float32", "quantized"]  # a watch's frames (shared: no float64)
+Timeout = Optional[float]  # seconds; None: the client's call_timeout; math.inf: no deadline
+Metadata = Tuple[Tuple[str, str], ...]
 
-def _timeout_seconds(timeout, what="timeout"):
+
+def _timeout_seconds(timeout: Optional[float], what: str = "timeout") -> Optional[float]:
     """None (no deadline) or seconds > 0; math.inf means no deadline."""
     if timeout is None:
         return None
@@ -46,20 +58,21 @@ def _timeout_seconds(timeout, what="timeout"):
 
 
 class _Deadline:
-    """One deadline over every RPC of a public call (a retry, history's pages, update's
-    double=True read), so `timeout` bounds the whole call."""
+    """One deadline over every RPC of a public call (a retry, history's pages), so `timeout`
+    bounds the whole call."""
 
-    def __init__(self, timeout, method, expired="no answer within"):
+    def __init__(self, timeout: Optional[float], method: str,
+                 expired: str = "no answer within") -> None:
         self.timeout = timeout
         self.method = method
         self.expired = expired
         self._end = None if timeout is None else time.monotonic() + timeout
 
-    def remaining(self):
+    def remaining(self) -> Optional[float]:
         # never 0 or less: gRPC then answers DEADLINE_EXCEEDED itself, the error we want
         return None if self._end is None else max(self._end - time.monotonic(), 1e-6)
 
-    def error(self, e, change=False):
+    def error(self, e: grpc.RpcError, change: bool = False) -> Error:
         """The hdeform.Error for a grpc.RpcError, naming the timeout when it expired."""
         err = from_rpc_error(e)
         if err.code == grpc.StatusCode.DEADLINE_EXCEEDED and self.timeout is not None:
@@ -71,14 +84,16 @@ class _Deadline:
         return err
 
 
-def _rpc(fn, *args, deadline=None, change=False, **kwargs):
+def _rpc(fn: Callable[..., Any], *args: Any, deadline: Optional[_Deadline] = None,
+         change: bool = False, **kwargs: Any) -> Any:
     try:
         return fn(*args, timeout=deadline.remaining() if deadline else None, **kwargs)
     except grpc.RpcError as e:
         raise (deadline.error(e, change) if deadline else from_rpc_error(e)) from None
 
 
-def _rpc_bytes(fn, request, deadline, metadata):
+def _rpc_bytes(fn: Callable[..., Any], request: Any, deadline: _Deadline,
+               metadata: Metadata) -> bytes:
     """A server stream of chunks (GetMesh, ExportAnimation) joined into bytes."""
     try:
         return b"".join(c.data for c in fn(request, metadata=metadata,
@@ -87,21 +102,26 @@ def _rpc_bytes(fn, request, deadline, metadata):
         raise deadline.error(e) from None
 
 
-def _metadata(token, session=None):
+def _metadata(token: Optional[str], session: Optional[str] = None) -> Metadata:
     """Call metadata: the token, and for a call of a session its id as `x-session-id`, by
     which a load balancer sends every call of a session to the replica that holds it
     (docs/deployment.md "Session affinity")."""
-    md = (("authorization", f"Bearer {token}"),) if token else ()
+    md: Metadata = (("authorization", f"Bearer {token}"),) if token else ()
     if session:
         md += (("x-session-id", session.split("/", 1)[-1]),)
     return md
 
 
-def _units(units, what="units"):
-    return _UNITS[_checks.choice(units, _UNITS, what)]
+def _units(units: str, what: str = "units") -> int:
+    return int(_UNITS[_checks.choice(units, _UNITS, what)])
 
 
-def _beta_proto(value, units="area", local=None, vertex_count=None):
+LocalBeta = Dict[str, Any]  # {"region": …, "beta": b, "falloff_radius": r}
+
+
+def _beta_proto(value: Union[float, str], units: str = "area",
+                local: Optional[Sequence[LocalBeta]] = None,
+                vertex_count: Optional[int] = None) -> Any:
     # Checked here, before the RPC (and the factorization it starts).
     b = pb.Beta(units=_units(units))
     if isinstance(value, str):
@@ -130,7 +150,7 @@ def _beta_proto(value, units="area", local=None, vertex_count=None):
     return b
 
 
-def _betas(betas, what="betas"):
+def _betas(betas: Iterable[float], what: str = "betas") -> List[float]:
     if isinstance(betas, (str, bytes)) or not hasattr(betas, "__iter__"):
         raise TypeError(f"{what}: expected a list of numbers, got {type(betas).__name__}")
     values = [_checks.beta(b, f"{what}[{i}]") for i, b in enumerate(betas)]
@@ -145,14 +165,15 @@ _CSV_COLUMNS = ["beta", "E", "E_iso_N", "E_conf_N", "E_area_pct", "max_e_iso", "
                 "max_ef2", "flips"]
 
 
-def _shortest(v):
+def _shortest(v: float) -> str:
     """std::to_chars(double): the shortest digits that read back as v, in fixed or
     scientific notation, whichever is shorter (fixed on a tie); "0", not Python's "0.0"."""
     if not math.isfinite(v):
         return "nan" if math.isnan(v) else ("-inf" if v < 0 else "inf")
     if v == 0:
         return "-0" if math.copysign(1.0, v) < 0 else "0"
-    sign, digits, exp = decimal.Decimal(repr(v)).normalize().as_tuple()
+    sign, digits, exponent = decimal.Decimal(repr(v)).normalize().as_tuple()
+    exp = int(exponent)  # finite here: never 'n', 'N' or 'F'
     ds = "".join(map(str, digits))
     if exp >= 0:
         fixed = str(int(abs(v)))  # libstdc++ prints an integral value's exact digits
@@ -165,32 +186,36 @@ def _shortest(v):
     return ("-" if sign else "") + (fixed if len(fixed) <= len(sci) else sci)
 
 
-@dataclass
+@dataclass(frozen=True)
 class LibraryMesh:
+    """A mesh of the server's library: its name (for Client.open), its path on the server,
+    and whether a benchmark .sel/.def comes with it."""
     name: str
     path: str
     has_benchmark: bool
 
 
-@dataclass
+@dataclass(frozen=True)
 class SweepRow:
+    """One β of a sweep and the measures at it."""
     beta: float
     measures: Measures
 
 
-class SweepResult(list):
+class SweepResult(List[SweepRow]):
     """Sweep rows (SweepRow) in request order. records() and to_dataframe() use the Measures
     field names (`columns`); to_csv() writes the CLI's CSV (`csv_columns`)."""
 
-    columns = ["beta", "e", "e_iso_n", "e_conf_n", "e_area_pct", "max_e_iso", "max_e_conf",
-               "max_ef2", "flips"]
-    csv_columns = _CSV_COLUMNS
+    columns: List[str] = ["beta", "e", "e_iso_n", "e_conf_n", "e_area_pct", "max_e_iso",
+                          "max_e_conf", "max_ef2", "flips"]
+    csv_columns: List[str] = _CSV_COLUMNS
+    units: str = "area"  # the sweep's β units
 
-    def records(self):
+    def records(self) -> List[Dict[str, Union[float, int]]]:
         """One dict per row: beta and the seven measures."""
         return [dict(beta=r.beta, **r.measures.as_dict()) for r in self]
 
-    def to_dataframe(self):
+    def to_dataframe(self) -> Any:
         """A pandas DataFrame (needs pandas: apt-get install python3-pandas)."""
         try:
             import pandas  # noqa: PLC0415 - optional dependency
@@ -201,7 +226,18 @@ class SweepResult(list):
                 "records() and to_csv() need nothing", name="pandas") from e
         return pandas.DataFrame.from_records(self.records(), columns=self.columns)
 
-    def to_csv(self, path=None):
+    def plot(self, ax: Any = None, path: Optional[PathLike] = None,
+             measures: Sequence[str] = ("e_iso_n", "e_conf_n", "max_e_iso", "max_e_conf"),
+             logy: bool = True) -> Any:
+        """A matplotlib Figure of `measures` (Measures field names) against β, one line each
+        (log scale with `logy`), β's where a solve has flipped triangles marked with an ×.
+        `ax`: draw on that Axes (its Figure is returned); `path`: also save the figure (PNG,
+        SVG, PDF by extension; without `ax` the figure is then made without pyplot, so no
+        window opens). Needs matplotlib (apt-get install python3-matplotlib)."""
+        from ._plot import plot_sweep
+        return plot_sweep(self, ax=ax, path=path, measures=measures, logy=logy)
+
+    def to_csv(self, path: Optional[PathLike] = None) -> Optional[str]:
         """The rows as `hdeform sweep --csv` writes them (same header and numbers): written
         to `path`, or returned as a string without one."""
         lines = [",".join(_CSV_COLUMNS)]
@@ -226,8 +262,9 @@ class Client:
     stops its private server. `call_timeout`: the deadline in seconds of every call that does
     not pass its own `timeout=` (None: no deadline)."""
 
-    def __init__(self, address, token=None, credentials=None, server=None, ready_timeout=30.0,
-                 call_timeout=None):
+    def __init__(self, address: str, token: Optional[str] = None, credentials: Any = None,
+                 server: Optional[LocalServer] = None, ready_timeout: Optional[float] = 30.0,
+                 call_timeout: Optional[float] = None) -> None:
         self.address = address
         self.token = token
         self.server = server
@@ -239,7 +276,7 @@ class Client:
         else:
             self.channel = grpc.insecure_channel(address, options=options)
         self.stub = pb_grpc.DeformationStub(self.channel)
-        self._created = weakref.WeakSet()
+        self._created: "weakref.WeakSet[Session]" = weakref.WeakSet()
         if ready_timeout:
             try:
                 grpc.channel_ready_future(self.channel).result(timeout=ready_timeout)
@@ -249,43 +286,46 @@ class Client:
                             f"(waited {ready_timeout:g} s)",
                             grpc.StatusCode.UNAVAILABLE) from None
 
-    def _deadline(self, timeout, method):
+    def _deadline(self, timeout: Timeout, method: str) -> _Deadline:
         """A call's deadline: its own timeout=, else call_timeout; math.inf: none."""
         if timeout is None:
             return _Deadline(self.call_timeout, method)
         return _Deadline(_timeout_seconds(timeout), method)
 
     # --- sessions -------------------------------------------------------------------------
-    def meshes(self, timeout=None):
+    def meshes(self, timeout: Timeout = None) -> List[LibraryMesh]:
         """The server's mesh library."""
         r = _rpc(self.stub.ListMeshes, pb.ListMeshesRequest(),
                  deadline=self._deadline(timeout, "ListMeshes"))
-        return [LibraryMesh(m.name, m.path, m.has_benchmark) for m in r.meshes]
+        return [LibraryMesh(str(m.name), str(m.path), bool(m.has_benchmark)) for m in r.meshes]
 
-    def _create(self, header, data=b"", timeout=None):
+    def _create(self, header: Any, data: bytes = b"", timeout: Timeout = None) -> "Session":
         # The id is chosen here so that the creating call is routed by it, like every later
         # call of the session (docs/deployment.md).
         if not header.session_id:
             header.session_id = uuid.uuid4().hex[:24]
-        def requests():
+        def requests() -> Iterator[Any]:
             yield pb.CreateSessionRequest(header=header)
             for i in range(0, len(data), CHUNK):
                 yield pb.CreateSessionRequest(chunk=data[i:i + CHUNK])
         info = _rpc(self.stub.CreateSession, requests(),
                     metadata=_metadata(None, header.session_id),
                     deadline=self._deadline(timeout, "CreateSession"), change=True)
-        s = Session(self, info, info.edit_token, view_token=info.view_token, owned=True)
+        s = Session(self, info, str(info.edit_token), view_token=str(info.view_token),
+                    owned=True)
         self._created.add(s)
         return s
 
-    def open(self, mesh, session_id="", timeout=None):
+    def open(self, mesh: str, session_id: str = "", timeout: Timeout = None) -> "Session":
         """A new session on a library mesh (a name from meshes(), e.g. "cactus")."""
         if not isinstance(mesh, str):
             raise TypeError(f"mesh: a library mesh name (str), got {type(mesh).__name__}")
         return self._create(pb.CreateSessionHeader(library_mesh=mesh, session_id=session_id),
                             timeout=timeout)
 
-    def upload(self, V, F, session_id="", filename="mesh.ply", timeout=None):
+    def upload(self, V: npt.ArrayLike, F: Union[npt.ArrayLike, Sequence[Sequence[int]]],
+               session_id: str = "", filename: str = "mesh.ply",
+               timeout: Timeout = None) -> "Session":
         """A new session on the mesh (V n×3, F m×3 triangles; quads and other polygons are
         fan-triangulated as the server's file readers do, see hdeform.triangulate), sent as a
         binary PLY of doubles: vertex ids and frame rows are V's rows."""
@@ -293,7 +333,17 @@ class Client:
         return self._create(pb.CreateSessionHeader(filename=filename, total_bytes=len(data),
                                                    session_id=session_id), data, timeout)
 
-    def upload_file(self, path, session_id="", timeout=None):
+    def upload_meshio(self, mesh: Any, session_id: str = "", filename: str = "mesh.ply",
+                      timeout: Timeout = None) -> "Session":
+        """A new session on a meshio.Mesh: upload(*hdeform.from_meshio(mesh)) (its triangle
+        cells; quads and polygons fan-triangulated; points and frame rows in mesh.points'
+        order)."""
+        from ._interop import from_meshio
+        V, F = from_meshio(mesh)
+        return self.upload(V, F, session_id=session_id, filename=filename, timeout=timeout)
+
+    def upload_file(self, path: PathLike, session_id: str = "",
+                    timeout: Timeout = None) -> "Session":
         """A new session on a mesh file (.obj .off .ply .stl .glb, or a self-contained .gltf)."""
         with open(os.fspath(path), "rb") as f:
             data = f.read()
@@ -301,7 +351,8 @@ class Client:
                                                    total_bytes=len(data),
                                                    session_id=session_id), data, timeout)
 
-    def session(self, name, token=None, timeout=None):
+    def session(self, name: str, token: Optional[str] = None,
+                timeout: Timeout = None) -> "Session":
         """Attach to an existing session ("sessions/ID" or "ID") with its edit or view token
         (default: the client's token, e.g. the operator token)."""
         token = token if token is not None else self.token
@@ -310,24 +361,24 @@ class Client:
                     deadline=self._deadline(timeout, "GetSession"))
         return Session(self, info, token, owned=False)
 
-    def sessions(self, timeout=None):
+    def sessions(self, timeout: Timeout = None) -> List[str]:
         """Names of the sessions the client's token opens (all with the operator token)."""
         r = _rpc(self.stub.ListSessions, pb.ListSessionsRequest(),
                  metadata=_metadata(self.token),
                  deadline=self._deadline(timeout, "ListSessions"))
-        return [s.name for s in r.sessions]
+        return [str(s.name) for s in r.sessions]
 
     # --- lifetime -------------------------------------------------------------------------
-    def close(self):
+    def close(self) -> None:
         """Close the channel and stop the private server (if any)."""
         self.channel.close()
         if self.server is not None:
             self.server.stop()
 
-    def __enter__(self):
+    def __enter__(self) -> "Client":
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         try:
             for s in list(self._created):
                 if not s._kept and not s.deleted:
@@ -338,16 +389,21 @@ class Client:
         finally:
             self.close()
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return f"hdeform.Client({self.address!r}{', private server' if self.server else ''})"
 
 
-def connect(address=None, *, token=None, server=None, mesh_dir=None, state_dir=None,
-            server_args=(), credentials=None, timeout=30.0, call_timeout=None):
+def connect(address: Optional[str] = None, *, token: Optional[str] = None,
+            server: Optional[PathLike] = None, mesh_dir: Optional[PathLike] = None,
+            state_dir: Optional[PathLike] = None, server_args: Sequence[str] = (),
+            credentials: Any = None, timeout: float = 30.0,
+            call_timeout: Optional[float] = None) -> Client:
     """A Client. With an address ("host:port"): that server, presenting `token` (an operator
     token, or a session token for Client.session()). Without: a private hdeform-server
-    (`server`, else $HDEFORM_SERVER, PATH, the build tree) on a free loopback port, with a
-    random operator token the client presents, stopped by close()/the context's exit/at exit.
+    (`server`, else $HDEFORM_SERVER, else the build tree's, else hdeform-server on PATH; see
+    hdeform.find_server) on a free loopback port (it reports the port through --ready-file),
+    with a random operator token the client presents, stopped by close()/the context's
+    exit/at exit, and with this process however it ends (--exit-with-parent).
     That server gets a clean environment (none of the caller's HDEFORM_* settings): configure
     it with `server_args`. `timeout`: seconds to start the server / reach it. `call_timeout`:
     the default deadline of every later call (None: none; a call's timeout= overrides it)."""
@@ -371,13 +427,14 @@ class Session:
     on exit if this client created it. Every method that calls the server takes `timeout=`
     (seconds; default: the client's call_timeout, None = no deadline)."""
 
-    def __init__(self, client, info, token, view_token=None, owned=False):
+    def __init__(self, client: Client, info: Any, token: Optional[str],
+                 view_token: Optional[str] = None, owned: bool = False) -> None:
         # Who this script is in the session's history and to other editors: its changes
         # carry it, and undo() / redo() act on its own steps.
         self.client_id = "py-" + uuid.uuid4().hex[:12]
         self.client = client
-        self.info = info  # the latest hdeform.v1.Session
-        self.name = info.name
+        self.info: Any = info  # the latest hdeform.v1.Session (protobuf)
+        self.name: str = str(info.name)
         self.token = token
         self.edit_token = token if owned else None
         self.view_token = view_token
@@ -385,8 +442,10 @@ class Session:
         self.deleted = False
         self._kept = False
         self._sequence = itertools.count(1)
+        self._triangles: Optional[Int64Array] = None
 
-    def _call(self, method, request, timeout=None):
+    def _call(self, method: str, request: Any,
+              timeout: Union[Timeout, _Deadline] = None) -> Any:
         """One unary RPC of this session; `timeout`: a public call's timeout= or its
         _Deadline (shared by the RPCs of one public call)."""
         deadline = (timeout if isinstance(timeout, _Deadline)
@@ -409,47 +468,62 @@ class Session:
 
     # --- state ----------------------------------------------------------------------------
     @property
-    def id(self):
+    def id(self) -> str:
+        """The session id (its name without "sessions/")."""
         return self.name.split("/", 1)[-1]
 
-    def refresh(self, timeout=None):
+    def refresh(self, timeout: Timeout = None) -> "Session":
         """Re-read the session's state (self.info) from the server."""
         self.info = self._call("GetSession", pb.GetSessionRequest(name=self.name), timeout)
         return self
 
-    vertex_count = property(lambda self: self.info.vertex_count)
-    triangle_count = property(lambda self: self.info.triangle_count)
-    version = property(lambda self: self.info.version)
-    mesh_name = property(lambda self: self.info.mesh_name)
+    @property
+    def vertex_count(self) -> int:
+        """Vertices in frame order (the base GLB's): the rows of Frame.V."""
+        return int(self.info.vertex_count)
 
     @property
-    def handle_count(self):
+    def triangle_count(self) -> int:
+        return int(self.info.triangle_count)
+
+    @property
+    def version(self) -> int:
+        return int(self.info.version)
+
+    @property
+    def mesh_name(self) -> str:
+        return str(self.info.mesh_name)
+
+    @property
+    def handle_count(self) -> int:
         return len(self.info.constraints.handles)
 
     @property
-    def fixed(self):
+    def fixed(self) -> Int64Array:
         """The fixed vertices' engine ids (sorted)."""
         return np.asarray(self.info.constraints.fixed.ids, dtype=np.int64)
 
     @property
-    def handles(self):
+    def handles(self) -> List[Int64Array]:
         """Each handle's engine vertex ids (sorted)."""
         return [np.asarray(h.ids, dtype=np.int64) for h in self.info.constraints.handles]
 
     @property
-    def pivots(self):
+    def pivots(self) -> Float64Array:
         """Each handle's default pivot (rest centroid), k×3."""
-        return np.array([[p.x, p.y, p.z] for p in self.info.pivots]).reshape(-1, 3)
+        return np.array([[p.x, p.y, p.z] for p in self.info.pivots],
+                        dtype=np.float64).reshape(-1, 3)
 
     @property
-    def bbox(self):
+    def bbox(self) -> Float64Array:
         """The rest bounding box, 2×3 (min, max)."""
         a, b = self.info.bbox_min, self.info.bbox_max
-        return np.array([[a.x, a.y, a.z], [b.x, b.y, b.z]])
+        return np.array([[a.x, a.y, a.z], [b.x, b.y, b.z]], dtype=np.float64)
 
     # --- meshes ---------------------------------------------------------------------------
-    def mesh_bytes(self, format="glb", rest=False, compression=None,  # noqa: A002 - proto's name
-                   timeout=None):
+    def mesh_bytes(self, format: str = "glb", rest: bool = False,  # noqa: A002 - proto's name
+                   compression: Optional[str] = None,
+                   timeout: Union[Timeout, _Deadline] = None) -> bytes:
         """The rest or current mesh as a file (glb, obj, off, ply, stl). compression (GLB
         only): "quantized" (KHR_mesh_quantization) or "meshopt" (EXT_meshopt_compression),
         see docs/api.md "Compressed GLB"; hdeform does not read those back. STL is written
@@ -459,7 +533,8 @@ class Session:
         if format == "stl":
             if compression not in (None, "none"):
                 raise ValueError("compression: GLB only, not for STL")
-            return stl_bytes(*self.mesh(rest=rest, timeout=timeout))
+            V, F = self.mesh(rest=rest, timeout=timeout)
+            return stl_bytes(V, F)
         req = pb.GetMeshRequest(name=self.name, rest=rest, format=_FORMATS[format],
                                 glb_compression=_GLB_COMPRESSION[compression])
         deadline = (timeout if isinstance(timeout, _Deadline)
@@ -467,16 +542,30 @@ class Session:
         return _rpc_bytes(self.client.stub.GetMesh, req, deadline,
                           _metadata(self.token, self.name))
 
-    def mesh(self, rest=False, timeout=None):
+    def mesh(self, rest: bool = False, timeout: Union[Timeout, _Deadline] = None
+             ) -> Tuple[Float64Array, Int64Array]:
         """(V float64 n×3, F int64 m×3) of the rest or current mesh, exact doubles, in engine
         vertex order (= Frame.V order except for glTF uploads)."""
         return parse_off(self.mesh_bytes("off", rest=rest, timeout=timeout))
 
-    def rest(self, timeout=None):
+    def rest(self, timeout: Timeout = None) -> Tuple[Float64Array, Int64Array]:
         """mesh(rest=True)."""
         return self.mesh(rest=True, timeout=timeout)
 
-    def save(self, path, rest=False, compression=None, timeout=None):
+    def triangles(self, timeout: Timeout = None) -> Int64Array:
+        """The triangles (m×3 int64) in frame order: those of the base GLB
+        (GetMesh(rest=True, GLB)), which index the rows of Frame.V for every upload, glTF
+        too. Read once and kept (a session's triangles never change); Frame.F and
+        Frame.to_meshio() use it."""
+        if self._triangles is None:
+            self._triangles = _glb_triangles(self.mesh_bytes("glb", rest=True, timeout=timeout))
+            if len(self._triangles) != self.triangle_count:
+                raise Error(f"GetMesh(rest, GLB): {len(self._triangles)} triangles, but the "
+                            f"session has {self.triangle_count}")
+        return self._triangles
+
+    def save(self, path: PathLike, rest: bool = False, compression: Optional[str] = None,
+             timeout: Timeout = None) -> None:
         """Write the current (or rest) mesh; the extension picks the format (.glb .obj .off
         .ply .stl). compression: as mesh_bytes (a .glb only)."""
         ext = os.path.splitext(os.fspath(path))[1].lower().lstrip(".")
@@ -488,8 +577,9 @@ class Session:
             f.write(data)
 
     # --- editing --------------------------------------------------------------------------
-    def constrain(self, fixed=None, handles=(), expected_version=0, discard_timeline=False,
-                  timeout=None):
+    def constrain(self, fixed: Optional[RegionLike] = None,
+                  handles: Sequence[RegionLike] = (), expected_version: int = 0,
+                  discard_timeline: bool = False, timeout: Timeout = None) -> "Session":
         """Set the fixed region and the handle regions. A region: a selector (hdeform.ids,
         box, sphere, half_space, sel_file, …), a dict ({"box": (min, max)}), an id array, a
         boolean mask over the vertices, or a list of selectors (their union). Resets every
@@ -512,25 +602,27 @@ class Session:
         return self
 
     @property
-    def beta(self):
+    def beta(self) -> float:
         """β's value (the pick when automatic; see beta_automatic, beta_units). Assigning
         (a number in area units, or "auto") is a shorthand for set_beta(value): an RPC and a
         new factorization, with the client's call_timeout."""
-        return self.info.beta.value
+        return float(self.info.beta.value)
 
     @beta.setter
-    def beta(self, value):
+    def beta(self, value: Union[float, str]) -> None:
         self.set_beta(value)
 
     @property
-    def beta_automatic(self):
-        return self.info.beta.automatic
+    def beta_automatic(self) -> bool:
+        return bool(self.info.beta.automatic)
 
     @property
-    def beta_units(self):
+    def beta_units(self) -> str:
         return "raw" if self.info.beta.units == pb.BETA_UNITS_RAW else "area"
 
-    def set_beta(self, value, units="area", local=None, expected_version=0, timeout=None):
+    def set_beta(self, value: Union[float, str], units: str = "area",
+                 local: Optional[Sequence[LocalBeta]] = None, expected_version: int = 0,
+                 timeout: Timeout = None) -> "Session":
         """β = value (0 ≤ β < 1, or "auto") in `units` ("area" or "raw"); `local`: a list of
         {"region": …, "beta": b, "falloff_radius": r}. The server refactors the system: on a
         large mesh this takes a while, which `timeout` bounds."""
@@ -540,13 +632,13 @@ class Session:
             client_id=self.client_id), timeout)
         return self
 
-    def _transforms(self, transforms, single):
+    def _transforms(self, transforms: Union[TransformLike, Sequence[TransformLike]],
+                    single: Dict[str, Any]) -> List[Any]:
         if transforms is not None:
             if any(v is not None for v in single.values()):
                 raise TypeError("update: pass either transforms=[...] or rotate=/translate=/…")
-            if isinstance(transforms, (Transform, dict)):
-                transforms = [transforms]
-            return [to_transform(t).to_proto() for t in transforms]
+            items: Any = [transforms] if isinstance(transforms, (Transform, dict)) else transforms
+            return [to_transform(t).to_proto() for t in items]
         t = Transform(**single)
         k = self.handle_count
         if k != 1 and any(v is not None for v in single.values()):
@@ -554,30 +646,46 @@ class Session:
                             "handle] (hdeform.transform(...), dicts, 4×4 matrices or None)")
         return [t.to_proto()] * k
 
-    def update(self, transforms=None, *, rotate=None, translate=None, scale=None, pivot=None,
-               matrix=None, energies=False, encoding="float32", double=False, dragging=False,
-               expected_version=0, timeout=None):
+    def update(self, transforms: Optional[Sequence[TransformLike]] = None, *,
+               rotate: Optional[npt.ArrayLike] = None,
+               translate: Optional[npt.ArrayLike] = None,
+               scale: Optional[npt.ArrayLike] = None, pivot: Optional[npt.ArrayLike] = None,
+               matrix: Optional[npt.ArrayLike] = None, energies: bool = False,
+               encoding: Encoding = "float64", double: Optional[bool] = None,
+               dragging: bool = False, expected_version: int = 0,
+               timeout: Timeout = None) -> Frame:
         """Move the handles and solve: a Frame. For one handle pass rotate= (quaternion
         w, x, y, z or 3×3), translate=, scale=, pivot=, matrix= (4×4); for several,
-        transforms=[one per handle]. double=True also reads the result's exact doubles
-        (GetMesh OFF) into frame.V instead of the float32 buffer (engine vertex order);
-        `timeout` bounds both calls."""
+        transforms=[one per handle]. encoding: "float64" (default: frame.V and frame.N are
+        the server's doubles, exactly, in one call), "float32" or "quantized" (fewer bytes).
+        energies=True: per-triangle energies too. double: deprecated, not needed (frames are
+        float64 by default): True is accepted with a DeprecationWarning and changes nothing."""
+        if double is not None:
+            if not isinstance(double, bool):
+                raise TypeError(f"double: expected a bool, got {type(double).__name__}")
+            if double and encoding != "float64":
+                raise ValueError(f"double=True (deprecated) asks for exact doubles, but "
+                                 f"encoding={encoding!r}: drop double= (frames are float64 by "
+                                 "default)")
+            if double:
+                warnings.warn("update(double=True) is deprecated and not needed: frames are "
+                              "float64 by default (encoding='float64'), the server's doubles "
+                              "in one call", DeprecationWarning, stacklevel=2)
+        fmt = pb.FrameFormat(encoding=encoding_value(encoding))
         ts = self._transforms(transforms, dict(rotate=rotate, translate=translate, scale=scale,
                                                 pivot=pivot, matrix=matrix))
-        fmt = pb.FrameFormat(encoding=encoding_value(encoding))
         deadline = self.client._deadline(timeout, "UpdateHandles")
         seq = next(self._sequence)
         raw = self._call("UpdateHandles", pb.UpdateHandlesRequest(
             name=self.name, sequence=seq, transforms=ts, energies=energies, dragging=dragging,
             expected_version=expected_version, client_id=self.client_id, format=fmt), deadline)
-        frame = decode(raw)
+        frame = decode(raw, self.vertex_count, self.triangle_count, self.triangles)
         self.info.version = raw.version
-        if double:
-            deadline.method = "GetMesh (update's double=True)"
-            frame.V = self.mesh(timeout=deadline)[0]
         return frame
 
-    def sweep(self, betas, units="area", transforms=None, timeout=None):
+    def sweep(self, betas: Iterable[float], units: str = "area",
+              transforms: Optional[Sequence[TransformLike]] = None,
+              timeout: Timeout = None) -> SweepResult:
         """Measures for each β (the session is not changed) at the current transforms or at
         `transforms` (one per handle): a SweepResult (list of SweepRow; .to_csv(),
         .to_dataframe())."""
@@ -585,11 +693,14 @@ class Session:
         if transforms is not None:
             req.transforms.extend(self._transforms(transforms, {}))
         r = self._call("Sweep", req, timeout)
-        return SweepResult(SweepRow(row.beta, Measures.from_proto(row.measures))
-                           for row in r.rows)
+        result = SweepResult(SweepRow(float(row.beta), Measures.from_proto(row.measures))
+                             for row in r.rows)
+        result.units = units
+        return result
 
     # --- history and snapshots (docs/api.md "History and snapshots") --------------------
-    def undo(self, step=0, discard_timeline=False, timeout=None):
+    def undo(self, step: int = 0, discard_timeline: bool = False,
+             timeout: Timeout = None) -> "Session":
         """Revert this script's latest change (or history step `step`, any author): a move,
         β, constraints, the timeline, a snapshot save or delete. Refused (hdeform.Error, code
         ABORTED) when a later change touched what it would revert. discard_timeline: as in
@@ -600,7 +711,8 @@ class Session:
                                timeout)
         return self
 
-    def redo(self, step=0, discard_timeline=False, timeout=None):
+    def redo(self, step: int = 0, discard_timeline: bool = False,
+             timeout: Timeout = None) -> "Session":
         """Re-apply this script's latest undone change (or undone step `step`)."""
         self.info = self._call("Redo", pb.UndoRequest(name=self.name, client_id=self.client_id,
                                                       step=step,
@@ -608,33 +720,37 @@ class Session:
                                timeout)
         return self
 
-    def history(self, limit=None, timeout=None):
-        """The session's history steps, newest first (hdeform.v1.HistoryStep messages: id,
-        kind, author, time_unix_ms, summary, undone, …); all of them, or the newest `limit`.
-        `timeout` bounds all the pages together."""
+    def history(self, limit: Optional[int] = None,
+                timeout: Timeout = None) -> List[HistoryStep]:
+        """The session's history steps, newest first (hdeform.HistoryStep: id, kind ("move",
+        "beta", "undo", …), author, time_unix_ms, summary, undone, …); all of them, or the
+        newest `limit`. `timeout` bounds all the pages together."""
         deadline = self.client._deadline(timeout, "ListHistory")
-        steps, token = [], ""
+        steps: List[HistoryStep] = []
+        token = ""
         while limit is None or len(steps) < limit:
             page = self._call("ListHistory", pb.ListHistoryRequest(
                 name=self.name, page_size=500 if limit is None else min(500, limit - len(steps)),
                 page_token=token), deadline)
-            steps.extend(page.steps)
+            steps.extend(HistoryStep.from_proto(step) for step in page.steps)
             token = page.next_page_token
             if not token:
                 break
         return steps
 
-    def save_snapshot(self, name, timeout=None):
-        """Keep the constraints, β and transforms under `name` (replaces one of that name)."""
-        return self._call("SaveSnapshot", pb.SaveSnapshotRequest(
-            name=self.name, snapshot=name, client_id=self.client_id), timeout)
+    def save_snapshot(self, name: str, timeout: Timeout = None) -> Snapshot:
+        """Keep the constraints, β and transforms under `name` (replaces one of that name);
+        returns the hdeform.Snapshot saved."""
+        return Snapshot.from_proto(self._call("SaveSnapshot", pb.SaveSnapshotRequest(
+            name=self.name, snapshot=name, client_id=self.client_id), timeout))
 
-    def snapshots(self, timeout=None):
-        """{name: hdeform.v1.NamedSnapshot} of this session."""
+    def snapshots(self, timeout: Timeout = None) -> Dict[str, Snapshot]:
+        """{name: hdeform.Snapshot} of this session."""
         r = self._call("ListSnapshots", pb.ListSnapshotsRequest(name=self.name), timeout)
-        return {s.name: s for s in r.snapshots}
+        return {str(s.name): Snapshot.from_proto(s) for s in r.snapshots}
 
-    def restore_snapshot(self, name, discard_timeline=False, timeout=None):
+    def restore_snapshot(self, name: str, discard_timeline: bool = False,
+                         timeout: Timeout = None) -> "Session":
         """Make snapshot `name` the session's state (an undoable history step).
         discard_timeline: as in constrain(), when its constraints differ."""
         self.info = self._call("RestoreSnapshot", pb.RestoreSnapshotRequest(
@@ -642,18 +758,19 @@ class Session:
             discard_timeline=discard_timeline), timeout)
         return self
 
-    def delete_snapshot(self, name, timeout=None):
+    def delete_snapshot(self, name: str, timeout: Timeout = None) -> None:
         """Remove snapshot `name` (an undoable history step: undo() brings it back)."""
         self._call("DeleteSnapshot", pb.DeleteSnapshotRequest(name=self.name, snapshot=name,
                                                               client_id=self.client_id),
                    timeout)
 
     # --- timeline and animation (docs/api.md "Timeline and animation") ------------------
-    def set_timeline(self, keys, easing="linear", timeout=None):
+    def set_timeline(self, keys: Sequence[Any], easing: str = "linear",
+                     timeout: Timeout = None) -> Timeline:
         """Replace the session's timeline. `keys`: (time_s, transforms) or (time_s, transforms,
         beta) tuples, or dicts time=/transforms=/beta=; transforms one per handle as in
         update(); beta a number in area units or (value, "raw"|"area"), from that key on.
-        An empty list clears it. Returns the hdeform.v1.Timeline as stored."""
+        An empty list clears it. Returns the hdeform.Timeline as stored."""
         t = pb.Timeline(easing=_EASINGS[_checks.choice(easing, _EASINGS, "easing")])
         for i, key in enumerate(keys):
             if isinstance(key, dict):
@@ -672,21 +789,23 @@ class Session:
                 value, units = beta if isinstance(beta, tuple) else (beta, "area")
                 k.beta.CopyFrom(pb.Beta(value=_checks.beta(value, f"keys[{i}] beta"),
                                         units=_units(units, f"keys[{i}] beta units")))
-        return self._call("SetTimeline", pb.SetTimelineRequest(
-            name=self.name, timeline=t, client_id=self.client_id), timeout)
+        return Timeline.from_proto(self._call("SetTimeline", pb.SetTimelineRequest(
+            name=self.name, timeline=t, client_id=self.client_id), timeout))
 
-    def timeline(self, timeout=None):
-        """The session's hdeform.v1.Timeline (no keys: none)."""
-        return self._call("GetTimeline", pb.GetTimelineRequest(name=self.name), timeout)
+    def timeline(self, timeout: Timeout = None) -> Timeline:
+        """The session's hdeform.Timeline (no keys: none)."""
+        return Timeline.from_proto(
+            self._call("GetTimeline", pb.GetTimelineRequest(name=self.name), timeout))
 
-    def pose_at(self, time_s, timeout=None):
-        """The interpolated pose at `time_s`: an hdeform.v1.Keyframe (transforms per handle,
-        beta when a key set one). update(transforms=list(k.transforms)) shows it."""
-        return self._call("PoseAt", pb.PoseAtRequest(
-            name=self.name, time_s=_checks.number(time_s, "time_s")), timeout)
+    def pose_at(self, time_s: float, timeout: Timeout = None) -> Keyframe:
+        """The interpolated pose at `time_s`: an hdeform.Keyframe (one hdeform.Transform per
+        handle, beta when a key set one). update(transforms=list(k.transforms)) shows it."""
+        return Keyframe.from_proto(self._call("PoseAt", pb.PoseAtRequest(
+            name=self.name, time_s=_checks.number(time_s, "time_s")), timeout))
 
-    def export_animation(self, path=None, fps=24, energies=False, up="y", start=0.0, end=0.0,
-                         timeout=None):
+    def export_animation(self, path: Optional[PathLike] = None, fps: float = 24,
+                         energies: bool = False, up: str = "y", start: float = 0.0,
+                         end: float = 0.0, timeout: Timeout = None) -> bytes:
         """The timeline as an animated GLB (bytes; also written to `path` if given): one morph
         target per sampled frame, each a full deformation, driven by a weights animation."""
         req = pb.ExportAnimationRequest(
@@ -701,29 +820,32 @@ class Session:
                 f.write(data)
         return data
 
-    def watch(self, encoding="float32", timeout=None):
+    def watch(self, encoding: WatchEncoding = "float32",
+              timeout: Optional[float] = None) -> "Watch":
         """A Watch: iterate it for every Frame of this session (from any client); it is
-        subscribed when watch() returns. `timeout`: the stream's whole life in seconds (not
-        the client's call_timeout: a watch is meant to last); None = until cancelled."""
+        subscribed when watch() returns. encoding: "float32" or "quantized" (a watch stream
+        shares its frames with every watcher: no "float64"). `timeout`: the stream's whole
+        life in seconds (not the client's call_timeout: a watch is meant to last); None =
+        until cancelled."""
         return Watch(self, encoding, timeout)
 
-    def delete(self, timeout=None):
+    def delete(self, timeout: Timeout = None) -> None:
         self._call("DeleteSession", pb.DeleteSessionRequest(name=self.name), timeout)
         self.deleted = True
 
-    def keep(self):
+    def keep(self) -> "Session":
         """Do not delete this session when the Session's or the Client's context exits."""
         self._kept = True
         return self
 
-    def __enter__(self):
+    def __enter__(self) -> "Session":
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         if self.owned and not self._kept and not self.deleted:
             self.delete()
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return f"hdeform.Session({self.name!r}, mesh={self.info.mesh_name!r})"
 
 
@@ -732,21 +854,23 @@ class Watch:
     (hdeform.v1.Session); iteration ends when the session is deleted or cancel() is called.
     With a timeout, the stream ends with hdeform.DeadlineExceeded when it expires."""
 
-    def __init__(self, session, encoding="float32", timeout=None):
+    def __init__(self, session: Session, encoding: WatchEncoding = "float32",
+                 timeout: Optional[float] = None) -> None:
         self.session = session
-        fmt = pb.FrameFormat(encoding=encoding_value(encoding))
+        fmt = pb.FrameFormat(encoding=encoding_value(encoding, "watch encoding",
+                                                     ("float32", "quantized")))
         self._deadline = _Deadline(_timeout_seconds(timeout), "WatchSession",
                                    "the stream ended at its")
         self._call = session.client.stub.WatchSession(
             pb.WatchSessionRequest(name=session.name, format=fmt),
             metadata=_metadata(session.token, session.name), timeout=self._deadline.remaining())
         self.deleted = False
-        self.state = None
+        self.state: Any = None  # the latest hdeform.v1.Session (protobuf)
         first = self._next()
         if first is not None and first.WhichOneof("event") == "state":
             self.state = first.state
 
-    def _next(self):
+    def _next(self) -> Any:
         try:
             return next(self._call)
         except StopIteration:
@@ -756,25 +880,45 @@ class Watch:
                 return None
             raise self._deadline.error(e) from None
 
-    def __iter__(self):
+    def __iter__(self) -> Iterator[Frame]:
         while True:
             ev = self._next()
             if ev is None:
                 return
             kind = ev.WhichOneof("event")
             if kind == "frame":
-                yield decode(ev.frame)
+                yield decode(ev.frame, self.session.vertex_count,
+                             self.session.triangle_count, self.session.triangles)
             elif kind == "state":
                 self.state = ev.state
             elif kind == "deleted":
                 self.deleted = True
                 return
 
-    def cancel(self):
+    def cancel(self) -> None:
         self._call.cancel()
 
-    def __enter__(self):
+    def __enter__(self) -> "Watch":
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: object) -> None:
         self.cancel()
+
+
+def _glb_triangles(glb: bytes) -> Int64Array:
+    """The triangles of a GLB's single primitive (the base GLB: uint32 indices, plain)."""
+    if len(glb) < 20 or glb[:4] != b"glTF":
+        raise Error("GetMesh(GLB): not a GLB file")
+    json_len, json_type = struct.unpack_from("<II", glb, 12)
+    doc = json.loads(glb[20:20 + json_len])
+    pos = 20 + json_len
+    bin_len, _ = struct.unpack_from("<II", glb, pos)
+    binary = glb[pos + 8:pos + 8 + bin_len]
+    accessor = doc["accessors"][doc["meshes"][0]["primitives"][0]["indices"]]
+    view = doc["bufferViews"][accessor["bufferView"]]
+    dtype = {5121: "<u1", 5123: "<u2", 5125: "<u4"}[accessor["componentType"]]
+    start = view.get("byteOffset", 0) + accessor.get("byteOffset", 0)
+    count = int(accessor["count"])
+    a = np.frombuffer(binary, dtype=dtype, count=count, offset=start)
+    tris: Int64Array = a.astype(np.int64).reshape(-1, 3)
+    return tris

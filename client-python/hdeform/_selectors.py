@@ -1,7 +1,9 @@
 """Selectors: which vertices a region holds (a region is the union of its selectors)."""
 import os
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
+import numpy.typing as npt
 
 from ._checks import floats, number
 from ._proto import pb
@@ -10,11 +12,11 @@ FIXED = 0   # .sel label of the fixed region
 HANDLE = 2  # .sel label of the handle region
 
 
-def _num(v):
+def _num(v: float) -> str:
     return repr(float(v))
 
 
-def _vec_text(v):
+def _vec_text(v: Any) -> str:
     return f"({_num(v.x)}, {_num(v.y)}, {_num(v.z)})"
 
 
@@ -23,15 +25,16 @@ class Selector:
     sel(), sel_file(). `mask_size` is the length of the boolean mask it was made from (None
     for ids): Session checks it against the vertex count."""
 
-    def __init__(self, mask_size=None, **fields):
+    def __init__(self, mask_size: Optional[int] = None, **fields: Any) -> None:
         self._msg = pb.Selector(**fields)
         self.mask_size = mask_size
-        self._source = None  # sel_file's path, for repr
+        self._source: Optional[str] = None  # sel_file's path, for repr
 
-    def to_proto(self):
+    def to_proto(self) -> Any:
+        """The hdeform.v1.Selector message."""
         return self._msg
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         m = self._msg
         kind = m.WhichOneof("kind")
         if kind in ("ids", "base_ids"):
@@ -56,15 +59,15 @@ class Selector:
         return "hdeform.Selector()"
 
 
-def _vec3(v, what):
+def _vec3(v: npt.ArrayLike, what: str) -> Any:
     a = floats(v, what, (3,))
     return pb.Vec3(x=a[0], y=a[1], z=a[2])
 
 
-def _ids(values, what):
+def _ids(values: npt.ArrayLike, what: str) -> Tuple[Any, Optional[int]]:
     """(VertexIds, mask size or None) from integer ids or a boolean mask (its True rows)."""
     a = np.asarray(values)
-    mask_size = None
+    mask_size: Optional[int] = None
     if a.dtype == np.bool_:
         if a.ndim != 1:
             raise ValueError(f"{what}: a boolean mask must be 1-D (one entry per vertex), "
@@ -79,28 +82,28 @@ def _ids(values, what):
     return pb.VertexIds(ids=a.tolist()), mask_size
 
 
-def _id_selector(kind, values, what):
+def _id_selector(kind: str, values: npt.ArrayLike, what: str) -> "Selector":
     v, mask_size = _ids(values, what)
     return Selector(mask_size=mask_size, **{kind: v})
 
 
-def ids(values):
+def ids(values: npt.ArrayLike) -> Selector:
     """Engine vertex ids (OBJ/OFF/PLY file order; equal to frame order except for glTF), or
     a boolean mask with one entry per vertex (its True rows)."""
     return _id_selector("ids", values, "ids")
 
 
-def base_ids(values):
+def base_ids(values: npt.ArrayLike) -> Selector:
     """Base-GLB vertex ids (the order of Frame.V), or a boolean mask over Frame.V's rows."""
     return _id_selector("base_ids", values, "base_ids")
 
 
-def box(min, max):  # noqa: A002 - the proto's names
+def box(min: npt.ArrayLike, max: npt.ArrayLike) -> Selector:  # noqa: A002 - the proto's names
     """Vertices in the closed axis-aligned box [min, max]."""
     return Selector(box=pb.Box(min=_vec3(min, "box min"), max=_vec3(max, "box max")))
 
 
-def sphere(center, radius):
+def sphere(center: npt.ArrayLike, radius: float) -> Selector:
     """Vertices with |x - center| <= radius."""
     r = number(radius, "sphere radius")
     if r < 0:
@@ -108,13 +111,13 @@ def sphere(center, radius):
     return Selector(sphere=pb.Sphere(center=_vec3(center, "sphere center"), radius=r))
 
 
-def half_space(normal, offset):
+def half_space(normal: npt.ArrayLike, offset: float) -> Selector:
     """Vertices with dot(normal, x) >= offset."""
     return Selector(half_space=pb.HalfSpace(normal=_vec3(normal, "half_space normal"),
                                             offset=number(offset, "half_space offset")))
 
 
-def sel(content, label):
+def sel(content: Union[bytes, bytearray, memoryview, str], label: int) -> Selector:
     """A Botsch–Sorkine .sel file's content (bytes or str) and the label to select
     (FIXED = 0, HANDLE = 2)."""
     if isinstance(content, str):
@@ -127,7 +130,7 @@ def sel(content, label):
     return Selector(sel=pb.SelFile(content=bytes(content), label=int(label)))
 
 
-def sel_file(path, label):
+def sel_file(path: Union[str, "os.PathLike[str]"], label: int) -> Selector:
     """A .sel file read from `path` (on this machine) and the label to select."""
     with open(os.fspath(path), "rb") as f:
         s = sel(f.read(), label)
@@ -135,7 +138,7 @@ def sel_file(path, label):
     return s
 
 
-_DICT_KINDS = {
+_DICT_KINDS: Dict[str, Callable[[Any, str], Selector]] = {
     "ids": lambda v, what: _id_selector("ids", v, what),
     "base_ids": lambda v, what: _id_selector("base_ids", v, what),
     "box": lambda v, what: box(*v),
@@ -145,7 +148,7 @@ _DICT_KINDS = {
 }
 
 
-def _from_dict(d, what):
+def _from_dict(d: Dict[str, Any], what: str) -> Selector:
     if len(d) != 1 or next(iter(d)) not in _DICT_KINDS:
         raise ValueError(f"{what}: a selector dict has one key of {sorted(_DICT_KINDS)}, "
                          f"got {d!r}")
@@ -153,14 +156,20 @@ def _from_dict(d, what):
     return _DICT_KINDS[k](v, f"{what} {k}")
 
 
-def _is_mask(spec):
+def _is_mask(spec: object) -> bool:
     if isinstance(spec, np.ndarray):
-        return spec.dtype == np.bool_
+        return bool(spec.dtype == np.bool_)
     return (isinstance(spec, (list, tuple)) and len(spec) > 0 and
             all(isinstance(x, (bool, np.bool_)) for x in spec))
 
 
-def selector(spec, what="selector"):
+# A selection: a Selector, a dict ({"box": (min, max)}, …), vertex ids or a boolean mask.
+SelectorLike = Union[Selector, Dict[str, Any], npt.ArrayLike]
+# A region: one selection, or a list of Selectors / dicts (their union).
+RegionLike = Union[SelectorLike, Sequence[Union[Selector, Dict[str, Any]]]]
+
+
+def selector(spec: Any, what: str = "selector") -> Selector:
     """A Selector from a Selector, a dict ({'box': (min, max)}, …), an id array, or a
     boolean mask (sent as base_ids: a mask is over Frame.V's rows)."""
     if isinstance(spec, Selector):
@@ -175,12 +184,13 @@ def selector(spec, what="selector"):
     return _id_selector("ids", spec, what)
 
 
-def region(spec, what="region", vertex_count=None):
+def region(spec: Any, what: str = "region", vertex_count: Optional[int] = None) -> Any:
     """An hdeform.v1.Region: a selector, a dict, an id array, a boolean mask, or a list of
     selectors/dicts (their union). With `vertex_count`, a mask's length is checked against it."""
     if isinstance(spec, (list, tuple)) and spec and all(
             isinstance(s, (Selector, dict)) for s in spec):
-        named = [(selector(s, f"{what}[{i}]"), f"{what}[{i}]") for i, s in enumerate(spec)]
+        named: List[Tuple[Selector, str]] = [(selector(s, f"{what}[{i}]"), f"{what}[{i}]")
+                                             for i, s in enumerate(spec)]
     else:
         named = [(selector(spec, what), what)]
     for p, name in named:

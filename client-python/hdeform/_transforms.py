@@ -1,9 +1,10 @@
 """Handle transforms: x' = p + R S (x - p) + t, or a 4×4 matrix (see deform.proto)."""
 import os
 from dataclasses import dataclass
-from typing import Any, Optional
+from typing import Any, Dict, List, Optional, Tuple, Union
 
 import numpy as np
+import numpy.typing as npt
 
 from ._checks import floats, number
 from ._proto import pb
@@ -11,17 +12,22 @@ from ._proto import pb
 _AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
 
 
-def _named_axis(text):
+Float64Array = npt.NDArray[np.float64]
+
+
+def _named_axis(text: str) -> Float64Array:
     t = text.strip().lower()
     sign = -1.0 if t[:1] == "-" else 1.0
     t = t[1:] if t[:1] in ("-", "+") else t
     if t not in _AXES:
         raise ValueError("axis_angle axis: 'x', 'y', 'z' (or '-x', …) or 3 numbers, "
                          f"got {text!r}")
-    return sign * np.asarray(_AXES[t]) + 0.0  # + 0.0: no -0 components
+    a: Float64Array = sign * np.asarray(_AXES[t]) + 0.0  # + 0.0: no -0 components
+    return a
 
 
-def axis_angle(axis, degrees=None):
+def axis_angle(axis: Union[str, npt.ArrayLike], degrees: Optional[Union[float, str]] = None
+               ) -> Float64Array:
     """The unit quaternion (w, x, y, z) of a rotation by `degrees` about `axis`: 3 numbers or
     "x", "y", "z", "-x", …; or the CLI's text, axis_angle("x,30") / axis_angle("1,0,0,30")."""
     if isinstance(axis, str) and degrees is None:
@@ -36,7 +42,7 @@ def axis_angle(axis, degrees=None):
         try:
             degrees = float(degrees)
             if not isinstance(axis, str):
-                axis = [float(v) for v in axis]
+                axis = [float(v) for v in parts[:3]]
         except ValueError:
             raise ValueError("axis_angle: expected 'AXIS,DEG' or 'X,Y,Z,DEG' with numbers, "
                              f"got {text!r}") from None
@@ -50,10 +56,11 @@ def axis_angle(axis, degrees=None):
         raise ValueError("axis_angle axis: too long")
     # fmod(…, 720) as the CLI does, so huge angles lose no precision in the half angle
     half = np.radians(np.fmod(number(degrees, "axis_angle degrees"), 720.0)) / 2
-    return np.concatenate([[np.cos(half)], np.sin(half) * a / norm])
+    q: Float64Array = np.concatenate([[np.cos(half)], np.sin(half) * a / norm])
+    return q
 
 
-def _matrix_to_quaternion(m):
+def _matrix_to_quaternion(m: Float64Array) -> Float64Array:
     # Shepperd's method on a proper rotation matrix.
     t = np.trace(m)
     if t > 0:
@@ -71,7 +78,7 @@ def _matrix_to_quaternion(m):
     return np.asarray(q)
 
 
-def quaternion(rotate):
+def quaternion(rotate: npt.ArrayLike) -> Float64Array:
     """A unit quaternion (w, x, y, z) from 4 numbers (w, x, y, z) or a 3×3 rotation matrix."""
     try:
         a = np.asarray(rotate, dtype=np.float64)
@@ -90,7 +97,8 @@ def quaternion(rotate):
     n = np.linalg.norm(q)
     if not n > 0:
         raise ValueError("rotate: zero quaternion")
-    return q / n
+    out: Float64Array = q / n
+    return out
 
 
 @dataclass
@@ -99,13 +107,40 @@ class Transform:
     numbers; scale: a number, 3 numbers (per axis) or a symmetric positive definite 3×3;
     pivot: 3 numbers (default: the handle's rest centroid); matrix: 4×4 homogeneous (replaces
     rotate/scale/translate)."""
-    rotate: Any = None
-    translate: Any = None
-    scale: Any = None
-    pivot: Any = None
-    matrix: Any = None
+    rotate: Optional[npt.ArrayLike] = None
+    translate: Optional[npt.ArrayLike] = None
+    scale: Optional[npt.ArrayLike] = None
+    pivot: Optional[npt.ArrayLike] = None
+    matrix: Optional[npt.ArrayLike] = None
 
-    def to_proto(self):
+    @classmethod
+    def from_proto(cls, t: Any) -> "Transform":
+        """A Transform from an hdeform.v1.HandleTransform: tuples of floats (unset parts
+        None; scale a float, 3 floats or 3 rows of 3)."""
+        def vec(v: Any) -> Tuple[float, ...]:
+            return (float(v.x), float(v.y), float(v.z))
+
+        scale: Any = None
+        kind = t.WhichOneof("scale")
+        if kind == "uniform_scale":
+            scale = float(t.uniform_scale)
+        elif kind == "axis_scale":
+            scale = vec(t.axis_scale)
+        elif kind == "stretch":
+            m = [float(x) for x in t.stretch.m]
+            scale = tuple(tuple(m[3 * i:3 * i + 3]) for i in range(3))
+        matrix = None
+        if len(t.matrix):
+            m = [float(x) for x in t.matrix]
+            matrix = tuple(tuple(m[4 * i:4 * i + 4]) for i in range(4))
+        r = t.rotation
+        return cls(
+            rotate=(float(r.w), float(r.x), float(r.y), float(r.z)) if t.HasField("rotation")
+            else None,
+            translate=vec(t.translation) if t.HasField("translation") else None,
+            scale=scale, pivot=vec(t.pivot) if t.HasField("pivot") else None, matrix=matrix)
+
+    def to_proto(self) -> Any:
         t = pb.HandleTransform()
         if self.pivot is not None:
             p = floats(self.pivot, "pivot", (3,))
@@ -138,12 +173,18 @@ class Transform:
         return t
 
 
-def transform(rotate=None, translate=None, scale=None, pivot=None, matrix=None):
+def transform(rotate: Optional[npt.ArrayLike] = None,
+              translate: Optional[npt.ArrayLike] = None,
+              scale: Optional[npt.ArrayLike] = None, pivot: Optional[npt.ArrayLike] = None,
+              matrix: Optional[npt.ArrayLike] = None) -> Transform:
     """A Transform (see its fields)."""
     return Transform(rotate, translate, scale, pivot, matrix)
 
 
-def to_transform(spec) -> Optional[Transform]:
+TransformLike = Union[Transform, Dict[str, Any], npt.ArrayLike, None]
+
+
+def to_transform(spec: TransformLike) -> Transform:
     """A Transform from a Transform, a dict of its fields, a 4×4 matrix or None (identity)."""
     if spec is None:
         return Transform()
@@ -158,13 +199,14 @@ def to_transform(spec) -> Optional[Transform]:
     return Transform(matrix=spec)
 
 
-def read_def(path):
+def read_def(path: Union[str, "os.PathLike[str]"]) -> Float64Array:
     """A Botsch–Sorkine .def file's 4×4 matrix (16 numbers; '#' lines are comments)."""
-    numbers = []
+    numbers: List[float] = []
     with open(os.fspath(path)) as f:
         for line in f:
             line = line.split("#", 1)[0]
             numbers.extend(float(x) for x in line.split())
     if len(numbers) != 16:
         raise ValueError(f"{path}: expected 16 numbers (a 4×4 matrix), found {len(numbers)}")
-    return np.asarray(numbers).reshape(4, 4)
+    m: Float64Array = np.asarray(numbers, dtype=np.float64).reshape(4, 4)
+    return m

@@ -74,6 +74,8 @@ def test_documented_pip_install_runs_an_example(tmp_path):
     site = str(venv / "lib")
     assert package.startswith(site) and stubs.startswith(site), r.stdout
     assert all(p.startswith(site) for p in eval(paths)), paths  # noqa: S307 - a list literal
+    # PEP 561: the type hints are for users' type checkers too
+    assert os.path.isfile(os.path.join(os.path.dirname(package), "py.typed")), package
 
     # An example from outside the source tree: it starts a private server ($HDEFORM_SERVER).
     shutil.copy(os.path.join(CLIENT, "examples", "beta_study.py"), work)

@@ -104,8 +104,8 @@ def test_axis_angle_by_name():
 def test_axis_angle_rotates_like_the_matrix(cactus):
     c, s = np.cos(np.radians(30)), np.sin(np.radians(30))
     R = np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
-    a = cactus.update(rotate=hdeform.axis_angle("x", 30), double=True).V
-    b = cactus.update(rotate=R, double=True).V
+    a = cactus.update(rotate=hdeform.axis_angle("x", 30)).V
+    b = cactus.update(rotate=R).V
     lo, hi = cactus.bbox
     assert np.abs(a - b).max() <= 1e-9 * np.linalg.norm(hi - lo)
 

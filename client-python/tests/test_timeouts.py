@@ -99,7 +99,7 @@ def test_deadline_exceeded_names_the_call_and_the_timeout(stalled, tmp_path):
 
 def test_a_generous_timeout_changes_nothing(cactus):
     cactus.set_beta(0.1, timeout=60)
-    frame = cactus.update(translate=(0, 0, 0.1), double=True, timeout=60)
+    frame = cactus.update(translate=(0, 0, 0.1), timeout=60)
     assert frame.beta == pytest.approx(0.1) and frame.V.shape == (cactus.vertex_count, 3)
     assert len(cactus.sweep([0, 0.1], timeout=60)) == 2
     assert cactus.mesh_bytes("glb", timeout=math.inf)[:4] == b"glTF"

@@ -12,9 +12,10 @@ namespace hdeform {
 void write_ready_file(const std::string& path, const std::string& grpc_address,
                       const std::string& http_address);
 
-// Linux: SIGTERM to this process when the thread's parent exits (PR_SET_PDEATHSIG), and at
-// once if it has already exited (reparented since `parent_at_start`). Call from the main
-// thread before starting others: the death signal follows the thread that set it.
+// Linux: SIGTERM to this process when its parent exits (PR_SET_PDEATHSIG), and at once if it
+// has already exited (reparented since `parent_at_start`). Strictly it is the parent's
+// *thread* that forked this process whose exit sends it: a parent starts the server from a
+// thread that lives as long as it does (the Python client does, docs/python.md).
 void exit_with_parent(int parent_at_start);
 
 }  // namespace hdeform

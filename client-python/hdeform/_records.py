@@ -1,0 +1,127 @@
+"""What the server answers, as frozen dataclasses (never raw protobuf): β, history steps,
+timeline keys, timelines and named snapshots."""
+from dataclasses import dataclass, field
+from typing import Any, Optional, Tuple
+
+from ._proto import pb
+from ._transforms import Transform
+
+# StepKind, EASING_*: the proto enum's names without their prefix, lower case.
+_STEP_KINDS = {
+    pb.STEP_KIND_UNSPECIFIED: "unspecified", pb.STEP_KIND_CONSTRAINTS: "constraints",
+    pb.STEP_KIND_BETA: "beta", pb.STEP_KIND_MOVE: "move", pb.STEP_KIND_UNDO: "undo",
+    pb.STEP_KIND_REDO: "redo", pb.STEP_KIND_RESTORE: "restore",
+    pb.STEP_KIND_TIMELINE: "timeline", pb.STEP_KIND_SNAPSHOT_SAVE: "snapshot_save",
+    pb.STEP_KIND_SNAPSHOT_DELETE: "snapshot_delete"}
+_EASING_NAMES = {pb.EASING_LINEAR: "linear", pb.EASING_SMOOTHSTEP: "smoothstep"}
+
+
+@dataclass(frozen=True)
+class Beta:
+    """A β setting. value: the number (the pick when automatic); units: "area" or "raw";
+    automatic: the server picks it; local_count: how many local entries (regions with their
+    own β) it has."""
+    value: float
+    units: str = "area"
+    automatic: bool = False
+    local_count: int = 0
+
+    @classmethod
+    def from_proto(cls, b: Any) -> "Beta":
+        return cls(value=float(b.value),
+                   units="raw" if b.units == pb.BETA_UNITS_RAW else "area",
+                   automatic=bool(b.automatic), local_count=len(b.local))
+
+
+@dataclass(frozen=True)
+class HistoryStep:
+    """One step of a session's history (hdeform.v1.HistoryStep).
+
+    id: 1, 2, … in the session's order; kind: "constraints", "beta", "move", "undo", "redo",
+    "restore", "timeline", "snapshot_save" or "snapshot_delete"; client_id: its author's
+    client id ("" anonymous); author: the display name at the time; time_unix_ms; version:
+    the session version right after it; handles: the handles whose transforms it changed;
+    beta_changed, timeline_changed; target: for undo / redo the step reverted / re-applied
+    (else 0); snapshot: the snapshot's name for restore / snapshot_save / snapshot_delete
+    (else ""); undone: reverted by a later undo and not redone; summary: for people, e.g.
+    "moved handle 0"."""
+    id: int
+    kind: str
+    client_id: str
+    author: str
+    time_unix_ms: int
+    version: int
+    handles: Tuple[int, ...]
+    beta_changed: bool
+    timeline_changed: bool
+    target: int
+    snapshot: str
+    undone: bool
+    summary: str
+
+    @classmethod
+    def from_proto(cls, s: Any) -> "HistoryStep":
+        return cls(id=int(s.id), kind=_STEP_KINDS.get(s.kind, f"kind_{int(s.kind)}"),
+                   client_id=str(s.client_id), author=str(s.author),
+                   time_unix_ms=int(s.time_unix_ms), version=int(s.version),
+                   handles=tuple(int(h) for h in s.handles),
+                   beta_changed=bool(s.beta_changed), timeline_changed=bool(s.timeline_changed),
+                   target=int(s.target), snapshot=str(s.snapshot), undone=bool(s.undone),
+                   summary=str(s.summary))
+
+
+@dataclass(frozen=True)
+class Keyframe:
+    """A timeline key, or the pose pose_at() interpolates. time_s: seconds; transforms: one
+    hdeform.Transform per handle (update(transforms=list(k.transforms)) shows the pose);
+    beta: the β from this key on, or None when the key sets none."""
+    time_s: float
+    transforms: Tuple[Transform, ...]
+    beta: Optional[Beta] = None
+
+    @classmethod
+    def from_proto(cls, k: Any) -> "Keyframe":
+        return cls(time_s=float(k.time_s),
+                   transforms=tuple(Transform.from_proto(t) for t in k.transforms),
+                   beta=Beta.from_proto(k.beta) if k.HasField("beta") else None)
+
+
+@dataclass(frozen=True)
+class Timeline:
+    """A session's timeline. keys: the Keyframes (empty: no timeline); easing: "linear" or
+    "smoothstep"; version: the session version it was set at (0: never set); author and
+    client_id: who set it."""
+    keys: Tuple[Keyframe, ...]
+    easing: str
+    version: int
+    author: str
+    client_id: str
+
+    @classmethod
+    def from_proto(cls, t: Any) -> "Timeline":
+        return cls(keys=tuple(Keyframe.from_proto(k) for k in t.keys),
+                   easing=_EASING_NAMES.get(t.easing, f"easing_{int(t.easing)}"),
+                   version=int(t.version), author=str(t.author), client_id=str(t.client_id))
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """A named snapshot of a session (hdeform.v1.NamedSnapshot). name; author;
+    time_unix_ms; version: the session version it was taken at; beta; transforms: one
+    hdeform.Transform per handle; handle_count. `proto`: the message itself (its
+    `snapshot.constraints` hold the regions as sent)."""
+    name: str
+    author: str
+    time_unix_ms: int
+    version: int
+    beta: Beta
+    transforms: Tuple[Transform, ...]
+    handle_count: int
+    proto: Any = field(repr=False, compare=False, default=None)
+
+    @classmethod
+    def from_proto(cls, s: Any) -> "Snapshot":
+        return cls(name=str(s.name), author=str(s.author), time_unix_ms=int(s.time_unix_ms),
+                   version=int(s.version), beta=Beta.from_proto(s.snapshot.beta),
+                   transforms=tuple(Transform.from_proto(t) for t in s.snapshot.transforms),
+                   handle_count=len(s.snapshot.constraints.handles), proto=s)
