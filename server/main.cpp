@@ -200,7 +200,7 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   app.add_option("--max-animation-bytes", request.max_animation_bytes,
-                 "size of one ExportAnimation GLB (bytes; checked before any solve)")
+                 "size of one ExportAnimation or ExportRig GLB (bytes; checked before any solve)")
       ->envname("HDEFORM_MAX_ANIMATION_BYTES")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
