@@ -10,8 +10,12 @@
 // Extra flag (ours): --hdeform_smoke  one repetition everywhere (ctest bench-smoke).
 #include "bench_common.h"
 #include "engine/deform/deformer.h"
+#include "engine/deform/keyframes.h"
 #include "engine/deform/measures.h"
+#include "engine/deform/skin_weights.h"
+#include "engine/io/animation_glb.h"
 #include "engine/io/mesh_io.h"
+#include "engine/io/rig_glb.h"
 #include "engine/io/selection.h"
 #include "engine/operators/sparse_times3.h"
 #include "engine/runtime/process_environment.h"
@@ -489,6 +493,80 @@ void BM_Update(benchmark::State& state, std::string key, double beta, Move mode,
     state.counters["solves"] = static_cast<double>(solves) / static_cast<double>(state.iterations());
 }
 
+// The same 2-second motion (rest at 0 s, move(c, 0) at 2 s) exported two ways (issue 39): as
+// a rig (skin weights from Φ, the current pose and 2 keys solved exactly and measured against
+// their LBS, the skinned GLB) and as morph targets (ExportAnimation: 61 frames at 30 fps, each
+// a full deformation). Counters: the GLB's bytes; the rig's LBS error at the pose (max, rms,
+// fractions of the rest bbox diagonal). Engine work only (the service adds the base-order
+// copies and the chunked send).
+enum class Export { rig, morph };
+
+void BM_Export(benchmark::State& state, std::string key, Export kind) {
+  Case& c = get(key);
+  c.cs->prepare(Beta{0});
+  const PreparedMesh& pm = *c.pm;
+  const Eigen::Vector3d pivot = c.cs->centroid(0);
+  HandleTransform rest;
+  rest.pivot = pivot;
+  HandleTransform posed = move(c, 0);
+  posed.pivot = pivot;
+  const std::vector<Keyframe> keys = {{0.0, {rest}}, {2.0, {posed}}};
+  const std::vector<Eigen::Vector3d> rest_pivots = {pivot};
+  std::size_t bytes = 0;
+  SkinError error;
+  const double diagonal =
+      (pm.mesh().V.colwise().maxCoeff() - pm.mesh().V.colwise().minCoeff()).norm();
+  for (auto _ : state) {
+    if (kind == Export::rig) {
+      const SkinWeights w = skin_weights(c.cs->harmonic_basis(), 4);
+      RigGlbInput in;
+      in.V = pm.mesh().V;
+      in.N = vertex_normals(in.V, pm.mesh().F);
+      in.F = pm.mesh().F;
+      in.joints = w.joint;
+      in.weights = w.weight;
+      in.bind = {pivot};
+      const std::vector<const HandleTransform*> poses = {&posed, &rest, &posed};
+      for (std::size_t k = 0; k < poses.size(); ++k) {
+        const JointPose jp = joint_pose(*poses[k], pivot, pivot);
+        const JointTrs trs{jp.translation, jp.rotation, jp.scale};
+        if (k == 0) in.pose = {trs};
+        else {
+          in.key_times.push_back(keys[k - 1].time);
+          in.keys.push_back({trs});
+        }
+        const HandleTransform played = as_transform(jp, pivot);
+        const Frame f = c.cs->update(std::span(poses[k], 1), Beta{0},
+                                     {.energies = false, .normals = false, .measures = false});
+        const SkinError e = skin_error(skin_positions(in.V, w, std::span(&played, 1),
+                                                      std::span(&pivot, 1)),
+                                       f.positions);
+        if (k == 0) error = e;
+      }
+      const std::string glb = rig_glb(in);
+      bytes = glb.size();
+      benchmark::DoNotOptimize(glb.data());
+    } else {
+      const std::vector<double> times = sample_times(0, 2, 30);
+      AnimationGlb glb(pm.mesh().F, pm.n(), times, false, false);
+      for (double t : times) {
+        const std::vector<HandleTransform> pose = pose_at(keys, t, Easing::linear, rest_pivots);
+        const Frame f = c.cs->update(pose, Beta{0}, {.energies = false, .measures = false});
+        glb.add_frame(f.positions, f.normals);
+      }
+      const std::string out = glb.finish();
+      bytes = out.size();
+      benchmark::DoNotOptimize(out.data());
+    }
+  }
+  state.counters["bytes"] = static_cast<double>(bytes);
+  if (kind == Export::rig) {
+    state.counters["lbs_max"] = error.max / diagonal;
+    state.counters["lbs_rms"] = error.rms / diagonal;
+  }
+  size_counters(state, c);
+}
+
 // Two threads updating the same set concurrently (a session per client): throughput.
 void BM_UpdateConcurrent(benchmark::State& state, std::string key, double beta) {
   Case& c = get(key);
@@ -830,6 +908,10 @@ void register_size(int n) {
                                            BM_UpdateConcurrent, key, 0.0);
     b->Unit(benchmark::kMillisecond)->UseRealTime()->Threads(1)->Threads(2);
     if (g_smoke) b->Iterations(1);
+  }
+  if (!big) {
+    reg("Export" + N + "/rig", slow, BM_Export, key, Export::rig);
+    reg("Export" + N + "/morph_30fps_2s", slow, BM_Export, key, Export::morph);
   }
   reg("Phase" + N + "/guidance", fast, BM_Phase, key, Phase::guidance, 0.0);
   reg("Phase" + N + "/measures", fast, BM_Phase, key, Phase::measures, 0.0);
