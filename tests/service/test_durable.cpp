@@ -312,3 +312,84 @@ TEST(Durable, ConcurrentFirstCallsRestoreEachSessionOnce) {
   EXPECT_NE(full.error_message().find("cannot be restored now"), std::string::npos)
       << full.error_message();
 }
+
+// Restoring a stored session parses its mesh and factorizes: never on gRPC's callback
+// threads. After a restart, the first call of each kind on a not-yet-restored session (a
+// lookup inline, a change through the strand, a pool call) is answered, and every restore
+// ran on the worker pool.
+TEST(Durable, RestoresRunOnTheWorkerPoolNotOnGrpcThreads) {
+  TempDir dir;
+  std::vector<pb::Session> s(9);
+  {
+    TestServer a(durable(dir.path));
+    for (auto& session : s) {
+      ASSERT_TRUE(a.create_library("cactus", &session).ok());
+      pb::Session constrained;
+      ASSERT_TRUE(
+          a.set_constraints(session.name(), benchmark_constraints("cactus"), &constrained).ok());
+    }
+  }
+  TestServer b(durable(dir.path));
+  auto view = [&](std::size_t k) { return as(s[k].view_token()); };
+  auto edit = [&](std::size_t k) { return as(s[k].edit_token()); };
+  {
+    pb::GetSessionRequest r;
+    r.set_name(s[0].name());
+    pb::Session out;
+    EXPECT_TRUE(b.bare_stub->GetSession(view(0).get(), r, &out).ok());
+  }
+  {
+    pb::ListHistoryRequest r;
+    r.set_name(s[1].name());
+    pb::ListHistoryResponse out;
+    EXPECT_TRUE(b.bare_stub->ListHistory(view(1).get(), r, &out).ok());
+  }
+  {
+    pb::GetTimelineRequest r;
+    r.set_name(s[2].name());
+    pb::Timeline out;
+    EXPECT_TRUE(b.bare_stub->GetTimeline(view(2).get(), r, &out).ok());
+  }
+  {
+    pb::PoseAtRequest r;
+    r.set_name(s[3].name());
+    pb::Keyframe out;
+    const auto st = b.bare_stub->PoseAt(view(3).get(), r, &out);
+    EXPECT_EQ(st.error_code(), StatusCode::FAILED_PRECONDITION) << st.error_message();  // no keys
+  }
+  {
+    pb::ListSnapshotsRequest r;
+    r.set_name(s[4].name());
+    pb::ListSnapshotsResponse out;
+    EXPECT_TRUE(b.bare_stub->ListSnapshots(view(4).get(), r, &out).ok());
+  }
+  {
+    pb::SetBetaRequest r;
+    r.set_name(s[5].name());
+    r.mutable_beta()->set_value(0.1);
+    pb::Session out;
+    const auto st = b.bare_stub->SetBeta(edit(5).get(), r, &out);
+    EXPECT_TRUE(st.ok()) << st.error_message();
+  }
+  {
+    pb::GetHandleWeightsRequest r;
+    r.set_name(s[6].name());
+    pb::HandleWeights out;
+    EXPECT_TRUE(b.bare_stub->GetHandleWeights(view(6).get(), r, &out).ok());
+  }
+  {
+    pb::UpdateHandlesRequest r;
+    r.set_name(s[7].name());
+    *r.add_transforms() = benchmark_transform("cactus");
+    pb::Frame out;
+    const auto st = b.bare_stub->UpdateHandles(edit(7).get(), r, &out);
+    EXPECT_TRUE(st.ok()) << st.error_message();
+  }
+  {
+    pb::DeleteSessionRequest r;
+    r.set_name(s[8].name());
+    pb::DeleteSessionResponse out;
+    EXPECT_TRUE(b.bare_stub->DeleteSession(edit(8).get(), r, &out).ok());
+  }
+  EXPECT_EQ(b.server->restores_off_pool(), 0u);
+}

@@ -102,7 +102,14 @@ std::size_t WorkerPool::queued() const {
   return tasks_.size();
 }
 
+namespace {
+thread_local bool t_on_worker = false;
+}  // namespace
+
+bool WorkerPool::on_worker() { return t_on_worker; }
+
 void WorkerPool::run() {
+  t_on_worker = true;
   for (;;) {
     Task task;
     {

@@ -33,6 +33,8 @@ class WorkerPool {
   // Stops accepting work, drains the queue and joins the threads.
   void stop();
   int size() const { return static_cast<int>(threads_.size()); }
+  // True on a thread of any WorkerPool: where blocking work (a session's restore) may run.
+  static bool on_worker();
   std::size_t queued() const;
 
  private:

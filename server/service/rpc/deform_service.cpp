@@ -182,13 +182,6 @@ ReadLimits DeformService::read_limits() const {
   return limits;
 }
 
-grpc::ServerUnaryReactor* DeformService::finish_inline(grpc::CallbackServerContext* ctx,
-                                                       const char* op, const Work& fn) {
-  auto* reactor = ctx->DefaultReactor();
-  reactor->Finish(guarded(fn, op));
-  return reactor;
-}
-
 void DeformService::admit_to_pool() const {
   const std::size_t waiting = pool_->queued();
   if (waiting >= options_.request.max_queued_calls)
@@ -209,6 +202,15 @@ grpc::ServerUnaryReactor* DeformService::finish_on_pool(grpc::CallbackServerCont
   return reactor;
 }
 
+grpc::ServerUnaryReactor* DeformService::finish_with_session(grpc::CallbackServerContext* ctx,
+                                                             const char* op,
+                                                             const std::string& name, Work fn) {
+  if (!store_.resident(name)) return finish_on_pool(ctx, op, std::move(fn));
+  auto* reactor = ctx->DefaultReactor();
+  reactor->Finish(guarded(fn, op));
+  return reactor;
+}
+
 grpc::ServerUnaryReactor* DeformService::finish_on_session(grpc::CallbackServerContext* ctx,
                                                            const char* op,
                                                            const std::string& name,
@@ -216,28 +218,43 @@ grpc::ServerUnaryReactor* DeformService::finish_on_session(grpc::CallbackServerC
                                                            std::function<void(Session&)> fn,
                                                            std::function<void(Session&)> admit) {
   auto* reactor = ctx->DefaultReactor();
-  const auto status = guarded(
-      [&] {
-        auto session = session_for(*ctx, name, needed, op);
-        auto task = [reactor, op, session, fn = std::move(fn)] {
-          reactor->Finish(guarded(
+  // Looks the session up, admits the call and posts it to the strand; here when the lookup
+  // does no work, else from the pool (a restore parses and factorizes).
+  auto enter = [this, reactor, ctx, op, name, needed, fn = std::move(fn),
+                admit = std::move(admit)]() mutable {
+    const auto status = guarded(
+        [&] {
+          auto session = session_for(*ctx, name, needed, op);
+          auto task = [reactor, op, session, fn = std::move(fn)] {
+            reactor->Finish(guarded(
+                [&] {
+                  // Deleted while this call waited on the strand: it must not act on a ghost.
+                  if (session->closed())
+                    fail(grpc::StatusCode::NOT_FOUND, session->name() + " was deleted");
+                  fn(*session);
+                },
+                op));
+          };
+          if (!WorkerPool::on_worker()) admit_to_pool();
+          session->admit_and_post(
               [&] {
-                // Deleted while this call waited on the strand: it must not act on a ghost.
-                if (session->closed())
-                  fail(grpc::StatusCode::NOT_FOUND, session->name() + " was deleted");
-                fn(*session);
+                if (admit) admit(*session);
               },
-              op));
-        };
-        admit_to_pool();
-        session->admit_and_post(
-            [&] {
-              if (admit) admit(*session);
-            },
-            std::move(task), options_.request.max_session_queue);
-      },
-      op);
-  if (!status.ok()) reactor->Finish(status);
+              std::move(task), options_.request.max_session_queue);
+        },
+        op);
+    if (!status.ok()) reactor->Finish(status);
+  };
+  if (store_.resident(name)) {
+    enter();
+    return reactor;
+  }
+  const auto admitted = guarded([this] { admit_to_pool(); }, op);
+  if (!admitted.ok()) {
+    reactor->Finish(admitted);
+    return reactor;
+  }
+  pool_->submit(std::move(enter));
   return reactor;
 }
 
@@ -273,7 +290,7 @@ grpc::ServerReadReactor<v1::CreateSessionRequest>* DeformService::CreateSession(
 grpc::ServerUnaryReactor* DeformService::GetSession(grpc::CallbackServerContext* ctx,
                                                     const v1::GetSessionRequest* request,
                                                     v1::Session* response) {
-  return finish_inline(ctx, "GetSession", [&] {
+  return finish_with_session(ctx, "GetSession", request->name(), [this, ctx, request, response] {
     *response = session_for(*ctx, request->name(), Access::kView, "GetSession")->describe();
   });
 }
@@ -281,7 +298,8 @@ grpc::ServerUnaryReactor* DeformService::GetSession(grpc::CallbackServerContext*
 grpc::ServerUnaryReactor* DeformService::ListSessions(grpc::CallbackServerContext* ctx,
                                                       const v1::ListSessionsRequest*,
                                                       v1::ListSessionsResponse* response) {
-  return finish_inline(ctx, "ListSessions", [&] {
+  // On the pool: the stored records not in memory are read and parsed.
+  return finish_on_pool(ctx, "ListSessions", [this, ctx, response] {
     const auto hashes = presented_token_hashes(*ctx);
     const bool all = is_admin(hashes);
     if (hashes.empty()) return;  // no token opens no session
@@ -295,7 +313,7 @@ grpc::ServerUnaryReactor* DeformService::ListSessions(grpc::CallbackServerContex
 grpc::ServerUnaryReactor* DeformService::DeleteSession(grpc::CallbackServerContext* ctx,
                                                        const v1::DeleteSessionRequest* request,
                                                        v1::DeleteSessionResponse*) {
-  return finish_inline(ctx, "DeleteSession", [&] {
+  return finish_with_session(ctx, "DeleteSession", request->name(), [this, ctx, request] {
     session_for(*ctx, request->name(), Access::kEdit, "DeleteSession");
     if (!store_.remove(request->name()))
       fail(grpc::StatusCode::NOT_FOUND, "no session '" + request->name() + "'");
@@ -608,7 +626,7 @@ grpc::ServerUnaryReactor* DeformService::Redo(grpc::CallbackServerContext* ctx,
 grpc::ServerUnaryReactor* DeformService::ListHistory(grpc::CallbackServerContext* ctx,
                                                      const v1::ListHistoryRequest* request,
                                                      v1::ListHistoryResponse* response) {
-  return finish_inline(ctx, "ListHistory", [&] {
+  return finish_with_session(ctx, "ListHistory", request->name(), [this, ctx, request, response] {
     *response =
         session_for(*ctx, request->name(), Access::kView, "ListHistory")->list_history(*request);
   });
@@ -626,7 +644,7 @@ grpc::ServerUnaryReactor* DeformService::SaveSnapshot(grpc::CallbackServerContex
 grpc::ServerUnaryReactor* DeformService::ListSnapshots(grpc::CallbackServerContext* ctx,
                                                        const v1::ListSnapshotsRequest* request,
                                                        v1::ListSnapshotsResponse* response) {
-  return finish_inline(ctx, "ListSnapshots", [&] {
+  return finish_with_session(ctx, "ListSnapshots", request->name(), [this, ctx, request, response] {
     *response = session_for(*ctx, request->name(), Access::kView, "ListSnapshots")
                     ->list_snapshots();
   });
@@ -654,17 +672,9 @@ grpc::ServerUnaryReactor* DeformService::DeleteSnapshot(grpc::CallbackServerCont
 grpc::ServerUnaryReactor* DeformService::GetHandleWeights(
     grpc::CallbackServerContext* ctx, const v1::GetHandleWeightsRequest* request,
     v1::HandleWeights* response) {
-  std::shared_ptr<Session> session;
-  const auto status = guarded(
-      [&] { session = session_for(*ctx, request->name(), Access::kView, "GetHandleWeights"); },
-      "GetHandleWeights");
-  if (!status.ok()) {
-    auto* reactor = ctx->DefaultReactor();
-    reactor->Finish(status);
-    return reactor;
-  }
-  return finish_on_pool(ctx, "GetHandleWeights", [session, request, response] {
-    *response = session->handle_weights(request->handle());
+  return finish_on_pool(ctx, "GetHandleWeights", [this, ctx, request, response] {
+    *response = session_for(*ctx, request->name(), Access::kView, "GetHandleWeights")
+                    ->handle_weights(request->handle());
   });
 }
 
@@ -681,7 +691,7 @@ grpc::ServerUnaryReactor* DeformService::SetTimeline(grpc::CallbackServerContext
 grpc::ServerUnaryReactor* DeformService::GetTimeline(grpc::CallbackServerContext* ctx,
                                                      const v1::GetTimelineRequest* request,
                                                      v1::Timeline* response) {
-  return finish_inline(ctx, "GetTimeline", [&] {
+  return finish_with_session(ctx, "GetTimeline", request->name(), [this, ctx, request, response] {
     *response = session_for(*ctx, request->name(), Access::kView, "GetTimeline")->timeline();
   });
 }
@@ -689,7 +699,7 @@ grpc::ServerUnaryReactor* DeformService::GetTimeline(grpc::CallbackServerContext
 grpc::ServerUnaryReactor* DeformService::PoseAt(grpc::CallbackServerContext* ctx,
                                                 const v1::PoseAtRequest* request,
                                                 v1::Keyframe* response) {
-  return finish_inline(ctx, "PoseAt", [&] {
+  return finish_with_session(ctx, "PoseAt", request->name(), [this, ctx, request, response] {
     *response =
         session_for(*ctx, request->name(), Access::kView, "PoseAt")->pose_at(request->time_s());
   });

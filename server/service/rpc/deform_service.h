@@ -155,13 +155,16 @@ class DeformService final : public v1::Deformation::CallbackService {
   using Work = std::function<void()>;
   // Mesh parsing bounds: --max-vertices while parsing, stopped by shutdown.
   ReadLimits read_limits() const;
-  // Finish a unary call with fn's outcome: inline (cheap), on the pool, or on a session's
-  // strand (NOT_FOUND when the session does not exist). `admit` runs at arrival, before the
+  // Finish a unary call with fn's outcome: on the pool, inline or on the pool (a lookup), or
+  // on a session's strand (NOT_FOUND when the session does not exist). `admit` runs at arrival, before the
   // call waits for the strand (cheap checks and per-session admission).
-  grpc::ServerUnaryReactor* finish_inline(grpc::CallbackServerContext* ctx, const char* op,
-                                          const Work& fn);
   grpc::ServerUnaryReactor* finish_on_pool(grpc::CallbackServerContext* ctx, const char* op,
                                            Work fn);
+  // fn (which looks up session `name`) inline when the lookup does no work
+  // (SessionStore::resident), else on the pool: a restore or a revalidation never runs on
+  // gRPC's callback threads. fn may run after the handler returned: it captures by value.
+  grpc::ServerUnaryReactor* finish_with_session(grpc::CallbackServerContext* ctx, const char* op,
+                                                const std::string& name, Work fn);
   grpc::ServerUnaryReactor* finish_on_session(grpc::CallbackServerContext* ctx, const char* op,
                                               const std::string& name, Access needed,
                                               std::function<void(Session&)> fn,

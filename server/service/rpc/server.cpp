@@ -107,6 +107,10 @@ Server::MemoryStats Server::memory_stats() const {
   return {c.budget, c.bytes, f.charged, f.pinned, f.evictions};
 }
 
+std::size_t Server::restores_off_pool() const {
+  return impl_->service->sessions().restores_off_pool();
+}
+
 std::shared_ptr<grpc::Channel> Server::in_process_channel() {
   grpc::ChannelArguments args;
   args.SetMaxReceiveMessageSize(-1);

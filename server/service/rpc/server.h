@@ -65,6 +65,8 @@ class Server {
     std::uint64_t factor_evictions = 0;
   };
   MemoryStats memory_stats() const;
+  // Session restores that ran outside the worker pool (on a gRPC thread): should stay 0.
+  std::size_t restores_off_pool() const;
   std::shared_ptr<grpc::Channel> in_process_channel();
   void shutdown(std::chrono::milliseconds deadline = std::chrono::milliseconds(2000));
   void wait();

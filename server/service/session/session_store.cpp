@@ -2,6 +2,7 @@
 
 #include "service/infra/release_memory.h"
 #include "service/infra/service_error.h"
+#include "service/infra/worker_pool.h"
 #include "service/session/session_record.h"
 #include "service/state/state_keys.h"
 
@@ -147,6 +148,19 @@ std::shared_ptr<Session> SessionStore::find(const std::string& name) const {
   return restore(id);
 }
 
+bool SessionStore::resident(const std::string& name) const {
+  const std::string id = id_of(name);
+  std::shared_ptr<Session> s;
+  {
+    std::lock_guard lock(mutex_);
+    auto it = sessions_.find(id);
+    if (it != sessions_.end()) s = it->second;
+  }
+  if (!s) return !durable() || id.empty() || id.size() > 64;
+  if (persistence_.revalidate.count() == 0) return true;
+  return unix_ms_now() - s->persisted().checked_ms.load() < persistence_.revalidate.count();
+}
+
 bool SessionStore::still_current(Session& s) const {
   auto& p = s.persisted();
   const std::int64_t now = unix_ms_now();
@@ -217,6 +231,10 @@ void SessionStore::drop(const std::shared_ptr<Session>& s) const {
 }
 
 std::shared_ptr<Session> SessionStore::restore(const std::string& id) const {
+  if (!WorkerPool::on_worker()) {
+    ++restores_off_pool_;
+    spdlog::warn("sessions/{}: restored on a thread outside the worker pool", id);
+  }
   std::shared_ptr<std::mutex> mine;
   {
     std::lock_guard lock(mutex_);

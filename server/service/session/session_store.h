@@ -7,6 +7,7 @@
 #include "service/session/session.h"
 #include "service/state/state_backend.h"
 
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cstddef>
@@ -72,6 +73,13 @@ class SessionStore {
   // stored but not in memory is restored first (ServiceError UNAVAILABLE / FAILED_PRECONDITION
   // when its record or mesh cannot be read: the record is left as it is).
   std::shared_ptr<Session> find(const std::string& name) const;
+  // Whether find(name) would do no I/O and no work: the session is in memory and needs no
+  // revalidation against the store now. When false, callers on gRPC's threads move the
+  // lookup to the worker pool (a restore parses and factorizes; a revalidation reads the
+  // store). Unknown names are "resident" only without durable state (nothing to read).
+  bool resident(const std::string& name) const;
+  // Restores that ran on a thread outside the worker pool (should stay 0; each is logged).
+  std::size_t restores_off_pool() const { return restores_off_pool_.load(); }
   std::shared_ptr<Session> get(const std::string& name) const;  // NOT_FOUND
   // Deletes the session and its durable record.
   bool remove(const std::string& name);
@@ -137,6 +145,7 @@ class SessionStore {
   // by id; mutable: find() publishes sessions it restores
   mutable std::map<std::string, std::shared_ptr<Session>> sessions_;
   Persistence persistence_;
+  mutable std::atomic<std::size_t> restores_off_pool_{0};
   // One restore per id at a time (a second caller waits for the first and takes its
   // session); different ids restore in parallel. Guarded by mutex_.
   mutable std::map<std::string, std::shared_ptr<std::mutex>> restoring_;
