@@ -38,7 +38,8 @@ from ._selectors import (  # noqa: E402
     Selector, ids, base_ids, box, sphere, half_space, sel, sel_file, FIXED, HANDLE)
 from ._transforms import Transform, transform, axis_angle, read_def  # noqa: E402
 from ._frames import Encoding, Frame, FrameDecodeError, Measures  # noqa: E402
-from ._records import Beta, HistoryStep, Keyframe, Snapshot, Timeline  # noqa: E402
+from ._records import (  # noqa: E402
+    Beta, HistoryStep, Keyframe, RigExport, RigPoseError, Snapshot, Timeline)
 from ._client import Client, Session, Watch, SweepRow, SweepResult, LibraryMesh, connect  # noqa: E402
 from ._server import LocalServer, find_server  # noqa: E402
 from ._meshio import ply_bytes, parse_off, stl_bytes, triangulate  # noqa: E402
@@ -49,7 +50,8 @@ __version__ = "0.1.0"
 __all__ = [
     "connect", "Client", "Session", "Watch", "Frame", "FrameDecodeError", "Encoding",
     "Measures", "SweepRow", "SweepResult", "LibraryMesh", "LocalServer", "find_server",
-    "Beta", "HistoryStep", "Keyframe", "Snapshot", "Timeline", "from_meshio",
+    "Beta", "HistoryStep", "Keyframe", "Snapshot", "Timeline", "RigExport", "RigPoseError",
+    "from_meshio",
     "Selector", "ids", "base_ids", "box", "sphere", "half_space", "sel", "sel_file", "FIXED",
     "HANDLE", "Transform", "transform", "axis_angle", "read_def", "ply_bytes", "parse_off",
     "stl_bytes", "triangulate",

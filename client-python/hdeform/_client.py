@@ -3,6 +3,7 @@ import decimal
 import itertools
 import json
 import math
+import numbers
 import os
 import struct
 import time
@@ -23,7 +24,7 @@ from ._frames import (Encoding, Float64Array, Frame, Int64Array, Measures, PathL
                       encoding_value)
 from ._meshio import parse_off, ply_bytes, stl_bytes
 from ._proto import pb, pb_grpc
-from ._records import HistoryStep, Keyframe, Snapshot, Timeline
+from ._records import HistoryStep, Keyframe, RigExport, Snapshot, Timeline
 from ._selectors import RegionLike, Selector, region
 from ._server import LocalServer
 from ._transforms import Transform, TransformLike, to_transform
@@ -100,6 +101,22 @@ def _rpc_bytes(fn: Callable[..., Any], request: Any, deadline: _Deadline,
                                            timeout=deadline.remaining()))
     except grpc.RpcError as e:
         raise deadline.error(e) from None
+
+
+def _rpc_chunks_first(fn: Callable[..., Any], request: Any, deadline: _Deadline,
+                      metadata: Metadata) -> Tuple[bytes, Any]:
+    """A server stream of chunks joined into bytes, and its first chunk (ExportRig sets its
+    rig_report; None for an empty stream)."""
+    first: Any = None
+    parts: List[bytes] = []
+    try:
+        for c in fn(request, metadata=metadata, timeout=deadline.remaining()):
+            if first is None:
+                first = c
+            parts.append(c.data)
+    except grpc.RpcError as e:
+        raise deadline.error(e) from None
+    return b"".join(parts), first
 
 
 def _metadata(token: Optional[str], session: Optional[str] = None) -> Metadata:
@@ -819,6 +836,36 @@ class Session:
             with open(path, "wb") as f:
                 f.write(data)
         return data
+
+    def export_rig(self, path: Optional[PathLike] = None, influences: int = 4, up: str = "y",
+                   animation: bool = True, timeout: Timeout = None) -> RigExport:
+        """The session as a rig: a skinned GLB (hdeform.RigExport.glb; also written to `path`
+        if given) with the fixed region as root joint 0 and handle j as joint j + 1 (at its
+        pivot), the harmonic fields as skin weights (the top `influences`, 4 or 8, per vertex),
+        the joints in the current pose, and with `animation` the timeline's keys as a skeletal
+        animation. RigExport.poses: how far linear blend skinning is from the exact solve at
+        the current pose and at each key (fractions of the bbox diagonal; to_csv() writes them
+        as `hdeform rig --report`). up: "y" or "z", the model's up axis (docs/rig.md)."""
+        given: object = influences  # checked as any object: a script may pass anything
+        if isinstance(given, (bool, np.bool_)) or not isinstance(given, numbers.Integral):
+            raise TypeError(f"influences: expected 4 or 8, got {type(given).__name__}")
+        _checks.choice(int(given), (4, 8), "influences")
+        flag: object = animation
+        if not isinstance(flag, (bool, np.bool_)):
+            raise TypeError(f"animation: expected a bool, got {type(flag).__name__}")
+        req = pb.ExportRigRequest(name=self.name, influences=int(influences),
+                                  up=_UP[_checks.choice(up, _UP, "up")],
+                                  skip_animation=not flag)
+        data, first = _rpc_chunks_first(self.client.stub.ExportRig, req,
+                                        self.client._deadline(timeout, "ExportRig"),
+                                        _metadata(self.token, self.name))
+        if first is None or not first.HasField("rig_report"):
+            raise Error("ExportRig: the server sent no rig report (an older hdeform-server?)")
+        rig = RigExport.from_proto(data, first.rig_report)
+        if path is not None:
+            with open(os.fspath(path), "wb") as f:
+                f.write(data)
+        return rig
 
     def watch(self, encoding: WatchEncoding = "float32",
               timeout: Optional[float] = None) -> "Watch":

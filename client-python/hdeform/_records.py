@@ -1,7 +1,8 @@
 """What the server answers, as frozen dataclasses (never raw protobuf): β, history steps,
-timeline keys, timelines and named snapshots."""
+timeline keys, timelines, named snapshots and rigs."""
+import os
 from dataclasses import dataclass, field
-from typing import Any, Optional, Tuple
+from typing import Any, Optional, Tuple, Union
 
 from ._proto import pb
 from ._transforms import Transform
@@ -125,3 +126,61 @@ class Snapshot:
                    version=int(s.version), beta=Beta.from_proto(s.snapshot.beta),
                    transforms=tuple(Transform.from_proto(t) for t in s.snapshot.transforms),
                    handle_count=len(s.snapshot.constraints.handles), proto=s)
+
+
+@dataclass(frozen=True)
+class RigPoseError:
+    """How far a rig's linear blend skinning (LBS) is from the exact deformation at one pose
+    (hdeform.v1.RigPoseError): per-vertex distances in units of the rest bounding box's
+    diagonal. current: the session's current pose (the joints' node transforms), else the
+    timeline key at time_s (None for the current pose); max; rms: root mean square over the
+    vertices."""
+    current: bool
+    time_s: Optional[float]
+    max: float
+    rms: float
+
+    @classmethod
+    def from_proto(cls, p: Any) -> "RigPoseError":
+        return cls(current=bool(p.current), time_s=None if p.current else float(p.time_s),
+                   max=float(p.max), rms=float(p.rms))
+
+
+@dataclass(frozen=True)
+class RigExport:
+    """A session's rig (Session.export_rig): glb, the skinned GLB file's bytes (the fixed
+    region as root joint 0, handle j as joint j + 1, the harmonic fields as skin weights, the
+    timeline's keys as a skeletal animation); joints: 1 + handles; influences: joints per
+    vertex (4 or 8); bbox_diagonal: the rest bounding box's diagonal in model units (the
+    errors' unit); version: the session version the rig was made at; poses: the LBS error of
+    the current pose first, then of each animation key (docs/rig.md)."""
+    glb: bytes = field(repr=False)
+    joints: int
+    influences: int
+    bbox_diagonal: float
+    version: int
+    poses: Tuple[RigPoseError, ...]
+
+    @classmethod
+    def from_proto(cls, glb: bytes, r: Any) -> "RigExport":
+        return cls(glb=glb, joints=int(r.joints), influences=int(r.influences),
+                   bbox_diagonal=float(r.bbox_diagonal), version=int(r.version),
+                   poses=tuple(RigPoseError.from_proto(p) for p in r.poses))
+
+    def to_csv(self, path: Optional[Union[str, "os.PathLike[str]"]] = None) -> Optional[str]:
+        """The poses as `hdeform rig --report` writes them: the header pose,time_s,max,rms,
+        then `current,,MAX,RMS` and one `key,T,MAX,RMS` per key, numbers in their shortest
+        round-trip form as the CLI writes them; written to `path`, or returned as a string
+        without one."""
+        from ._client import _shortest  # the CLI's number format (std::to_chars)
+        lines = ["pose,time_s,max,rms"]
+        for p in self.poses:
+            time_s = "" if p.current or p.time_s is None else _shortest(p.time_s)
+            lines.append(",".join(["current" if p.current else "key", time_s,
+                                   _shortest(p.max), _shortest(p.rms)]))
+        text = "\n".join(lines) + "\n"
+        if path is None:
+            return text
+        with open(os.fspath(path), "w", newline="") as f:
+            f.write(text)
+        return None

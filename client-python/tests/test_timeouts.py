@@ -87,6 +87,7 @@ def test_deadline_exceeded_names_the_call_and_the_timeout(stalled, tmp_path):
     expect_deadline(lambda: s.mesh_bytes("glb", timeout=SHORT), "GetMesh")  # a stream
     expect_deadline(lambda: s.save(tmp_path / "never.stl", timeout=SHORT), "GetMesh")
     expect_deadline(lambda: s.export_animation(timeout=SHORT), "ExportAnimation")
+    expect_deadline(lambda: s.export_rig(tmp_path / "never.glb", timeout=SHORT), "ExportRig")
     expect_deadline(lambda: s.undo(timeout=SHORT), "Undo")
     expect_deadline(lambda: s.delete(timeout=SHORT), "DeleteSession")
     expect_deadline(lambda: hd.meshes(timeout=SHORT), "ListMeshes")
@@ -94,7 +95,7 @@ def test_deadline_exceeded_names_the_call_and_the_timeout(stalled, tmp_path):
     expect_deadline(lambda: hd.session(s.name, timeout=SHORT), "GetSession")
     e = expect_deadline(lambda: s.watch(timeout=SHORT), "WatchSession")
     assert "the stream ended at its timeout=0.05 s" in e.message
-    assert not (tmp_path / "never.stl").exists()
+    assert not (tmp_path / "never.stl").exists() and not (tmp_path / "never.glb").exists()
 
 
 def test_a_generous_timeout_changes_nothing(cactus):
