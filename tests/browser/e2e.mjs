@@ -734,6 +734,11 @@ try {
   const v10 = await page2.evaluate(() => window.hdeform.version);
   check(v10 === vKill, `the session came back with the same version (${v10}, was ${vKill})`);
   await waitSame(page2, pKill, "the editor shows the same pose after the restart");
+  // The server keeps history in memory only: the History list is empty now and says why (issue 37).
+  const restartNote = await page2
+    .waitForFunction(() => /last restart/.test(document.querySelector("#history-list").textContent) && window.hdeform.history().length === 0, null, { timeout: 10_000 })
+    .then(() => true, () => false);
+  check(restartNote, `the empty History after the restart says why: "${(await page2.textContent("#history-list"))?.trim()}"`);
   check(await back(page3), "the watch page reconnected too");
   await waitSame(page3, pKill, "the watch page shows the same pose after the restart");
   // A horizontal arrow (the up arrow's tip may be under the top bar after step 5's lift).

@@ -101,7 +101,7 @@ export async function editorChecks({ context, base, log, check, sleep, shot, wat
   await page.waitForFunction(() => window.hdeform.constraintsApplied && window.hdeform.framesApplied > 0, null, { timeout: 60_000 });
   await waitIdle(page);
   const hint2 = (await page.innerHTML("#hint")) ?? "";
-  check(/step done/.test(hint1) && (hint2.match(/step done/g) ?? []).length === 2 && (await page.isVisible("#hint")), "the hint ticks off 1 fixed and 2 handle");
+  check(/step done/.test(hint1) && (hint2.match(/step done/g) ?? []).length === 3 && /done">✓ <b>Apply/.test(hint2) && (await page.isVisible("#hint")), "the hint ticks off 1 fixed, 2 handle and, after Apply, 3 Apply");
 
   // ---- the default view: all three arrows grabbable ----------------------------------------------
   await page.click('button[data-mode="move"]');
@@ -215,8 +215,11 @@ export async function editorChecks({ context, base, log, check, sleep, shot, wat
   check(dist3(camF.target, handleCentre) < 1e-3 * diag, `F frames the active handle: the orbit target is its centre (${dist3(camF.target, handleCentre).toExponential(1)} off)`);
   await page.keyboard.press("Home");
   const camH = await hook(() => window.hdeform.camera());
-  const centre = bmin.map((a, k) => (a + bmax[k]) / 2);
-  check(dist3(camH.target, centre) < 1e-3 * diag, "Home frames everything: the orbit target is the model's centre");
+  // Everything as it is now: the deformed shape and the gizmo (viewport/content_box.ts), all on screen.
+  const [cmin, cmax] = await hook(() => window.hdeform.contentBox());
+  const centre = cmin.map((a, k) => (a + cmax[k]) / 2);
+  const offHome = await hook(() => window.hdeform.offScreen());
+  check(dist3(camH.target, centre) < 1e-3 * diag && offHome.vertices === 0 && offHome.gizmo === 0, `Home frames everything: the orbit target is the centre of the current shape and gizmo, none of them off screen (${JSON.stringify(offHome)})`);
   await page.click("#view-frame");
   check(dist3((await hook(() => window.hdeform.camera())).target, handleCentre) < 1e-3 * diag, "the Frame selection button does what F does");
   await page.click("#view-reset");

@@ -145,7 +145,23 @@ export async function historyChecks({ context, base, log, check, sleep, shot, wa
   await page.waitForFunction(() => window.hdeform.history()[0]?.kind === "RESTORE", null, { timeout: 5000 }).catch(() => {});
   check((await page.evaluate(() => window.hdeform.history()[0]?.kind)) === "RESTORE", "…and the History panel shows the RESTORE step");
   await shot(page, "history-03-restored");
+  // Delete asks first: the first click only asks (nothing deleted), Cancel keeps it, and the
+  // confirming click deletes.
+  const deletes = () => page.evaluate(() => window.hdeform.history().filter((s) => s.kind === "SNAPSHOT_DELETE").length);
+  const deletes0 = await deletes();
   await page.click('#snapshot-list li[data-name="A"] button[data-act="delete"]');
+  await sleep(500);
+  const asking = ((await page.textContent('#snapshot-list li[data-name="A"]')) ?? "").trim();
+  check(
+    (await page.evaluate(() => window.hdeform.snapshotNames())).includes("A") && (await deletes()) === deletes0 && /Delete it\?/.test(asking) && (await page.isVisible('#snapshot-list button[data-act="confirm-delete"]')),
+    `Delete asks first, and deletes nothing yet: "${asking}"`,
+  );
+  await shot(page, "history-03b-delete-asks");
+  await page.click('#snapshot-list li[data-name="A"] button[data-act="cancel"]');
+  await sleep(300);
+  check((await page.isVisible('#snapshot-list li[data-name="A"] button[data-act="restore"]')) && (await deletes()) === deletes0, "Cancel keeps the snapshot");
+  await page.click('#snapshot-list li[data-name="A"] button[data-act="delete"]');
+  await page.click('#snapshot-list li[data-name="A"] button[data-act="confirm-delete"]');
   await page.waitForFunction(() => !window.hdeform.snapshotNames().includes("A"), null, { timeout: 5000 }).catch(() => {});
   // The list the page shows is the server's ListSnapshots answer after the delete.
   const left = await page.evaluate(() => window.hdeform.snapshotNames());

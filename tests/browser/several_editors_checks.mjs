@@ -143,7 +143,7 @@ export async function severalEditorsChecks({ context, base, log, check, sleep, s
   await sleep(300);
   const bobAfter = await bob.evaluate(() => window.hdeform.handleTransforms()[0].translation);
   const aliceFinal = await alice.evaluate(() => window.hdeform.serverTranslations());
-  check(/Handle 1 is being moved by Alice/.test(refused) && bobUpdates === 0, `Bob's drag of the handle Alice holds is refused: "${refused}" (${bobUpdates} updates sent)`);
+  check(/Handle 0 is being moved by Alice/.test(refused) && bobUpdates === 0, `Bob's drag of the handle Alice holds is refused: "${refused}" (${bobUpdates} updates sent)`);
   check(
     Math.hypot(aliceFinal[0][0] - bobAfter.x, aliceFinal[0][1] - bobAfter.y, aliceFinal[0][2] - bobAfter.z) < 1e-6,
     `…his page ends on Alice's pose of it, not his own (before ${bobBefore.x.toFixed(3)}, after ${bobAfter.x.toFixed(3)}, server ${aliceFinal[0][0].toFixed(3)})`,

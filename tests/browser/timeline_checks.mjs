@@ -185,6 +185,26 @@ export async function timelineChecks({ context, base, log, check, sleep, shot, w
   await settle();
   const snapped = await tl();
   check(snapped.playhead === times[1] && snapped.selected === 1, `a click 3 px from key 2 snaps the playhead onto it (${snapped.playhead} s) and selects its marker`);
+  // A scrub may start on a key's marker (issue 37: the marker used to swallow the press): from
+  // key 3's marker back to 1.6 s.
+  const mk = await page.locator('.tl-key[data-index="2"]').boundingBox();
+  const [mx, my] = [mk.x + mk.width / 2, mk.y + mk.height / 2];
+  const toB = await hook(() => window.hdeform.rulerPoint(1.6));
+  await page.mouse.move(mx, my);
+  await page.mouse.down();
+  for (let i = 1; i <= 10; i++) {
+    await page.mouse.move(mx + ((toB.x - mx) * i) / 10, my);
+    await sleep(40);
+  }
+  await page.mouse.up();
+  await settle();
+  const fromKey = await tl();
+  const [atB, sessB] = [await hook((t) => window.hdeform.poseAt(t), fromKey.playhead), await hook(() => window.hdeform.sessionTransforms())];
+  check(
+    Math.abs(fromKey.playhead - 1.6) < 0.02 && tfDiff(atB, sessB) < 1e-9 && tfDiff(atB, keyed[2].transforms) > 1e-3,
+    `a scrub that starts on key 3's marker moves the playhead to ${fromKey.playhead} s and poses the session there (max |Δ| ${tfDiff(atB, sessB).toExponential(1)})`,
+  );
+  await shot(page, "timeline-02b-scrub-from-key");
 
   // ---- a second editor: keys on join, a new key live, Delete ------------------------------------------
   const bob = await context.newPage();

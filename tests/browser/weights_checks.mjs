@@ -16,7 +16,8 @@
 //     reaches the server (GetSession's transforms), solved.
 // Screenshots `weights-*.png`. Against a server without GetHandleWeights: SKIP, nothing checked.
 
-const TITLE_1 = "Handle 1 weight (0 = fixed, 1 = moves with handle)";
+// Handles are numbered from 0 wherever a user reads (as the server's messages): region label 1 is "Handle 0".
+const TITLE_1 = "Handle 0 weight (0 = fixed, 1 = moves with handle)";
 
 export async function weightsChecks({ context, base, log, check, sleep, shot, watchPage, waitLoaded, waitIdle, positions, maxDiff }) {
   const page = await context.newPage();
@@ -125,7 +126,7 @@ export async function weightsChecks({ context, base, log, check, sleep, shot, wa
   await shownFor(1);
   const field2 = await checkField(1, "active handle 2");
   check(maxDiff(field1, field2) > 0.5, `…a different field from handle 1's (max |Δ| ${maxDiff(field1, field2).toFixed(3)})`);
-  check((await page.textContent("#weights-title")) === TITLE_1.replace("Handle 1", "Handle 2"), "…and the legend names handle 2");
+  check((await page.textContent("#weights-title")) === TITLE_1.replace("Handle 0", "Handle 1"), "…and the legend names handle 2");
   await shot(page, "weights-03-handle2");
 
   // Off: the region colours exactly as before.

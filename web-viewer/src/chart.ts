@@ -1,5 +1,7 @@
-// A small canvas line chart: one measure against β from Sweep.
+// A small canvas line chart: one measure against β from Sweep. Values below the noise floor
+// read 0 and the y axis never spans less than it (noise_floor.ts).
 import { fmt } from "./colormap";
+import { chartRange, denoise } from "./noise_floor";
 
 export interface SweepPoint {
   beta: number;
@@ -11,6 +13,7 @@ export function drawChart(
   points: SweepPoint[],
   label: string,
   currentBeta: number | null,
+  floor = 0,
 ): void {
   const ctx = canvas.getContext("2d");
   if (!ctx) return;
@@ -28,16 +31,11 @@ export function drawChart(
   const right = 8;
   const top = 16;
   const bottom = 26;
+  points = points.map((p) => ({ beta: p.beta, value: denoise(p.value, floor) }));
   const xs = points.map((p) => p.beta);
-  const ys = points.map((p) => p.value).filter(Number.isFinite);
   const xMin = Math.min(...xs, 0);
   const xMax = Math.max(...xs, 1e-9);
-  let yMin = Math.min(...ys);
-  let yMax = Math.max(...ys);
-  if (yMin === yMax) {
-    yMin -= Math.abs(yMin) * 0.1 + 1e-9;
-    yMax += Math.abs(yMax) * 0.1 + 1e-9;
-  }
+  const [yMin, yMax] = chartRange(points.map((p) => p.value), floor);
   const X = (x: number) => left + ((x - xMin) / (xMax - xMin)) * (w - left - right);
   const Y = (y: number) => h - bottom - ((y - yMin) / (yMax - yMin)) * (h - top - bottom);
 

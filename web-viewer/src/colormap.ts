@@ -1,5 +1,7 @@
 // Energy colour maps: viridis-like ramp, linear in [0, max] or truncated linear in [0, t].
 // Also the piecewise-linear ramp and legend drawing that other colour ramps share.
+import { denoise, noiseFloor } from "./noise_floor";
+
 export type Stops = readonly (readonly [number, number, number])[];
 
 const STOPS: Stops = [
@@ -29,12 +31,22 @@ export function ramp(t: number, out: Float32Array, at: number): void {
 
 export type EnergyMapping = "off" | "linear" | "truncated";
 
-/** The top of the scale: max energy (linear) or the chosen value (truncated). */
+/**
+ * The top of the scale: max energy (linear) or the chosen value (truncated); never below the
+ * noise floor of per-triangle energies (noise_floor.ts), so noise is not stretched over the
+ * ramp: an undeformed mesh (every energy noise, i.e. 0) is uniformly the ramp's bottom.
+ */
 export function scaleTop(mapping: EnergyMapping, energies: Float32Array, truncateAt: number): number {
-  if (mapping === "truncated") return truncateAt > 0 ? truncateAt : 1;
+  const floor = noiseFloor("ratio", 1);
+  if (mapping === "truncated") return truncateAt > 0 ? Math.max(truncateAt, floor) : 1;
   let max = 0;
   for (let i = 0; i < energies.length; i++) if (energies[i] > max) max = energies[i];
-  return max > 0 ? max : 1;
+  return max >= floor ? max : 1;
+}
+
+/** Where per-triangle energy `e` lies on a ramp topped at `top`: noise (below the floor) is 0. */
+export function rampPosition(e: number, top: number): number {
+  return denoise(e, noiseFloor("ratio", 1)) / top;
 }
 
 export function drawLegend(canvas: HTMLCanvasElement, top: number, mapping: EnergyMapping): void {

@@ -43,6 +43,12 @@ export function setupFrameApply({ state, client, banner, status }: App, sync: Sy
     }, RESYNC_QUIET_MS);
   };
 
+  // Another mesh: the status line's frame sizes were the previous session's.
+  state.on("mesh", () => {
+    sizes.clear();
+    status.setFrameSizes("");
+  });
+
   sync.on("skippedFrame", ({ frame }) => {
     const mesh = state.mesh;
     // Not shown, but a MESHOPT_DELTA frame moves the decoder's state on; its errors show on

@@ -10,11 +10,13 @@ import { Banner } from "./panels/banner";
 import { setupBetaPanel } from "./panels/beta";
 import { setupDisplayPanel } from "./panels/display";
 import { setupFilesPanel } from "./panels/files";
+import { setupExportUp } from "./panels/export_up";
 import { setupHandleTools } from "./panels/handle_tools";
 import { setupLibraryPanel } from "./panels/library";
 import { setupMeasuresPanel } from "./panels/measures";
 import { setupRegionsPanel } from "./panels/regions";
 import { setupSessionBar } from "./panels/session_bar";
+import { setupLayout } from "./panels/layout";
 import { setupSweepPanel } from "./panels/sweep";
 import { StatusLine } from "./panels/status_line";
 import { SelectionTools } from "./selection/tools";
@@ -42,6 +44,7 @@ import { RegionMarkers } from "./viewport/region_markers";
 import { HandleGizmo } from "./viewport/handle_gizmo";
 import { MeshDisplay } from "./viewport/mesh_display";
 import { Viewport } from "./viewport/viewport";
+import { contentBox } from "./viewport/content_box";
 import { AnimationPlayer } from "./timeline/animation_player";
 import { Scrub } from "./timeline/scrub";
 import { setupTimelinePanel } from "./timeline/timeline_panel";
@@ -114,6 +117,10 @@ sync.on("revert", ({ transforms }) => {
   state.emit("handles", undefined);
 });
 const frameApply = setupFrameApply(app, sync);
+// Home, Frame all and the default view frame the current shape and the gizmos; so does a
+// session that opens already deformed, once its current shape is in.
+viewport.contentBox = () => contentBox(state);
+state.on("opened", () => viewport.resetView());
 
 const display = new MeshDisplay(viewport, state);
 const gizmo = new HandleGizmo(viewport, state, {
@@ -135,15 +142,17 @@ const outline = new HeldOutline(viewport, state);
 // The timeline strip: scrubbing poses the session (PoseAt → updates), Play shows the exported GLB.
 const scrub: Scrub = new Scrub(app, sync, editors, (m, e) => timeline.say(m, e));
 const player = new AnimationPlayer(viewport, display);
-const timeline = setupTimelinePanel(app, sync, editors, scrub, player);
+const exportUp = setupExportUp(state, () => viewport.upAxis);
+const timeline = setupTimelinePanel(app, sync, editors, scrub, player, exportUp);
 setupShortcuts(app, gizmo, viewport, () => weights.toggle(), () => timeline.setKey());
 setupOnboarding(app);
 setupBetaPanel(app);
 setupDisplayPanel(app, display);
 setupMeasuresPanel(state);
 const sweep = setupSweepPanel(app);
-setupFilesPanel(app, (s) => loader.load(s));
+setupFilesPanel(app, (s) => loader.load(s), exportUp);
 setupSessionBar(app);
+setupLayout();
 // History: undo / redo by this tab's client id (the one presence and updates carry).
 const myId = () => editors.identity.clientId;
 const undoRedo = setupUndoRedo(app, sync, myId);
@@ -176,6 +185,7 @@ if (import.meta.env.MODE === "test") installTestHook(app, {
   applyConstraints: regions.applyConstraints,
   openLibrary: (name) => loader.openLibrary(name),
   sweepRows: sweep.rows,
+  sweepRange: sweep.chartRange,
   editors,
   feedback,
   markers,

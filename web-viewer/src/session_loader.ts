@@ -46,6 +46,7 @@ export class SessionLoader {
       const current = await parseGlb(await fetchMesh(client, s.name, false, MeshFormat.GLB));
       if (current.positions.length === mesh.cur.length) state.setShape(current.positions, current.normals);
     }
+    state.emit("opened", undefined); // the camera frames the current shape, not only the rest one
     if (!state.watchOnly) showEditorLink(s.name);
     state.setMode(state.watchOnly ? "orbit" : state.constraintsApplied ? "move" : "box");
     // An editor solves the current pose at once (measures, energies); a watch-only page shows

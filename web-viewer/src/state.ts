@@ -49,6 +49,8 @@ export interface StateEvents {
   weightsToggle: boolean;
   /** The page became watch-only (its link's token turned out to be the view token). */
   access: void;
+  /** A session finished opening: its current shape (deformed or not) and poses are in. */
+  opened: void;
 }
 
 export class SessionState extends Emitter<StateEvents> {
@@ -121,6 +123,12 @@ export class SessionState extends Emitter<StateEvents> {
       diag,
     };
     if (!normals) computeNormals(this.mesh.cur, index, this.mesh.normals);
+    // Nothing of the previous mesh's carries over: what the tools assign, the handles offered
+    // and the active one start afresh (the session's constraints set them again when it has
+    // some); the panels reset their own settings (energy map, threshold) on "mesh".
+    this.currentLabel = 0;
+    this.handleCount = 1;
+    this.activeHandle = 1;
     this.emit("mesh", this.mesh);
   }
 

@@ -17,6 +17,7 @@ import { parseGlb } from "./viewport/glb";
 import type { HandleGizmo } from "./viewport/handle_gizmo";
 import type { MeshDisplay } from "./viewport/mesh_display";
 import type { Viewport } from "./viewport/viewport";
+import { contentBox } from "./viewport/content_box";
 import type { Editors } from "./multi/editors";
 import type { CursorFeedback } from "./selection/cursor_feedback";
 import type { RegionMarkers } from "./viewport/region_markers";
@@ -68,6 +69,7 @@ export interface HookParts {
   applyConstraints: () => Promise<void>;
   openLibrary: (name: string) => Promise<void>;
   sweepRows: () => number;
+  sweepRange: () => [number, number];
   editors: Editors;
   feedback: CursorFeedback;
   markers: RegionMarkers;
@@ -204,6 +206,35 @@ export function installTestHook({ state, client, banner, status }: App, parts: H
     },
     /** Camera position and orbit target (world = model coordinates). */
     camera: () => ({ position: viewport.camera.position.toArray(), target: viewport.orbit.target.toArray(), up: viewport.camera.up.toArray() }),
+    /** The session's current mesh as GetMesh's GLB (base64): what a GLB download starts from. */
+    meshGlb: async () => {
+      const bytes = await fetchMesh(client, state.sessionName, false, MeshFormat.GLB);
+      let s = "";
+      for (let i = 0; i < bytes.length; i += 0x8000) s += String.fromCharCode(...bytes.subarray(i, i + 0x8000));
+      return btoa(s);
+    },
+    /** What Home frames: [min, max] of the current shape, the handles and the gizmo. */
+    contentBox: () => {
+      const b = contentBox(state);
+      return b ? [b.min.toArray(), b.max.toArray()] : null;
+    },
+    /** Current vertices, and gizmo points (centre, arrow tips; when shown), outside the canvas. */
+    offScreen: () => {
+      const r = viewport.canvas.getBoundingClientRect();
+      const out = (p: { x: number; y: number } | null) => !!p && (p.x < r.left || p.x > r.right || p.y < r.top || p.y > r.bottom);
+      let vertices = 0;
+      const mesh = state.mesh;
+      const v = new THREE.Vector3();
+      if (mesh) {
+        for (let i = 0; i < mesh.n; i++) {
+          const w = viewport.root.localToWorld(v.fromArray(mesh.cur, 3 * i));
+          const inFront = w.clone().sub(viewport.camera.position).dot(viewport.camera.getWorldDirection(new THREE.Vector3())) > 0;
+          if (!inFront || out(viewport.toClient(w))) vertices++;
+        }
+      }
+      const points = [gizmo.screenPoint(), gizmo.screenPoint("x"), gizmo.screenPoint("y"), gizmo.screenPoint("z")];
+      return { vertices, gizmo: points.filter(out).length, gizmoShown: points[0] !== null };
+    },
     get clientId() {
       return parts.editors.identity.clientId;
     },
@@ -387,6 +418,10 @@ export function installTestHook({ state, client, banner, status }: App, parts: H
     get configVersion() {
       return Number(state.session?.configVersion ?? 0n);
     },
+    /** The sweep chart's y range for the chosen measure. */
+    sweepRange: () => parts.sweepRange(),
+    /** The Measures table as shown (cell id → text). */
+    measuresShown: () => Object.fromEntries([...document.querySelectorAll("#measures td")].map((td) => [td.id, td.textContent ?? ""])),
     get sweepRows() {
       return parts.sweepRows();
     },

@@ -145,10 +145,12 @@ describe("latest wins", () => {
 
 describe("onboarding", () => {
   it("ticks off fixed, handle, moved", () => {
-    assert.deepEqual(stepsDone(new Int16Array([-1, -1]), false, false), { fixed: false, handle: false, moved: false });
-    assert.deepEqual(stepsDone(new Int16Array([0, -1]), false, false), { fixed: true, handle: false, moved: false });
-    assert.deepEqual(stepsDone(new Int16Array([0, 2]), false, true), { fixed: true, handle: true, moved: true });
-    assert.deepEqual(stepsDone(null, true, false), { fixed: true, handle: true, moved: false });
+    assert.deepEqual(stepsDone(new Int16Array([-1, -1]), false, false), { fixed: false, handle: false, applied: false, moved: false });
+    assert.deepEqual(stepsDone(new Int16Array([0, -1]), false, false), { fixed: true, handle: false, applied: false, moved: false });
+    // Both regions marked but not applied: Apply is not ticked (issue 37).
+    assert.deepEqual(stepsDone(new Int16Array([0, 2]), false, false), { fixed: true, handle: true, applied: false, moved: false });
+    assert.deepEqual(stepsDone(new Int16Array([0, 2]), true, true), { fixed: true, handle: true, applied: true, moved: true });
+    assert.deepEqual(stepsDone(null, true, false), { fixed: true, handle: true, applied: true, moved: false });
   });
 });
 

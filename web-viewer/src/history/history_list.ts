@@ -53,6 +53,11 @@ export class HistoryList {
     return this.token;
   }
 
+  /** The newest page has been read (an empty list then means no steps). */
+  get loaded(): boolean {
+    return this.firstLoaded;
+  }
+
   get hasOlder(): boolean {
     return this.firstLoaded && this.token !== "";
   }

@@ -9,6 +9,7 @@ import { fromProtoTransform } from "../transforms";
 import { HandleLease } from "./handle_lease";
 import { Identity } from "./identity";
 import { heldMessage, holderFromMessage, PresenceModel } from "./presence_model";
+import { handleWord } from "../handle_names";
 
 export interface Editors {
   identity: Identity;
@@ -80,7 +81,7 @@ export function setupEditors(app: App, sync: Sync): Editors {
       if (state.watchOnly || !state.sessionName) return false;
       const holder = presence.holderOf(h);
       if (holder) {
-        banner.show(heldMessage(h + 1, holder.name), "rejected");
+        banner.show(heldMessage(h, holder.name), "rejected");
         return false;
       }
       grabs++;
@@ -90,7 +91,7 @@ export function setupEditors(app: App, sync: Sync): Editors {
         return true;
       }
       banner.show(
-        r.code === Code.Aborted ? heldMessage(h + 1, holderFromMessage(r.message)) : `Cannot take handle ${h + 1}: ${r.message}`,
+        r.code === Code.Aborted ? heldMessage(h, holderFromMessage(r.message)) : `Cannot take ${handleWord(h)}: ${r.message}`,
         "rejected",
       );
       return false;

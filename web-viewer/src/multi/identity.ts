@@ -10,8 +10,12 @@ export interface KeyValueStore {
   setItem(key: string, value: string): void;
 }
 
-// No blues: a held handle is drawn in its holder's colour, and blue is the fixed region's.
-const PALETTE = ["#e57373", "#81c784", "#ffb74d", "#ba68c8", "#4db6ac", "#f06292", "#aed581", "#ffd54f", "#a1887f", "#ff8a65"];
+// A handle someone holds is drawn in their colour instead of its region colour, so no editor
+// colour may pass for a region's (region_colours.ts: blue, red, green, amber, purple, teal,
+// pink — the whole hue circle): light, pale or earthy tones, each at least ΔE*ab 34 from every
+// region colour (#aed581, ΔE 32 from handle 1's green, looked like it; test/finished_editor.test.ts)
+// and at least 20 from each other.
+export const PALETTE = ["#fff176", "#f5f5f5", "#8d6e63", "#b39ddb", "#ffab91", "#b0bec5", "#ffe0b2"];
 
 /** A colour for `clientId`: the same on every page that sees it. */
 export function colorFor(clientId: string): string {

@@ -1,5 +1,6 @@
 // Who is in the session and who holds which handle, from the server's Presence events and
 // GrabHandles answers: what the presence panel lists and what the gizmo asks before a drag.
+import { handleName } from "../handle_names";
 import type { Participant, Presence } from "../gen/hdeform/v1/deform_pb";
 
 export interface Person {
@@ -43,9 +44,9 @@ export class PresenceModel {
   }
 }
 
-/** "Handle 2 is being moved by Alice" from an ABORTED answer's message, or our own presence. */
-export function heldMessage(handle1: number, holder: string): string {
-  return `Handle ${handle1} is being moved by ${holder}`;
+/** "Handle 1 is being moved by Alice" (handle index 1) from an ABORTED answer's message, or our own presence. */
+export function heldMessage(handle: number, holder: string): string {
+  return `${handleName(handle)} is being moved by ${holder}`;
 }
 
 /**

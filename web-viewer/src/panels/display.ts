@@ -27,7 +27,6 @@ export function setupDisplayPanel({ state, edits }: App, display: MeshDisplay): 
     $("legend-box").classList.toggle("hidden", top === null);
     if (top !== null) drawLegend(legend, top, state.energyMapping);
   };
-  state.on("mesh", showLegend);
   state.on("colours", showLegend);
   state.on("energies", ({ first }) => {
     if (first && state.energyMapping === "truncated" && !truncTouched) defaultTruncation();
@@ -58,6 +57,17 @@ export function setupDisplayPanel({ state, edits }: App, display: MeshDisplay): 
       replaced = null;
       setMapping(back);
     }
+  });
+  // Another mesh: its own energies, so the previous mesh's mapping and threshold go (a 1e-25
+  // threshold chosen on one mesh painted the next one's noise as full-range streaks).
+  state.on("mesh", () => {
+    truncTouched = false;
+    replaced = null;
+    trunc.value = "1";
+    fitTrunc();
+    readTruncation();
+    if (state.energyMapping !== "off") setMapping("off");
+    showLegend();
   });
   trunc.addEventListener("input", () => {
     truncTouched = true;

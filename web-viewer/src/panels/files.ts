@@ -4,6 +4,8 @@ import { describeError, fetchMesh, newSessionId, setRoutingSession } from "../ap
 import type { App } from "../app";
 import { $ } from "../dom";
 import { MeshFormat, SnapshotSchema, type Session } from "../gen/hdeform/v1/deform_pb";
+import { withUpAxis } from "../glb_up_axis";
+import type { ExportUp } from "./export_up";
 
 /** A normal browser download of `bytes` as `filename`. */
 export function saveBytes(bytes: Uint8Array | string, filename: string, type: string): void {
@@ -17,11 +19,13 @@ export function saveBytes(bytes: Uint8Array | string, filename: string, type: st
   setTimeout(() => URL.revokeObjectURL(a.href), 10_000);
 }
 
-export function setupFilesPanel({ state, client, banner }: App, load: (s: Session) => Promise<void>): void {
+export function setupFilesPanel({ state, client, banner }: App, load: (s: Session) => Promise<void>, exportUp: ExportUp): void {
   const baseName = () => (state.session?.meshName || "mesh").replace(/\.[^.]+$/, "").replace(/[^\w.-]+/g, "_");
   const download = async (format: MeshFormat, ext: string, type: string) => {
     try {
-      saveBytes(await fetchMesh(client, state.sessionName, false, format), `${baseName()}-deformed.${ext}`, type);
+      const bytes = await fetchMesh(client, state.sessionName, false, format);
+      // A GLB stands up in glTF's y-up when the model is z-up (the export's up axis).
+      saveBytes(format === MeshFormat.GLB ? withUpAxis(bytes, exportUp.value) : bytes, `${baseName()}-deformed.${ext}`, type);
     } catch (err) {
       banner.show(`Download failed: ${describeError(err)}`);
     }

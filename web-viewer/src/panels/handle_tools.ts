@@ -3,10 +3,11 @@
 // axes, snapping, Reset transforms.
 import type { App } from "../app";
 import { $ } from "../dom";
+import { openMeshFirst } from "./banner";
 import type { Mode } from "../state";
 import type { GizmoMode, GizmoSpace, HandleGizmo } from "../viewport/handle_gizmo";
 
-export function setupHandleTools({ state, edits }: App, gizmo: HandleGizmo, multi: () => boolean): void {
+export function setupHandleTools({ state, edits, banner }: App, gizmo: HandleGizmo, multi: () => boolean): void {
   const modeButtons = document.querySelectorAll<HTMLButtonElement>("button.mode");
   modeButtons.forEach((b) => b.addEventListener("click", () => state.setMode(b.dataset.mode as Mode)));
   const gizmoButtons = document.querySelectorAll<HTMLButtonElement>("button.gizmo-mode");
@@ -46,6 +47,7 @@ export function setupHandleTools({ state, edits }: App, gizmo: HandleGizmo, mult
     state.emit("handles", undefined);
   });
   $("reset-handles").addEventListener("click", () => {
+    if (!state.mesh || !state.sessionName) return openMeshFirst(banner);
     // Several editors: updates carry only the active handle (the others may be someone else's).
     if (multi()) {
       const h = state.activeHandle - 1;

@@ -6,6 +6,7 @@ import { describeError } from "../api";
 import type { App } from "../app";
 import { $ } from "../dom";
 import { StepKind } from "../gen/hdeform/v1/deform_pb";
+import { emptyHistoryNote } from "../history/empty_history";
 import { HistoryList } from "../history/history_list";
 import { relativeTime } from "../history/relative_time";
 import type { UndoRedo } from "../history/undo_redo";
@@ -47,6 +48,8 @@ export function setupHistoryPanel(app: App, sync: Sync, undo: UndoRedo): History
         );
       })
       .join("");
+    // Empty: say why (after a server restart the steps are gone, not undone).
+    if (list.size === 0 && list.loaded) ul.innerHTML = `<li class="empty note">${escape(emptyHistoryNote(state.session))}</li>`;
     older.classList.toggle("hidden", !list.hasOlder);
   };
 

@@ -1,6 +1,7 @@
 // Who is in the session (live, from presence events): a coloured dot, the name, editor or
 // viewer, and the handle each one is moving; and this tab's own name field.
 import { $ } from "../dom";
+import { handleWord } from "../handle_names";
 import type { Editors } from "../multi/editors";
 import type { Sync } from "../sync/sync";
 
@@ -23,7 +24,7 @@ export function setupPresencePanel(editors: Editors, sync: Sync): void {
   const render = () => {
     list.innerHTML = presence.people
       .map((p) => {
-        const held = p.held.length ? ` · moving handle ${p.held.map((h) => h + 1).join(", ")}` : "";
+        const held = p.held.length ? ` · moving ${p.held.map(handleWord).join(", ")}` : "";
         return (
           `<span class="person${p.me ? " me" : ""}" data-client="${escape(p.clientId)}" title="${p.editor ? "editor" : "viewer"}">` +
           `<span class="dot" style="background:${escape(p.color)}"></span>${escape(p.name)}${p.me ? " (you)" : ""}` +

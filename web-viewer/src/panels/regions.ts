@@ -8,6 +8,7 @@ import { regionColourCss } from "../region_colours";
 import { openMeshFirst } from "./banner";
 import type { App } from "../app";
 import { $ } from "../dom";
+import { handleName, handleWord, labelName } from "../handle_names";
 
 export function setupRegionsPanel(app: App): { applyConstraints: () => Promise<void> } {
   const { state, banner, status, edits } = app;
@@ -22,17 +23,18 @@ export function setupRegionsPanel(app: App): { applyConstraints: () => Promise<v
     // Also the legend of the regions' colours on the mesh.
     const swatch = (label: number) => `<span class="swatch" style="background:${state.heldColours.get(label) ?? regionColourCss(label)}"></span>`;
     const parts = [`${swatch(0)}fixed ${counts.get(0) ?? 0}`];
-    for (let h = 1; h <= state.handleCount; h++) parts.push(`${swatch(h)}handle ${h}: ${counts.get(h) ?? 0}`);
+    for (let h = 1; h <= state.handleCount; h++) parts.push(`${swatch(h)}${handleWord(h - 1)}: ${counts.get(h) ?? 0}`);
     $("region-counts").innerHTML = parts.join(" · ") + (state.labelsDirty ? " — <b>not applied</b>" : "");
   };
   const showLabels = () => {
     const opts = [`<option value="0">Fixed</option>`];
-    for (let h = 1; h <= state.handleCount; h++) opts.push(`<option value="${h}">Handle ${h}</option>`);
+    // Values are region labels (h ≥ 1), the text the handle's index (handle_names.ts).
+    for (let h = 1; h <= state.handleCount; h++) opts.push(`<option value="${h}">${labelName(h)}</option>`);
     opts.push(`<option value="-1">Erase</option>`);
     labelSelect.innerHTML = opts.join("");
     labelSelect.value = String(state.currentLabel <= state.handleCount ? state.currentLabel : 0);
     const n = Math.max(state.handles.length, 1);
-    activeSelect.innerHTML = Array.from({ length: n }, (_, i) => `<option value="${i + 1}">Handle ${i + 1}</option>`).join("");
+    activeSelect.innerHTML = Array.from({ length: n }, (_, i) => `<option value="${i + 1}">${handleName(i)}</option>`).join("");
     activeSelect.value = String(Math.min(state.activeHandle, n));
     showCounts();
   };
@@ -92,7 +94,7 @@ export function setupRegionsPanel(app: App): { applyConstraints: () => Promise<v
   }
 
   state.on("labels", showLabels);
-  state.on("mesh", showCounts);
+  state.on("mesh", showLabels); // "Assign to" and the handles offered start afresh
   state.on("colours", showCounts);
   state.on("mode", (mode) => {
     if (mode === "move" && state.labelsDirty) void applyConstraints();
@@ -105,14 +107,14 @@ export function setupRegionsPanel(app: App): { applyConstraints: () => Promise<v
   });
   const clear = (which: (label: number) => boolean) => {
     const mesh = state.mesh;
-    if (!mesh) return;
+    if (!mesh) return openMeshFirst(banner);
     const ids: number[] = [];
     for (let v = 0; v < mesh.n; v++) if (which(mesh.labels[v])) ids.push(v);
     state.assign(ids, -1);
   };
   $("clear-label").addEventListener("click", () => clear((l) => l === state.currentLabel));
   $("clear-all").addEventListener("click", () => {
-    if (!state.mesh) return;
+    if (!state.mesh) return openMeshFirst(banner);
     clear((l) => l >= 0);
     state.handleCount = 1;
     showLabels();

@@ -13,6 +13,7 @@ import type { UndoRedo } from "../history/undo_redo";
 import type { Sync } from "../sync/sync";
 import { newRequestId } from "../request_id";
 import { StepKind } from "../gen/hdeform/v1/deform_pb";
+import { openMeshFirst } from "./banner";
 
 function escape(s: string): string {
   return s.replace(/[&<>"']/g, (c) => `&#${c.charCodeAt(0)};`);
@@ -30,16 +31,24 @@ export function setupSnapshotsPanel(app: App, sync: Sync, undo: UndoRedo, client
   const ul = $("snapshot-list");
   let listed: NamedSnapshot[] = [];
   let shownFor = "";
+  // The snapshot whose Delete was pressed once: it asks before deleting (a second, explicit
+  // click), since a click too many should not lose a named pose.
+  let confirming: string | null = null;
 
   const render = () => {
     const now = Date.now();
     ul.innerHTML = listed
-      .map(
-        (s) =>
+      .map((s) => {
+        const actions =
+          s.name === confirming
+            ? `<span class="confirm">Delete it? <button data-act="confirm-delete" class="danger" title="Delete this snapshot (Ctrl+Z undoes it)">Delete</button><button data-act="cancel">Cancel</button></span>`
+            : `<button data-act="restore">Restore</button><button data-act="delete" title="Delete this snapshot (asks first)">Delete</button>`;
+        return (
           `<li data-name="${escape(s.name)}"><span class="what">${escape(s.name)}</span> ` +
           `<span class="muted">${escape(s.author || "anonymous")}, ${relativeTime(Number(s.timeUnixMs), now)}</span>` +
-          `<span class="actions"><button data-act="restore">Restore</button><button data-act="delete" title="Delete this snapshot">Delete</button></span></li>`,
-      )
+          `<span class="actions">${actions}</span></li>`
+        );
+      })
       .join("");
   };
 
@@ -69,8 +78,12 @@ export function setupSnapshotsPanel(app: App, sync: Sync, undo: UndoRedo, client
   };
 
   const doSave = () => {
+    if (!state.sessionName) return openMeshFirst(banner);
     const snapshot = nameField.value.trim();
-    if (!snapshot || !state.sessionName) return;
+    if (!snapshot) {
+      nameField.focus();
+      return;
+    }
     void act("save", () => client.saveSnapshot({ name: state.sessionName, snapshot, clientId: clientId(), requestId: newRequestId() }));
   };
   save.addEventListener("click", doSave);
@@ -83,7 +96,14 @@ export function setupSnapshotsPanel(app: App, sync: Sync, undo: UndoRedo, client
     const snapshot = button?.closest<HTMLElement>("li[data-name]")?.dataset.name;
     if (!button || snapshot === undefined) return;
     const name = state.sessionName;
-    if (button.dataset.act === "restore") {
+    const which = button.dataset.act;
+    if (which === "delete" || which === "cancel") {
+      confirming = which === "delete" ? snapshot : null;
+      render();
+      return;
+    }
+    confirming = null;
+    if (which === "restore") {
       const requestId = newRequestId();
       void act("restore", async () =>
         undo.adopt(

@@ -47,7 +47,7 @@ export class Scrub {
       for (const h of handles) {
         const holder = this.editors.presence.holderOf(h);
         if (holder) {
-          this.say(heldMessage(h + 1, holder.name), true);
+          this.say(heldMessage(h, holder.name), true);
           return false;
         }
       }

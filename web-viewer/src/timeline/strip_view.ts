@@ -1,12 +1,15 @@
 // The strip's ruler on screen: ticks in seconds, one marker per key, the playhead and the time.
-// Pointer input on the ruler: a press on a marker selects that key (and puts the playhead on it);
-// a press elsewhere, and dragging, moves the playhead (snapped to keys within a few pixels) and
-// is reported as a scrub. Knows nothing of the server (timeline_panel.ts does).
+// Pointer input on the ruler: a press anywhere — on a key's marker too — and dragging moves the
+// playhead (snapped to keys within a few pixels) and is reported as a scrub; a press on a marker
+// starts at that key's exact time, so a click on it (a scrub that does not move) selects the key
+// and puts the playhead on it. Knows nothing of the server (timeline_panel.ts does).
 import { $ } from "../dom";
 import { rulerEnd, TimeScale } from "./time_scale";
 
+/** A press on a marker that moves no further than this is a click on the key. */
+const CLICK_SLOP_PX = 3;
+
 export interface StripInput {
-  selectKey(index: number): void;
   scrubStart(t: number): void;
   scrub(t: number): void;
   scrubEnd(t: number): void;
@@ -29,24 +32,31 @@ export class StripView {
 
   constructor(input: StripInput) {
     let dragging = false;
+    let onKey: number | undefined; // the key time of the marker pressed, while the pointer stays on it
+    let pressX = 0;
     this.ruler.addEventListener("pointerdown", (ev) => {
       if (ev.button !== 0) return;
+      // A marker does not stop the scrub (it covers the ruler where a key is: scrubbing from a
+      // key is what one does most).
       const marker = (ev.target as HTMLElement).closest<HTMLElement>(".tl-key");
-      if (marker) {
-        input.selectKey(Number(marker.dataset.index));
-        return;
-      }
+      onKey = marker ? this.keyTimes[Number(marker.dataset.index)] : undefined;
+      pressX = ev.clientX;
       dragging = true;
       this.ruler.setPointerCapture(ev.pointerId);
-      input.scrubStart(this.timeAt(ev));
+      input.scrubStart(onKey ?? this.timeAt(ev));
     });
     this.ruler.addEventListener("pointermove", (ev) => {
-      if (dragging) input.scrub(this.timeAt(ev));
+      if (!dragging) return;
+      // Until the pointer has really left the marker, the playhead stays on its key.
+      if (onKey !== undefined && Math.abs(ev.clientX - pressX) <= CLICK_SLOP_PX) return;
+      onKey = undefined;
+      input.scrub(this.timeAt(ev));
     });
     const end = (ev: PointerEvent) => {
       if (!dragging) return;
       dragging = false;
-      input.scrubEnd(this.timeAt(ev));
+      input.scrubEnd(onKey ?? this.timeAt(ev));
+      onKey = undefined;
     };
     this.ruler.addEventListener("pointerup", end);
     this.ruler.addEventListener("pointercancel", end);

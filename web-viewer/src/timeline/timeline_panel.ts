@@ -12,6 +12,8 @@ import { $ } from "../dom";
 import { Easing, type KeyframeSchema, type Timeline } from "../gen/hdeform/v1/deform_pb";
 import type { Editors } from "../multi/editors";
 import { saveBytes } from "../panels/files";
+import type { ExportUp } from "../panels/export_up";
+import { withUpAxis } from "../glb_up_axis";
 import type { Sync } from "../sync/sync";
 import { toProtoTransforms } from "../transforms";
 import { fetchAnimation } from "./animation_glb";
@@ -43,7 +45,7 @@ function kib(n: number): string {
   return n >= 1 << 20 ? `${(n / (1 << 20)).toFixed(1)} MiB` : `${(n / 1024).toFixed(0)} KiB`;
 }
 
-export function setupTimelinePanel(app: App, sync: Sync, editors: Editors, scrub: Scrub, player: AnimationPlayer): TimelinePanel {
+export function setupTimelinePanel(app: App, sync: Sync, editors: Editors, scrub: Scrub, player: AnimationPlayer, exportUp: ExportUp): TimelinePanel {
   const { state, client } = app;
   const strip = $("timeline");
   const viewportEl = $("viewport");
@@ -76,18 +78,8 @@ export function setupTimelinePanel(app: App, sync: Sync, editors: Editors, scrub
     noteEl.classList.toggle("hidden", !message);
   };
 
+  // A click on a key's marker is a scrub that starts and ends on its time: it selects the key.
   const view = new StripView({
-    selectKey: (i) => {
-      if (player.playing) stopPlaying();
-      selected = i;
-      render();
-      const t = keys[i]?.timeS ?? 0;
-      view.setPlayhead(t);
-      if (canScrub()) {
-        scrub.start(t);
-        void scrub.end(t);
-      }
-    },
     scrubStart: (t) => {
       if (player.playing) stopPlaying();
       selected = keyAt(keys, t);
@@ -243,7 +235,8 @@ export function setupTimelinePanel(app: App, sync: Sync, editors: Editors, scrub
     const bytes = await exportGlb("Export");
     if (!bytes) return;
     const id = state.sessionName.replace(/^sessions\//, "");
-    saveBytes(bytes, `${id}-animation.glb`, "model/gltf-binary");
+    // The download carries the model's up axis (Play shows the bytes as fetched: the model's frame).
+    saveBytes(withUpAxis(bytes, exportUp.value), `${id}-animation.glb`, "model/gltf-binary");
     say(`Exported ${id}-animation.glb (${kib(bytes.byteLength)}).`);
   });
   setKeyButton.addEventListener("click", doSetKey);

@@ -5,7 +5,7 @@
 // (indexed) or expanded through the index (split) on every change. The handle-weight preview
 // (per vertex, exclusive with the energy map) colours every vertex, regions included.
 import * as THREE from "three";
-import { ramp } from "../colormap";
+import { ramp, rampPosition } from "../colormap";
 import { regionColour } from "../region_colours";
 import { energyTop } from "../energy_scale";
 import { weightRamp } from "../weights/weight_ramp";
@@ -150,7 +150,7 @@ export class MeshDisplay {
         C[o + 1] = k.g;
         C[o + 2] = k.b;
       } else if (this.split && top !== null) {
-        ramp(energies![(c / 3) | 0] / top, C, o);
+        ramp(rampPosition(energies![(c / 3) | 0], top), C, o);
       } else {
         C[o] = BASE_COLOUR.r;
         C[o + 1] = BASE_COLOUR.g;

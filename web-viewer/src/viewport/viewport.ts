@@ -72,8 +72,19 @@ export class Viewport {
     this.requestRender();
   }
 
-  /** The model's box and up axis, from the last fitCamera (Home / reset view go back to it). */
+  /** The model's rest box, from the last fitCamera: its up axis and the camera's near / far. */
   private modelBox: THREE.Box3 | null = null;
+  /**
+   * What Home, Frame all and the default view frame: the model as it is now (deformed) and its
+   * handles' gizmos (viewport/content_box.ts); null: the rest box.
+   */
+  contentBox: () => THREE.Box3 | null = () => null;
+
+  /** The box the camera frames for "everything": the current content, else the rest shape. */
+  private everything(): THREE.Box3 | null {
+    const box = this.contentBox();
+    return box && !box.isEmpty() ? box : this.modelBox;
+  }
 
   /** A new model: its up axis, and the default 3/4 view of `box`. */
   fitCamera(box: THREE.Box3): void {
@@ -89,17 +100,24 @@ export class Viewport {
    * gizmo arrow points at the viewer and all three can be grabbed.
    */
   resetView(): void {
-    if (!this.modelBox) return;
+    const box = this.everything();
+    if (!box) return;
     const up = this.camera.up;
     const zUp = up.z > 0.5;
     // right, up, front in model coordinates
     const dir = zUp ? new THREE.Vector3(1, -1.2, 0.8) : new THREE.Vector3(1, 0.8, 1.2);
-    this.frameBox(this.modelBox, dir.normalize());
+    this.frameBox(box, dir.normalize());
   }
 
-  /** Home: the whole model, from the current direction. */
+  /** Home: the whole model as it is now (deformed, with its gizmos), from the current direction. */
   frameAll(): void {
-    if (this.modelBox) this.frameBox(this.modelBox);
+    const box = this.everything();
+    if (box) this.frameBox(box);
+  }
+
+  /** "z" when the model is shown z-up (camera up = +z), else "y": what exports default to. */
+  get upAxis(): "y" | "z" {
+    return this.camera.up.z > 0.5 ? "z" : "y";
   }
 
   /**

@@ -10,13 +10,15 @@ import { describeError } from "../api";
 import type { App } from "../app";
 import { drawRampLegend } from "../colormap";
 import { $ } from "../dom";
+import { handleName } from "../handle_names";
 import { decodeWeights, weightRamp } from "./weight_ramp";
 import { WeightsRequests } from "./weights_requests";
 
 export const NO_CONSTRAINTS_NOTE = "No constraints yet: mark a fixed region and a handle and Apply constraints to see the handle's weights.";
 
-export function weightsTitle(handle1: number): string {
-  return `Handle ${handle1} weight (0 = fixed, 1 = moves with handle)`;
+/** The legend's title for handle index `handle` (0-based, as everywhere: handle_names.ts). */
+export function weightsTitle(handle: number): string {
+  return `${handleName(handle)} weight (0 = fixed, 1 = moves with handle)`;
 }
 
 export interface WeightsView {
@@ -41,7 +43,7 @@ export function setupWeightsView({ state, client }: App): WeightsView {
     button.setAttribute("aria-pressed", String(state.weightsOn));
     box.classList.toggle("hidden", !state.weightsOn);
     const field = state.weights;
-    title.textContent = weightsTitle((field?.handle ?? state.activeHandle - 1) + 1);
+    title.textContent = weightsTitle(field?.handle ?? state.activeHandle - 1);
     title.classList.toggle("hidden", !!note);
     legend.classList.toggle("hidden", !!note);
     noteEl.textContent = note;
@@ -77,7 +79,7 @@ export function setupWeightsView({ state, client }: App): WeightsView {
         state.setWeights(null); // the page's usual colours while there is no field
         if (err instanceof ConnectError && err.code === Code.FailedPrecondition) return setNote(NO_CONSTRAINTS_NOTE);
         if (err instanceof ConnectError && err.code === Code.InvalidArgument) {
-          return setNote(`Handle ${handle + 1} has no applied region yet: Apply constraints to see its weights.`);
+          return setNote(`${handleName(handle)} has no applied region yet: Apply constraints to see its weights.`);
         }
         asked = ""; // a lost connection or the like: asked again on the next change
         setNote(`Weights not available: ${describeError(err)}`);
