@@ -319,7 +319,7 @@ TEST(Durable, ConcurrentFirstCallsRestoreEachSessionOnce) {
 // ran on the worker pool.
 TEST(Durable, RestoresRunOnTheWorkerPoolNotOnGrpcThreads) {
   TempDir dir;
-  std::vector<pb::Session> s(9);
+  std::vector<pb::Session> s(13);
   {
     TestServer a(durable(dir.path));
     for (auto& session : s) {
@@ -390,6 +390,48 @@ TEST(Durable, RestoresRunOnTheWorkerPoolNotOnGrpcThreads) {
     r.set_name(s[8].name());
     pb::DeleteSessionResponse out;
     EXPECT_TRUE(b.bare_stub->DeleteSession(edit(8).get(), r, &out).ok());
+  }
+  {
+    pb::GetMeshRequest r;
+    r.set_name(s[9].name());
+    auto ctx = view(9);  // the context outlives the stream
+    auto reader = b.bare_stub->GetMesh(ctx.get(), r);
+    pb::MeshChunk chunk;
+    std::size_t bytes = 0;
+    while (reader->Read(&chunk)) bytes += chunk.data().size();
+    EXPECT_TRUE(reader->Finish().ok());
+    EXPECT_GT(bytes, 0u);
+  }
+  {
+    pb::SweepRequest r;
+    r.set_name(s[10].name());
+    r.add_betas(0.1);
+    pb::SweepResponse out;
+    const auto st = b.bare_stub->Sweep(edit(10).get(), r, &out);
+    EXPECT_TRUE(st.ok()) << st.error_message();
+  }
+  {
+    pb::ExportRigRequest r;
+    r.set_name(s[11].name());
+    auto ctx = edit(11);
+    auto reader = b.bare_stub->ExportRig(ctx.get(), r);
+    pb::MeshChunk chunk;
+    bool report = false;
+    while (reader->Read(&chunk)) report = report || chunk.has_rig_report();
+    const auto st = reader->Finish();
+    EXPECT_TRUE(st.ok()) << st.error_message();
+    EXPECT_TRUE(report);
+  }
+  {
+    // A view token is refused after the restore, on the pool, as before it.
+    pb::ExportAnimationRequest r;
+    r.set_name(s[12].name());
+    auto ctx = view(12);
+    auto reader = b.bare_stub->ExportAnimation(ctx.get(), r);
+    pb::MeshChunk chunk;
+    while (reader->Read(&chunk)) {
+    }
+    EXPECT_EQ(reader->Finish().error_code(), StatusCode::PERMISSION_DENIED);
   }
   EXPECT_EQ(b.server->restores_off_pool(), 0u);
 }

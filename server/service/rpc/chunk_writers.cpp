@@ -66,11 +66,26 @@ class ChunkWriter : public grpc::ServerWriteReactor<v1::MeshChunk> {
   v1::MeshChunk chunk_;
 };
 
-// GetMesh: the file is produced on the session's strand, then streamed.
+// GetMesh: the file is produced on the session's strand, then streamed. Without a session,
+// `lookup` finds it first on the pool (it may restore it).
 class MeshWriter final : public ChunkWriter {
  public:
-  MeshWriter(std::shared_ptr<Session> session, const v1::GetMeshRequest& request)
+  MeshWriter(DeformService* svc, std::shared_ptr<Session> session, SessionLookup lookup,
+             const v1::GetMeshRequest& request)
       : session_(std::move(session)) {
+    if (session_) {
+      start(request);
+      return;
+    }
+    svc->pool().submit([this, lookup = std::move(lookup), request] {
+      const auto status = guarded([&] { session_ = lookup(); }, "GetMesh");
+      if (!status.ok()) return produced(status, {});
+      start(request);
+    });
+  }
+
+ private:
+  void start(const v1::GetMeshRequest& request) {
     session_->post([this, request] {
       std::string data;
       const auto status = guarded([&] { data = session_->mesh_file(request); }, "GetMesh");
@@ -78,7 +93,6 @@ class MeshWriter final : public ChunkWriter {
     });
   }
 
- private:
   std::shared_ptr<Session> session_;
 };
 
@@ -88,9 +102,13 @@ class MeshWriter final : public ChunkWriter {
 // the Sweeps under --max-sweeps.
 class AnimationWriter final : public ChunkWriter {
  public:
+  // Without a session, the first step finds it with `lookup` (it may restore it) and plans
+  // the export from `request`.
   AnimationWriter(DeformService* svc, grpc::CallbackServerContext* ctx,
-                  std::shared_ptr<Session> session, Session::AnimationPlan plan)
-      : svc_(svc), ctx_(ctx), session_(std::move(session)), plan_(std::move(plan)) {
+                  std::shared_ptr<Session> session, Session::AnimationPlan plan,
+                  SessionLookup lookup, const v1::ExportAnimationRequest& request)
+      : svc_(svc), ctx_(ctx), session_(std::move(session)), plan_(std::move(plan)),
+        lookup_(std::move(lookup)), request_(request) {
     svc_->pool().submit([this] { step(); });
   }
 
@@ -100,6 +118,10 @@ class AnimationWriter final : public ChunkWriter {
     bool done = false;
     const auto status = guarded(
         [&] {
+          if (!session_) {
+            session_ = lookup_();
+            plan_ = session_->animation_plan(request_);
+          }
           if (ctx_->IsCancelled()) throw Cancelled("ExportAnimation cancelled by the client");
           if (std::chrono::system_clock::now() > ctx_->deadline())
             fail(grpc::StatusCode::DEADLINE_EXCEEDED,
@@ -128,6 +150,8 @@ class AnimationWriter final : public ChunkWriter {
   grpc::CallbackServerContext* ctx_;
   std::shared_ptr<Session> session_;
   Session::AnimationPlan plan_;
+  SessionLookup lookup_;
+  v1::ExportAnimationRequest request_;
 };
 
 // ExportRig: one pool task (the current pose and each key are one solve each, a timeline
@@ -135,9 +159,9 @@ class AnimationWriter final : public ChunkWriter {
 // deadline passes, the session is deleted or the server stops. Counted with the Sweeps.
 class RigWriter final : public ChunkWriter {
  public:
-  RigWriter(DeformService* svc, grpc::CallbackServerContext* ctx, std::shared_ptr<Session> session,
+  RigWriter(DeformService* svc, grpc::CallbackServerContext* ctx, SessionLookup lookup,
             v1::ExportRigRequest request)
-      : svc_(svc), ctx_(ctx), session_(std::move(session)), request_(std::move(request)) {
+      : svc_(svc), ctx_(ctx), lookup_(std::move(lookup)), request_(std::move(request)) {
     svc_->pool().submit([this] { run(); });
   }
 
@@ -146,6 +170,7 @@ class RigWriter final : public ChunkWriter {
     Session::RigExport rig;
     const auto status = guarded(
         [&] {
+          session_ = lookup_();  // here, on the pool: it may restore the session
           rig = session_->export_rig(request_, [this] {
             if (ctx_->IsCancelled()) throw Cancelled("ExportRig cancelled by the client");
             if (std::chrono::system_clock::now() > ctx_->deadline())
@@ -163,6 +188,7 @@ class RigWriter final : public ChunkWriter {
 
   DeformService* svc_;
   grpc::CallbackServerContext* ctx_;
+  SessionLookup lookup_;
   std::shared_ptr<Session> session_;
   v1::ExportRigRequest request_;
 };
@@ -171,21 +197,23 @@ class RigWriter final : public ChunkWriter {
 
 grpc::ServerWriteReactor<v1::MeshChunk>* new_rig_writer(DeformService* svc,
                                                         grpc::CallbackServerContext* ctx,
-                                                        std::shared_ptr<Session> session,
+                                                        SessionLookup lookup,
                                                         const v1::ExportRigRequest& request) {
-  return new RigWriter(svc, ctx, std::move(session), request);
+  return new RigWriter(svc, ctx, std::move(lookup), request);
 }
 
-grpc::ServerWriteReactor<v1::MeshChunk>* new_mesh_writer(std::shared_ptr<Session> session,
+grpc::ServerWriteReactor<v1::MeshChunk>* new_mesh_writer(DeformService* svc,
+                                                         std::shared_ptr<Session> session,
+                                                         SessionLookup lookup,
                                                          const v1::GetMeshRequest& request) {
-  return new MeshWriter(std::move(session), request);
+  return new MeshWriter(svc, std::move(session), std::move(lookup), request);
 }
 
-grpc::ServerWriteReactor<v1::MeshChunk>* new_animation_writer(DeformService* svc,
-                                                              grpc::CallbackServerContext* ctx,
-                                                              std::shared_ptr<Session> session,
-                                                              Session::AnimationPlan plan) {
-  return new AnimationWriter(svc, ctx, std::move(session), std::move(plan));
+grpc::ServerWriteReactor<v1::MeshChunk>* new_animation_writer(
+    DeformService* svc, grpc::CallbackServerContext* ctx, std::shared_ptr<Session> session,
+    Session::AnimationPlan plan, SessionLookup lookup, const v1::ExportAnimationRequest& request) {
+  return new AnimationWriter(svc, ctx, std::move(session), std::move(plan), std::move(lookup),
+                             request);
 }
 
 }  // namespace hdeform::service

@@ -395,15 +395,27 @@ grpc::ServerUnaryReactor* DeformService::UpdateHandles(grpc::CallbackServerConte
       admit);
 }
 
+std::function<std::shared_ptr<Session>()> DeformService::lookup(grpc::CallbackServerContext* ctx, const std::string& name,
+                                   Access needed, const char* op) {
+  return [this, ctx, name, needed, op] { return session_for(*ctx, name, needed, op); };
+}
+
 grpc::ServerWriteReactor<v1::MeshChunk>* DeformService::GetMesh(
     grpc::CallbackServerContext* ctx, const v1::GetMeshRequest* request) {
   std::shared_ptr<Session> session;
   const auto status = guarded(
-      [&] { session = session_for(*ctx, request->name(), Access::kView, "GetMesh"); }, "GetMesh");
+      [&] {
+        if (store_.resident(request->name()))
+          session = session_for(*ctx, request->name(), Access::kView, "GetMesh");
+        else
+          admit_to_pool();  // found (and restored) on the pool
+      },
+      "GetMesh");
   if (!status.ok()) {
     return failed_stream<v1::MeshChunk>(status);
   }
-  return new_mesh_writer(std::move(session), *request);
+  return new_mesh_writer(this, std::move(session),
+                         lookup(ctx, request->name(), Access::kView, "GetMesh"), *request);
 }
 
 // Sweep: one pool task per β, each queued behind whatever else waits, so a long sweep
@@ -457,24 +469,38 @@ grpc::ServerUnaryReactor* DeformService::Sweep(grpc::CallbackServerContext* ctx,
   job->ctx = ctx;
   job->reactor = reactor;
   job->response = response;
-  const auto status = guarded(
-      [&] {
-        job->session = session_for(*ctx, request->name(), Access::kEdit, "Sweep");
-        job->plan = job->session->sweep_plan(*request);
-        if (++running_sweeps_ > options_.request.max_concurrent_sweeps) {
-          --running_sweeps_;
-          fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
-               "too many sweeps running (" +
-                   std::to_string(options_.request.max_concurrent_sweeps) +
-                   ", --max-sweeps); retry later");
-        }
-      },
-      "Sweep");
-  if (!status.ok()) {
-    reactor->Finish(status);
+  // Looks the session up, plans and admits; here when the lookup does no work, else from the
+  // pool (a restore parses and factorizes).
+  auto enter = [this, ctx, request, reactor, job] {
+    const auto status = guarded(
+        [&] {
+          job->session = session_for(*ctx, request->name(), Access::kEdit, "Sweep");
+          job->plan = job->session->sweep_plan(*request);
+          if (++running_sweeps_ > options_.request.max_concurrent_sweeps) {
+            --running_sweeps_;
+            fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
+                 "too many sweeps running (" +
+                     std::to_string(options_.request.max_concurrent_sweeps) +
+                     ", --max-sweeps); retry later");
+          }
+        },
+        "Sweep");
+    if (!status.ok()) {
+      reactor->Finish(status);
+      return;
+    }
+    pool_->submit([job] { sweep_step(job); });
+  };
+  if (store_.resident(request->name())) {
+    enter();
     return reactor;
   }
-  pool_->submit([job] { sweep_step(job); });
+  const auto admitted = guarded([this] { admit_to_pool(); }, "Sweep");
+  if (!admitted.ok()) {
+    reactor->Finish(admitted);
+    return reactor;
+  }
+  pool_->submit(std::move(enter));
   return reactor;
 }
 
@@ -711,8 +737,11 @@ grpc::ServerWriteReactor<v1::MeshChunk>* DeformService::ExportAnimation(
   Session::AnimationPlan plan;
   const auto status = guarded(
       [&] {
-        session = session_for(*ctx, request->name(), Access::kEdit, "ExportAnimation");
-        plan = session->animation_plan(*request);
+        // Not resident: the writer's first pool task finds (restores) it and plans.
+        if (store_.resident(request->name())) {
+          session = session_for(*ctx, request->name(), Access::kEdit, "ExportAnimation");
+          plan = session->animation_plan(*request);
+        }
         if (++running_sweeps_ > options_.request.max_concurrent_sweeps) {
           --running_sweeps_;
           fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
@@ -725,15 +754,18 @@ grpc::ServerWriteReactor<v1::MeshChunk>* DeformService::ExportAnimation(
   if (!status.ok()) {
     return failed_stream<v1::MeshChunk>(status);
   }
-  return new_animation_writer(this, ctx, std::move(session), std::move(plan));
+  return new_animation_writer(this, ctx, std::move(session), std::move(plan),
+                              lookup(ctx, request->name(), Access::kEdit, "ExportAnimation"),
+                              *request);
 }
 
 grpc::ServerWriteReactor<v1::MeshChunk>* DeformService::ExportRig(
     grpc::CallbackServerContext* ctx, const v1::ExportRigRequest* request) {
-  std::shared_ptr<Session> session;
+  std::shared_ptr<Session> found;  // authorized before admission when that needs no work
   const auto status = guarded(
       [&] {
-        session = session_for(*ctx, request->name(), Access::kEdit, "ExportRig");
+        if (store_.resident(request->name()))
+          found = session_for(*ctx, request->name(), Access::kEdit, "ExportRig");
         if (++running_sweeps_ > options_.request.max_concurrent_sweeps) {
           --running_sweeps_;
           fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
@@ -744,7 +776,10 @@ grpc::ServerWriteReactor<v1::MeshChunk>* DeformService::ExportRig(
       },
       "ExportRig");
   if (!status.ok()) return failed_stream<v1::MeshChunk>(status);
-  return new_rig_writer(this, ctx, std::move(session), *request);
+  // Not resident: the session is found on the pool (it may be restored there).
+  SessionLookup find = found ? SessionLookup([found] { return found; })
+                             : lookup(ctx, request->name(), Access::kEdit, "ExportRig");
+  return new_rig_writer(this, ctx, std::move(find), *request);
 }
 
 // Grabs run on the session's strand: they are ordered with SetConstraints, which renumbers

@@ -163,6 +163,10 @@ class DeformService final : public v1::Deformation::CallbackService {
   // fn (which looks up session `name`) inline when the lookup does no work
   // (SessionStore::resident), else on the pool: a restore or a revalidation never runs on
   // gRPC's callback threads. fn may run after the handler returned: it captures by value.
+  // session_for(ctx, name, needed, op) as a callable for a streaming call's pool task.
+  std::function<std::shared_ptr<Session>()> lookup(grpc::CallbackServerContext* ctx,
+                                                   const std::string& name, Access needed,
+                                                   const char* op);
   grpc::ServerUnaryReactor* finish_with_session(grpc::CallbackServerContext* ctx, const char* op,
                                                 const std::string& name, Work fn);
   grpc::ServerUnaryReactor* finish_on_session(grpc::CallbackServerContext* ctx, const char* op,

@@ -26,18 +26,25 @@ grpc::ServerWriteReactor<v1::SessionEvent>* new_watch_reactor(
     std::shared_ptr<Session> session, const v1::FrameFormat& format, std::string client_id,
     Roster::Claim claim, WorkerPool& pool,
     const std::function<void(AuthorizedStream&)>& authorize);
-// GetMesh: the file is produced on the session's strand, then streamed.
-grpc::ServerWriteReactor<v1::MeshChunk>* new_mesh_writer(std::shared_ptr<Session> session,
+// The session a streaming call is for, found on the pool when it is not resident (a lookup
+// may restore it: never on gRPC's threads). Throws as DeformService::session_for.
+using SessionLookup = std::function<std::shared_ptr<Session>()>;
+// GetMesh: the file is produced on the session's strand, then streamed. `session` null:
+// `lookup` finds it on the pool first.
+grpc::ServerWriteReactor<v1::MeshChunk>* new_mesh_writer(DeformService* svc,
+                                                         std::shared_ptr<Session> session,
+                                                         SessionLookup lookup,
                                                          const v1::GetMeshRequest& request);
-// ExportAnimation: one pool task per sample, then the GLB streamed.
-grpc::ServerWriteReactor<v1::MeshChunk>* new_animation_writer(DeformService* svc,
-                                                              grpc::CallbackServerContext* ctx,
-                                                              std::shared_ptr<Session> session,
-                                                              Session::AnimationPlan plan);
-// ExportRig: the rig built on the pool (its report on the first chunk), then streamed.
+// ExportAnimation: one pool task per sample, then the GLB streamed. `session` null: the first
+// task finds it with `lookup` and plans `request` (admission to --max-sweeps came first).
+grpc::ServerWriteReactor<v1::MeshChunk>* new_animation_writer(
+    DeformService* svc, grpc::CallbackServerContext* ctx, std::shared_ptr<Session> session,
+    Session::AnimationPlan plan, SessionLookup lookup, const v1::ExportAnimationRequest& request);
+// ExportRig: the session found and the rig built on the pool (its report on the first
+// chunk), then streamed.
 grpc::ServerWriteReactor<v1::MeshChunk>* new_rig_writer(DeformService* svc,
                                                         grpc::CallbackServerContext* ctx,
-                                                        std::shared_ptr<Session> session,
+                                                        SessionLookup lookup,
                                                         const v1::ExportRigRequest& request);
 
 }  // namespace hdeform::service
