@@ -319,7 +319,7 @@ TEST(Durable, ConcurrentFirstCallsRestoreEachSessionOnce) {
 // ran on the worker pool.
 TEST(Durable, RestoresRunOnTheWorkerPoolNotOnGrpcThreads) {
   TempDir dir;
-  std::vector<pb::Session> s(13);
+  std::vector<pb::Session> s(14);
   {
     TestServer a(durable(dir.path));
     for (auto& session : s) {
@@ -432,6 +432,22 @@ TEST(Durable, RestoresRunOnTheWorkerPoolNotOnGrpcThreads) {
     while (reader->Read(&chunk)) {
     }
     EXPECT_EQ(reader->Finish().error_code(), StatusCode::PERMISSION_DENIED);
+  }
+  {
+    // Deform: the first message names the session; its frame comes after the restore.
+    auto ctx = edit(13);
+    auto stream = b.bare_stub->Deform(ctx.get());
+    pb::DeformRequest r;
+    r.set_name(s[13].name());
+    r.set_sequence(1);
+    *r.add_transforms() = benchmark_transform("cactus");
+    ASSERT_TRUE(stream->Write(r));
+    pb::Frame f;
+    EXPECT_TRUE(stream->Read(&f));
+    EXPECT_EQ(f.sequence(), 1);
+    stream->WritesDone();
+    const auto st = stream->Finish();
+    EXPECT_TRUE(st.ok()) << st.error_message();
   }
   EXPECT_EQ(b.server->restores_off_pool(), 0u);
 }

@@ -39,39 +39,46 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
                        "the first DeformRequest must name the session"});
         return;
       }
+      if (!svc_->sessions().resident(in_.name())) {
+        // Finding it restores it (parse, factorize) or reads the store: on the pool, never on
+        // gRPC's thread. The first message waits in in_ (no read is started meanwhile).
+        ++inflight_;
+        svc_->pool().submit([this, name = in_.name()] {
+          std::shared_ptr<Session> found;
+          const auto status = guarded(
+              [&] { found = svc_->session_for(*ctx_, name, Access::kEdit, "Deform"); }, "Deform");
+          std::unique_lock lock(mutex_);
+          --inflight_;
+          if (done_) {
+            if (inflight_ == 0) {
+              lock.unlock();
+              delete this;
+            }
+            return;
+          }
+          if (finished_) return;
+          if (!status.ok()) {
+            finish_locked(status);
+            return;
+          }
+          opened_locked(std::move(found));
+          take_locked();
+        });
+        return;
+      }
+      std::shared_ptr<Session> found;
       const auto status = guarded(
-          [&] { session_ = svc_->session_for(*ctx_, in_.name(), Access::kEdit, "Deform"); },
+          [&] { found = svc_->session_for(*ctx_, in_.name(), Access::kEdit, "Deform"); },
           "Deform");
       if (!status.ok()) {
-        session_.reset();
         finish_locked(status);
         return;
       }
-      session_->stream_opened();
-      auth_ = std::make_shared<Revocation>(this);
-      svc_->bind_stream(*ctx_, *auth_, Access::kEdit);
-      session_->add_stream(auth_);
+      opened_locked(std::move(found));
     }
-    if (finished_) return;
-    if (in_.has_format()) {
-      const auto status = guarded([&] { check_frame_format(in_.format(), "Deform"); }, "Deform");
-      if (!status.ok()) {
-        finish_locked(status);
-        return;
-      }
-      format_ = in_.format();
-    }
-    // Latest wins, but a partial update keeps the moves of the one it replaces.
-    if (pending_) {
-      ++coalesced_;
-      merge_deform_requests(*pending_, std::move(in_));
-    } else {
-      pending_ = std::move(in_);
-    }
-    in_.Clear();
-    if (!solving_) start_solve_locked();
-    StartRead(&in_);
+    take_locked();
   }
+
 
   void OnWriteDone(bool ok) override {
     std::unique_lock lock(mutex_);
@@ -113,6 +120,39 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
   }
 
  private:
+  // The stream's session, found and authorized: registered for revocation and counted.
+  void opened_locked(std::shared_ptr<Session> session) {
+    session_ = std::move(session);
+    session_->stream_opened();
+    auth_ = std::make_shared<Revocation>(this);
+    svc_->bind_stream(*ctx_, *auth_, Access::kEdit);
+    session_->add_stream(auth_);
+  }
+
+  // The message in in_ (the session is open): coalesced into the pending update, a solve
+  // started when none runs, and the next read.
+  void take_locked() {
+    if (finished_) return;
+    if (in_.has_format()) {
+      const auto status = guarded([&] { check_frame_format(in_.format(), "Deform"); }, "Deform");
+      if (!status.ok()) {
+        finish_locked(status);
+        return;
+      }
+      format_ = in_.format();
+    }
+    // Latest wins, but a partial update keeps the moves of the one it replaces.
+    if (pending_) {
+      ++coalesced_;
+      merge_deform_requests(*pending_, std::move(in_));
+    } else {
+      pending_ = std::move(in_);
+    }
+    in_.Clear();
+    if (!solving_) start_solve_locked();
+    StartRead(&in_);
+  }
+
   void start_solve_locked() {
     solving_ = true;
     ++inflight_;
