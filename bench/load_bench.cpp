@@ -275,7 +275,7 @@ class ChildServer {
 struct Shared {
   std::atomic<bool> stopping{false};  // from now on `deleted` and our cancellations are expected
   std::atomic<std::int64_t> updates_sent{0}, editor_frames{0}, watcher_frames{0},
-      watcher_states{0}, client_coalesced{0};
+      watcher_states{0}, watcher_other{0}, client_coalesced{0};
 
   // Error messages with their counts (streams report from gRPC threads).
   std::mutex error_mu;
@@ -562,7 +562,12 @@ class Watcher final : public grpc::ClientReadReactor<pb::SessionEvent> {
         saw_deleted_ = true;
         if (!shared_.stopping) shared_.error(label() + ": session deleted during the run");
         break;
-      default:
+      case pb::SessionEvent::kPresence:
+      case pb::SessionEvent::kStep:
+      case pb::SessionEvent::kTimeline:
+        ++shared_.watcher_other;  // who is here, history steps, keys: counted, not errors
+        break;
+      case pb::SessionEvent::EVENT_NOT_SET:
         shared_.error(label() + ": empty SessionEvent");
     }
     StartRead(&event_);
@@ -1033,9 +1038,10 @@ int main(int argc, char** argv) {
                   ? 0
                   : 100.0 * static_cast<double>(wframes) /
                         (per_watcher_expected * static_cast<double>(watch.size())));
-  std::printf("watcher state events: %lld; watchers that got `deleted` at the end: %d / %zu; "
-              "cancelled by the bench at the end: %d\n",
-              static_cast<long long>(shared.watcher_states.load()), saw_deleted, watch.size(),
+  std::printf("watcher state events: %lld; presence/step/timeline events: %lld; watchers that "
+              "got `deleted` at the end: %d / %zu; cancelled by the bench at the end: %d\n",
+              static_cast<long long>(shared.watcher_states.load()),
+              static_cast<long long>(shared.watcher_other.load()), saw_deleted, watch.size(),
               cancelled_at_end);
   std::printf("latency per frame  (frame − send of its own sequence): p50 %.1f  p90 %.1f  p99 "
               "%.1f  max %.1f ms  (n = %zu)\n",
