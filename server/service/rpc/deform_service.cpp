@@ -337,7 +337,7 @@ grpc::ServerUnaryReactor* DeformService::SetConstraints(grpc::CallbackServerCont
                                                         const v1::SetConstraintsRequest* request,
                                                         v1::Session* response) {
   return finish_change(ctx, "SetConstraints", request->name(), request->request_id(), response,
-                       [this, request, response](Session& s) {
+                       [request, response](Session& s) {
                          *response = s.set_constraints(
                              request->constraints(), request->expected_version(),
                              request->expected_config_version(), request->client_id(),
@@ -349,7 +349,7 @@ grpc::ServerUnaryReactor* DeformService::SetBeta(grpc::CallbackServerContext* ct
                                                  const v1::SetBetaRequest* request,
                                                  v1::Session* response) {
   return finish_change(ctx, "SetBeta", request->name(), request->request_id(), response,
-                       [this, request, response](Session& s) {
+                       [request, response](Session& s) {
                          *response = s.set_beta(request->beta(), request->expected_version(),
                                                 request->expected_config_version(),
                                                 request->client_id());
@@ -635,7 +635,7 @@ grpc::ServerUnaryReactor* DeformService::Undo(grpc::CallbackServerContext* ctx,
                                               const v1::UndoRequest* request,
                                               v1::Session* response) {
   return finish_change(ctx, "Undo", request->name(), request->request_id(), response,
-                       [this, request, response](Session& s) {
+                       [request, response](Session& s) {
                          *response = s.undo(*request);
                        });
 }
@@ -644,7 +644,7 @@ grpc::ServerUnaryReactor* DeformService::Redo(grpc::CallbackServerContext* ctx,
                                               const v1::UndoRequest* request,
                                               v1::Session* response) {
   return finish_change(ctx, "Redo", request->name(), request->request_id(), response,
-                       [this, request, response](Session& s) {
+                       [request, response](Session& s) {
                          *response = s.redo(*request);
                        });
 }
@@ -662,7 +662,7 @@ grpc::ServerUnaryReactor* DeformService::SaveSnapshot(grpc::CallbackServerContex
                                                       const v1::SaveSnapshotRequest* request,
                                                       v1::NamedSnapshot* response) {
   return finish_change(ctx, "SaveSnapshot", request->name(), request->request_id(), response,
-                       [this, request, response](Session& s) {
+                       [request, response](Session& s) {
                          *response = s.save_snapshot(*request);
                        });
 }
@@ -680,7 +680,7 @@ grpc::ServerUnaryReactor* DeformService::RestoreSnapshot(
     grpc::CallbackServerContext* ctx, const v1::RestoreSnapshotRequest* request,
     v1::Session* response) {
   return finish_change(ctx, "RestoreSnapshot", request->name(), request->request_id(), response,
-                       [this, request, response](Session& s) {
+                       [request, response](Session& s) {
                          *response = s.restore_snapshot(*request);
                        });
 }
@@ -689,7 +689,7 @@ grpc::ServerUnaryReactor* DeformService::DeleteSnapshot(grpc::CallbackServerCont
                                                         const v1::DeleteSnapshotRequest* request,
                                                         v1::DeleteSnapshotResponse* response) {
   return finish_change(ctx, "DeleteSnapshot", request->name(), request->request_id(), response,
-                       [this, request](Session& s) {
+                       [request](Session& s) {
                          s.delete_snapshot(request->snapshot(), request->client_id());
                        });
 }
@@ -709,7 +709,7 @@ grpc::ServerUnaryReactor* DeformService::SetTimeline(grpc::CallbackServerContext
                                                      const v1::SetTimelineRequest* request,
                                                      v1::Timeline* response) {
   return finish_change(ctx, "SetTimeline", request->name(), request->request_id(), response,
-                       [this, request, response](Session& s) {
+                       [request, response](Session& s) {
                          *response = s.set_timeline(*request);
                        });
 }
@@ -806,7 +806,7 @@ grpc::ServerUnaryReactor* DeformService::RotateTokens(grpc::CallbackServerContex
                                                       const v1::RotateTokensRequest* request,
                                                       v1::Session* response) {
   return finish_change(ctx, "RotateTokens", request->name(), "", response,
-                       [this, response](Session& s) {
+                       [response](Session& s) {
                          const IssuedTokens tokens = s.rotate_tokens();
                          *response = s.describe();
                          response->set_edit_token(tokens.edit);
