@@ -319,7 +319,7 @@ TEST(Durable, ConcurrentFirstCallsRestoreEachSessionOnce) {
 // ran on the worker pool.
 TEST(Durable, RestoresRunOnTheWorkerPoolNotOnGrpcThreads) {
   TempDir dir;
-  std::vector<pb::Session> s(14);
+  std::vector<pb::Session> s(16);
   {
     TestServer a(durable(dir.path));
     for (auto& session : s) {
@@ -448,6 +448,34 @@ TEST(Durable, RestoresRunOnTheWorkerPoolNotOnGrpcThreads) {
     stream->WritesDone();
     const auto st = stream->Finish();
     EXPECT_TRUE(st.ok()) << st.error_message();
+  }
+  {
+    // WatchSession: the join state comes after the restore; joined presence shows.
+    auto ctx = view(14);
+    pb::WatchSessionRequest r;
+    r.set_name(s[14].name());
+    r.mutable_client()->set_client_id("w1");
+    auto reader = b.bare_stub->WatchSession(ctx.get(), r);
+    pb::SessionEvent ev;
+    ASSERT_TRUE(reader->Read(&ev));
+    EXPECT_TRUE(ev.has_state() || ev.has_presence());
+    ctx->TryCancel();
+    while (reader->Read(&ev)) {
+    }
+    EXPECT_EQ(reader->Finish().error_code(), StatusCode::CANCELLED);
+  }
+  {
+    // A refused watcher (edit-only encoding) is refused after the restore, with its reason.
+    auto ctx = view(15);
+    pb::WatchSessionRequest r;
+    r.set_name(s[15].name());
+    r.mutable_format()->set_encoding(pb::FRAME_ENCODING_FLOAT64);
+    auto reader = b.bare_stub->WatchSession(ctx.get(), r);
+    pb::SessionEvent ev;
+    EXPECT_FALSE(reader->Read(&ev));
+    const auto st = reader->Finish();
+    EXPECT_EQ(st.error_code(), StatusCode::INVALID_ARGUMENT);
+    EXPECT_NE(st.error_message().find("FLOAT64"), std::string::npos) << st.error_message();
   }
   EXPECT_EQ(b.server->restores_off_pool(), 0u);
 }

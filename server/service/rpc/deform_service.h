@@ -7,6 +7,7 @@
 #include "service/infra/cache.h"
 #include "service/infra/upload_budget.h"
 #include "service/infra/worker_pool.h"
+#include "service/rpc/reactors.h"
 #include "service/rpc/server.h"
 #include "service/session/mesh_library.h"
 #include "service/session/session_store.h"
@@ -163,6 +164,9 @@ class DeformService final : public v1::Deformation::CallbackService {
   // fn (which looks up session `name`) inline when the lookup does no work
   // (SessionStore::resident), else on the pool: a restore or a revalidation never runs on
   // gRPC's callback threads. fn may run after the handler returned: it captures by value.
+  // A WatchSession's session found, checked and joined (limits, delta slot, presence);
+  // throws ServiceError with what refused it.
+  WatchStart start_watch(grpc::CallbackServerContext* ctx, const v1::WatchSessionRequest& request);
   // session_for(ctx, name, needed, op) as a callable for a streaming call's pool task.
   std::function<std::shared_ptr<Session>()> lookup(grpc::CallbackServerContext* ctx,
                                                    const std::string& name, Access needed,

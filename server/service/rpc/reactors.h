@@ -26,6 +26,19 @@ grpc::ServerWriteReactor<v1::SessionEvent>* new_watch_reactor(
     std::shared_ptr<Session> session, const v1::FrameFormat& format, std::string client_id,
     Roster::Claim claim, WorkerPool& pool,
     const std::function<void(AuthorizedStream&)>& authorize);
+// A watcher admitted to its session (DeformService::start_watch): the session, and the
+// presence it joined under (client_id empty: anonymous).
+struct WatchStart {
+  std::shared_ptr<Session> session;
+  std::string client_id;
+  Roster::Claim claim = 0;
+};
+using WatchStarter = std::function<WatchStart()>;
+// WatchSession for a session not resident: `start` runs on the pool (it may restore it).
+grpc::ServerWriteReactor<v1::SessionEvent>* new_deferred_watch_reactor(
+    WatchStarter start, const v1::FrameFormat& format, WorkerPool& pool,
+    std::function<void(AuthorizedStream&)> authorize);
+
 // The session a streaming call is for, found on the pool when it is not resident (a lookup
 // may restore it: never on gRPC's threads). Throws as DeformService::session_for.
 using SessionLookup = std::function<std::shared_ptr<Session>()>;

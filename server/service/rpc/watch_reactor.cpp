@@ -3,6 +3,7 @@
 #include "service/rpc/deform_service.h"
 #include "service/frames/frame_delta.h"
 #include "service/frames/frame_encoding.h"
+#include "service/infra/service_error.h"
 #include "service/session/convert.h"
 
 #include <deque>
@@ -33,6 +34,35 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
     session_->add_watcher(sink_);
   }
 
+  // The session not resident: `start` finds (restores) it and admits the watcher on the pool,
+  // then the stream starts as above; a failure ends it with start's status.
+  WatchReactor(WatchStarter start, const v1::FrameFormat& format, WorkerPool& pool,
+               std::function<void(AuthorizedStream&)> authorize)
+      : format_(format), pool_(pool) {
+    starting_ = true;  // the pool task owns this until it is done
+    pool_.submit([this, start = std::move(start), authorize = std::move(authorize)] {
+      WatchStart w;
+      const grpc::Status status = guarded([&] { w = start(); }, "WatchSession");
+      if (status.ok()) {
+        session_ = std::move(w.session);
+        client_id_ = std::move(w.client_id);
+        claim_ = w.claim;
+        sink_ = std::make_shared<Sink>(this);
+        authorize(*sink_);
+        session_->add_watcher(sink_);  // without mutex_: it may push the join state
+      }
+      std::unique_lock lock(mutex_);
+      starting_ = false;
+      if (done_) {  // the client left meanwhile: undo what OnDone could not
+        lock.unlock();
+        if (session_) detach();
+        delete this;
+        return;
+      }
+      if (!status.ok()) finish_locked(status);
+    });
+  }
+
   void OnWriteDone(bool ok) override {
     std::lock_guard lock(mutex_);
     writing_ = false;
@@ -51,12 +81,13 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
 
   void OnDone() override {
     {
-      std::lock_guard lock(sink_->mutex);
-      sink_->reactor = nullptr;
+      std::lock_guard lock(mutex_);
+      if (starting_) {  // the start task detaches and deletes this when it ends
+        done_ = true;
+        return;
+      }
     }
-    session_->remove_watcher(sink_.get());
-    if (!client_id_.empty()) session_->leave(client_id_, claim_);  // its grabs end with it
-    if (format_.encoding() == v1::FRAME_ENCODING_MESHOPT_DELTA) session_->release_delta_watcher();
+    if (session_) detach();
     {
       std::lock_guard lock(mutex_);
       done_ = true;
@@ -66,6 +97,17 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
   }
 
  private:
+  // Off the session: no more events, presence left (its grabs end with it), its delta slot.
+  void detach() {
+    {
+      std::lock_guard lock(sink_->mutex);
+      sink_->reactor = nullptr;
+    }
+    session_->remove_watcher(sink_.get());
+    if (!client_id_.empty()) session_->leave(client_id_, claim_);
+    if (format_.encoding() == v1::FRAME_ENCODING_MESHOPT_DELTA) session_->release_delta_watcher();
+  }
+
   struct Sink final : EventSink {
     explicit Sink(WatchReactor* r) : reactor(r) {}
     void push(std::shared_ptr<const v1::SessionEvent> event) override {
@@ -189,15 +231,15 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
 
   std::shared_ptr<Session> session_;
   const v1::FrameFormat format_;
-  const std::string client_id_;
-  const Roster::Claim claim_;
+  std::string client_id_;  // set once, before any event (the constructor or the start task)
+  Roster::Claim claim_ = 0;
   WorkerPool& pool_;
   FrameDeltaEncoder delta_;
   std::shared_ptr<Sink> sink_;
   std::mutex mutex_;
   std::deque<std::shared_ptr<const v1::SessionEvent>> pending_;
   std::shared_ptr<const v1::SessionEvent> current_;
-  bool writing_ = false, closing_ = false, finished_ = false, done_ = false;
+  bool writing_ = false, closing_ = false, finished_ = false, done_ = false, starting_ = false;
   int encoding_ = 0;  // 0 or 1: an encode on the pool, which then owns this
   std::uint64_t skipped_ = 0;
 };
@@ -210,6 +252,12 @@ grpc::ServerWriteReactor<v1::SessionEvent>* new_watch_reactor(
     const std::function<void(AuthorizedStream&)>& authorize) {
   return new WatchReactor(std::move(session), format, std::move(client_id), claim, pool,
                           authorize);
+}
+
+grpc::ServerWriteReactor<v1::SessionEvent>* new_deferred_watch_reactor(
+    WatchStarter start, const v1::FrameFormat& format, WorkerPool& pool,
+    std::function<void(AuthorizedStream&)> authorize) {
+  return new WatchReactor(std::move(start), format, pool, std::move(authorize));
 }
 
 }  // namespace hdeform::service
