@@ -18,6 +18,7 @@
 #include <map>
 #include <sstream>
 #include <string>
+#include <tuple>
 
 #include <algorithm>
 #include <atomic>
@@ -944,6 +945,113 @@ TEST(MeshIo, ZUpGlbTurnsUprightInAViewerAndKeepsTheModelsCoordinates) {
   EXPECT_EQ(r.mesh.V, m.V.cast<float>().cast<double>().eval());
   EXPECT_EQ(r.mesh.F, m.F);
   EXPECT_TRUE(r.identity_layout());
+}
+
+}  // namespace
+}  // namespace hdeform
+
+namespace hdeform {
+namespace {
+
+// A quad-dominant mesh (what Blender exports): a cube of quads, one pentagon cap split off a
+// side, and a triangle. Read, it is fans of triangles for the solve; written with its
+// polygons, every format gives the user's own faces back, in order, and reads back to the
+// same triangles.
+TEST(MeshIo, PolygonsAreWrittenBackAsTheFacesTheyWere) {
+  const std::string obj =
+      "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\nv 0.5 1.5 0.5\n"
+      "f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 4 1 5 8\n"
+      "f 3 4 8 9\nf 3 9 8 7\n";  // a quad and a quad around the ninth vertex, then …
+  const std::string tri_and_penta = "v 0 0 0\nv 1 0 0\nv 2 1 0\nv 1 2 0\nv 0 1 0\nv 3 3 3\n"
+                                    "f 1 2 3 4 5\nf 3 6 4\n";
+  for (const std::string& text : {obj, tri_and_penta}) {
+    const LoadedMesh in = read_mesh_bytes(text, "poly.obj");
+    ASSERT_FALSE(in.polygons.empty());
+    // The faces as the user wrote them (1-based OBJ indices), for comparison.
+    std::vector<std::vector<int>> faces;
+    std::istringstream lines(text);
+    for (std::string line; std::getline(lines, line);) {
+      if (line.rfind("f ", 0) != 0) continue;
+      std::istringstream ids(line.substr(2));
+      std::vector<int> f;
+      for (int id; ids >> id;) f.push_back(id - 1);
+      faces.push_back(f);
+    }
+    WriteOptions options;
+    options.polygons = in.polygons;
+    for (auto [format, binary, name] :
+         {std::tuple{MeshFileFormat::obj, false, "out.obj"}, {MeshFileFormat::off, false, "out.off"},
+          {MeshFileFormat::ply, false, "out.ply"}, {MeshFileFormat::ply, true, "out.ply"}}) {
+      options.binary_ply = binary;
+      const std::string out = write_mesh_bytes(format, in.mesh.V, in.mesh.F, nullptr, options);
+      const LoadedMesh back = read_mesh_bytes(out, name);
+      EXPECT_EQ(back.mesh.F, in.mesh.F) << name;  // the same fans, the same triangles
+      ASSERT_EQ(back.polygons.size(), in.polygons.size()) << name;
+      for (std::size_t i = 0; i < in.polygons.size(); ++i) {
+        EXPECT_EQ(back.polygons[i].first_triangle, in.polygons[i].first_triangle) << name;
+        EXPECT_EQ(back.polygons[i].corners, in.polygons[i].corners) << name;
+      }
+      if (format == MeshFileFormat::obj) {  // the face lines themselves
+        std::istringstream o(out);
+        std::size_t f = 0;
+        for (std::string line; std::getline(o, line);) {
+          if (line.rfind("f ", 0) != 0) continue;
+          std::istringstream ids(line.substr(2));
+          std::vector<int> got;
+          for (int id; ids >> id;) got.push_back(id - 1);
+          ASSERT_LT(f, faces.size());
+          EXPECT_EQ(got, faces[f]) << "face " << f;
+          ++f;
+        }
+        EXPECT_EQ(f, faces.size());
+      }
+    }
+  }
+}
+
+TEST(MeshIo, PolygonsThatDoNotMatchTheTrianglesAreWrittenAsTriangles) {
+  const LoadedMesh in = read_mesh_bytes(
+      "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n", "quad.obj");
+  ASSERT_EQ(in.polygons.size(), 1u);
+  Triangles other = in.mesh.F;
+  other(1, 0) = 1;  // no longer a fan around corner 0
+  WriteOptions options;
+  options.polygons = in.polygons;
+  const std::string out = write_mesh_bytes(MeshFileFormat::off, in.mesh.V, other, nullptr, options);
+  EXPECT_NE(out.find("\n4 2 0\n"), std::string::npos) << out;  // 4 vertices, 2 faces
+  EXPECT_EQ(read_mesh_bytes(out, "out.off").mesh.F, other);
+  // Out of range, or PLY beyond 255 corners: triangles too.
+  std::vector<PolygonFan> far = {{5, 4}};
+  options.polygons = far;
+  EXPECT_EQ(read_mesh_bytes(write_mesh_bytes(MeshFileFormat::obj, in.mesh.V, in.mesh.F, nullptr,
+                                             options), "o.obj").polygons.size(), 0u);
+  const int k = 300;
+  std::string big;
+  for (int i = 0; i < k; ++i) {
+    const double a = 2 * 3.14159265358979 * i / k;
+    big += "v ";  // appended piecewise: GCC 12's -Wrestrict misfires on "v " + string
+    big += std::to_string(std::cos(a));
+    big += ' ';
+    big += std::to_string(std::sin(a));
+    big += " 0\n";
+  }
+  big += "f";
+  for (int i = 1; i <= k; ++i) {
+    big += ' ';
+    big += std::to_string(i);
+  }
+  big += "\n";
+  const LoadedMesh disc = read_mesh_bytes(big, "disc.obj");
+  options.polygons = disc.polygons;
+  options.binary_ply = true;
+  const LoadedMesh ply = read_mesh_bytes(
+      write_mesh_bytes(MeshFileFormat::ply, disc.mesh.V, disc.mesh.F, nullptr, options), "d.ply");
+  EXPECT_EQ(ply.mesh.F, disc.mesh.F);
+  EXPECT_TRUE(ply.polygons.empty());  // 298 triangles: a uchar counts at most 255 corners
+  const LoadedMesh off = read_mesh_bytes(
+      write_mesh_bytes(MeshFileFormat::off, disc.mesh.V, disc.mesh.F, nullptr, options), "d.off");
+  ASSERT_EQ(off.polygons.size(), 1u);  // OFF has no such limit
+  EXPECT_EQ(off.polygons[0].corners, k);
 }
 
 }  // namespace

@@ -1,8 +1,10 @@
 // Sessions over loopback: library, upload, constraints, β, meshes, sweeps.
+#include "editors_fixture.h"
 #include "service_fixture.h"
 
 #include <cstring>
 #include <set>
+#include <sstream>
 
 using namespace hdeform::testing;
 
@@ -143,4 +145,62 @@ TEST(ServiceSessions, Sweep) {
   EXPECT_EQ(resp.rows(1).beta(), 0.5);
   EXPECT_GT(resp.rows(0).measures().e(), 0);
   EXPECT_NE(resp.rows(0).measures().e(), resp.rows(1).measures().e());
+}
+
+// A quad mesh (what Blender exports) is solved as triangles and comes back, deformed, as the
+// user's own quads, in OBJ, OFF and PLY (GLB stays triangles).
+TEST(Sessions, QuadUploadsComeBackAsQuads) {
+  TestServer t;
+  std::string obj;
+  const int n = 6;  // a 6 × 6 grid of quads
+  for (int j = 0; j <= n; ++j)
+    for (int i = 0; i <= n; ++i) {
+      obj += "v ";
+      obj += std::to_string(i);
+      obj += ' ';
+      obj += std::to_string(j);
+      obj += " 0\n";
+    }
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      const int a = j * (n + 1) + i + 1;
+      obj += "f ";
+      for (int c : {a, a + 1, a + n + 2, a + n + 1}) {
+        obj += std::to_string(c);
+        obj += ' ';
+      }
+      obj += '\n';
+    }
+  pb::Session s;
+  ASSERT_TRUE(t.upload(obj, "quads.obj", &s).ok());
+  EXPECT_EQ(s.triangle_count(), 2 * n * n);
+  pb::Constraints c;
+  *c.mutable_fixed()->add_selectors() = box(-0.5, -0.5, 0.5, n + 0.5);
+  *c.add_handles()->add_selectors() = box(n - 0.5, -0.5, n + 0.5, n + 0.5);
+  pb::Session constrained;
+  ASSERT_TRUE(t.set_constraints(s.name(), c, &constrained).ok());
+  pb::UpdateHandlesRequest u;
+  u.set_name(s.name());
+  *u.add_transforms() = translation(0, 0, 1);
+  pb::Frame f;
+  {
+    grpc::ClientContext ctx;
+    ASSERT_TRUE(t.stub->UpdateHandles(&ctx, u, &f).ok());
+  }
+  const std::string out = t.deformed(s.name(), pb::MESH_FORMAT_OBJ);
+  std::size_t quads = 0, others = 0;
+  std::istringstream lines(out);
+  for (std::string line; std::getline(lines, line);) {
+    if (line.rfind("f ", 0) != 0) continue;
+    std::istringstream ids(line.substr(2));
+    int k = 0;
+    for (std::string id; ids >> id;) ++k;
+    (k == 4 ? quads : others) += 1;
+  }
+  EXPECT_EQ(quads, static_cast<std::size_t>(n * n));
+  EXPECT_EQ(others, 0u);
+  EXPECT_NE(out.find("\nf 1 2 9 8"), std::string::npos);  // the first face as given
+  const std::string off = t.deformed(s.name(), pb::MESH_FORMAT_OFF);
+  EXPECT_NE(off.find("\n49 36 0\n"), std::string::npos);  // 49 vertices, 36 faces
+  EXPECT_NE(off.find("\n4 0 1 8 7\n"), std::string::npos);
 }

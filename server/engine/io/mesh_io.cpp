@@ -134,10 +134,11 @@ std::string write_mesh_bytes(MeshFileFormat format, const Vertices& V, const Tri
       return detail::write_glb_compressed(V, F, normals, options.up_z,
                                           options.glb_compression == GlbCompression::meshopt);
     }
-    case MeshFileFormat::obj: return detail::write_obj(V, F, N);
-    case MeshFileFormat::off: return detail::write_off(V, F, N);
+    case MeshFileFormat::obj: return detail::write_obj(V, F, N, options.polygons);
+    case MeshFileFormat::off: return detail::write_off(V, F, N, options.polygons);
     case MeshFileFormat::ply:
-      return options.binary_ply ? detail::write_ply_binary(V, F, N) : detail::write_ply(V, F, N);
+      return options.binary_ply ? detail::write_ply_binary(V, F, N, options.polygons)
+                                : detail::write_ply(V, F, N, options.polygons);
   }
   throw std::invalid_argument("write_mesh_bytes: unknown format");
 }

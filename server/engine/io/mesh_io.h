@@ -12,11 +12,20 @@
 #include <cstddef>
 #include <functional>
 #include <stdexcept>
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
 
 namespace hdeform {
+
+// A face of the input with more than 3 corners, as the readers triangulate it: a fan of
+// corners − 2 triangles from `first_triangle` on, around its first corner. Its corners in
+// order are F(t, 0), F(t, 1), F(t, 2), F(t + 1, 2), …, F(t + corners − 3, 2).
+struct PolygonFan {
+  int first_triangle = 0;
+  int corners = 4;
+};
 
 struct LoadedMesh {
   TriMesh mesh;                       // welded surface, what the engine deforms
@@ -25,6 +34,9 @@ struct LoadedMesh {
   std::vector<int> input_to_engine;
   Triangles input_triangles;          // triangles in input-vertex ids (triangulated)
   std::vector<std::string> warnings;  // e.g. polygons triangulated
+  // OBJ/OFF/PLY faces with more than 3 corners (ascending first_triangle): what the writers
+  // need to give the user's own polygons back (WriteOptions::polygons).
+  std::vector<PolygonFan> polygons;
   bool identity_layout() const;
   // Engine positions rearranged into the input layout (input vertex count × 3).
   Vertices to_input_layout(const Vertices& engine_positions) const;
@@ -106,6 +118,10 @@ struct WriteOptions {
   bool binary_ply = false;
   // GLB only (see GlbCompression). Non-finite positions throw InvalidInput: a grid holds none.
   GlbCompression glb_compression = GlbCompression::none;
+  // OBJ/OFF/PLY: the input's polygons (LoadedMesh::polygons, for these triangles): each is
+  // written as the one face it was, not as its fan. A fan that does not match F (or, in PLY,
+  // has over 255 corners) is written as its triangles. GLB: no effect (triangles only).
+  std::span<const PolygonFan> polygons;
 };
 std::string write_mesh_bytes(MeshFileFormat format, const Vertices& V, const Triangles& F,
                              const Vertices* N = nullptr, const WriteOptions& options = {});

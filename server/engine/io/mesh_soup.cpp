@@ -82,10 +82,12 @@ LoadedMesh to_loaded(Soup&& s, const ReadContext& ctx, const char* format) {
   out.input_to_engine.resize(static_cast<size_t>(n));
   for (Eigen::Index i = 0; i < n; ++i) out.input_to_engine[static_cast<size_t>(i)] = static_cast<int>(i);
   out.input_triangles = out.mesh.F;
+  out.polygons = std::move(s.fans);
   out.warnings = ctx.warnings;
   if (s.polygons > 0)
     out.warnings.push_back(ctx.name + ": " + plural(s.polygons, "polygon", "polygons") +
-                           " with more than 3 vertices triangulated (fan)");
+                           " with more than 3 vertices triangulated (fan); OBJ/OFF/PLY "
+                           "output writes them back as they were");
   return out;
 }
 

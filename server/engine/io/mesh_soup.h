@@ -77,6 +77,7 @@ struct Soup {
   std::vector<double> xyz;  // 3 per vertex
   std::vector<int> tri;     // 3 per triangle
   size_t polygons = 0;      // faces with more than 3 corners (fan-triangulated)
+  std::vector<PolygonFan> fans;  // those faces, for writing them back
 
   int num_vertices() const { return static_cast<int>(xyz.size() / 3); }
   size_t num_triangles() const { return tri.size() / 3; }
@@ -92,7 +93,10 @@ struct Soup {
     if (k < 3) return;
     if (k - 2 > ctx_->triangle_cap() - tri.size() / 3) ctx_->too_many_triangles();
     ctx_->tick();
-    if (k > 3) ++polygons;
+    if (k > 3) {
+      ++polygons;
+      fans.push_back({static_cast<int>(tri.size() / 3), static_cast<int>(k)});
+    }
     for (size_t c = 1; c + 1 < k; ++c) {
       tri.push_back(idx[0]);
       tri.push_back(idx[c]);

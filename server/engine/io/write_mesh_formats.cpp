@@ -14,9 +14,10 @@
 #include <bit>
 #include <charconv>
 #include <cmath>
-#include <cstring>
 #include <cstdint>
+#include <cstring>
 #include <limits>
+#include <span>
 #include <vector>
 
 namespace hdeform::detail {
@@ -40,33 +41,89 @@ void append_row(std::string& out, const char* prefix, const Vertices& V, Eigen::
   }
 }
 
+// The faces to write: each PolygonFan that matches F as one face of its corners, every other
+// triangle as itself. `max_corners`: larger polygons are written as their triangles.
+class Faces {
+ public:
+  Faces(const Triangles& F, std::span<const PolygonFan> fans, int max_corners)
+      : F_(F), fans_(fans), max_corners_(max_corners) {}
+  Eigen::Index count() const {
+    Eigen::Index n = F_.rows();
+    for (const PolygonFan& p : fans_)
+      if (usable(p)) n -= p.corners - 3;
+    return n;
+  }
+  // fn(corners, k) per face, in triangle order.
+  template <class Fn>
+  void each(Fn&& fn) const {
+    std::vector<int> corners;
+    std::size_t next = 0;
+    for (Eigen::Index t = 0; t < F_.rows();) {
+      while (next < fans_.size() && fans_[next].first_triangle < t) ++next;
+      if (next < fans_.size() && fans_[next].first_triangle == t && usable(fans_[next])) {
+        const int k = fans_[next].corners;
+        corners.assign({F_(t, 0), F_(t, 1), F_(t, 2)});
+        for (int i = 1; i < k - 2; ++i) corners.push_back(F_(t + i, 2));
+        fn(corners.data(), k);
+        t += k - 2;
+        ++next;
+        continue;
+      }
+      const int tri[3] = {F_(t, 0), F_(t, 1), F_(t, 2)};
+      fn(tri, 3);
+      ++t;
+    }
+  }
+
+ private:
+  // A fan of F: corners − 2 triangles in range sharing the first corner, each starting where
+  // the one before ended; and not over the format's limit.
+  bool usable(const PolygonFan& p) const {
+    if (p.corners < 4 || p.corners > max_corners_ || p.first_triangle < 0 ||
+        p.first_triangle + static_cast<Eigen::Index>(p.corners) - 2 > F_.rows())
+      return false;
+    const Eigen::Index t = p.first_triangle;
+    for (int i = 1; i < p.corners - 2; ++i)
+      if (F_(t + i, 0) != F_(t, 0) || F_(t + i, 1) != F_(t + i - 1, 2)) return false;
+    return true;
+  }
+
+  const Triangles& F_;
+  std::span<const PolygonFan> fans_;
+  int max_corners_;
+};
+
+constexpr int kAnyCorners = 1 << 30, kPlyCorners = 255;  // PLY: a uchar-counted list
+
 // Room for a text mesh: about 60 characters a vertex (120 with normals), 30 a triangle.
 void reserve_text(std::string& out, const Vertices& V, const Triangles& F, const Vertices* N) {
   out.reserve(static_cast<size_t>(V.rows()) * (N ? 120 : 60) + static_cast<size_t>(F.rows()) * 30);
 }
 
 // The body OFF and ASCII PLY share: a line per vertex ("x y z", then " nx ny nz" with
-// normals), then a line per triangle "3 a b c" (0-based).
-void append_vertices_and_faces(std::string& out, const Vertices& V, const Triangles& F,
+// normals), then a line per face "k a b c …" (0-based).
+void append_vertices_and_faces(std::string& out, const Vertices& V, const Faces& faces,
                                const Vertices* N) {
   for (Eigen::Index i = 0; i < V.rows(); ++i) {
     append_row(out, "", V, i);
     if (N) append_row(out, " ", *N, i);
     out += '\n';
   }
-  for (Eigen::Index t = 0; t < F.rows(); ++t) {
-    out += '3';
-    for (int k = 0; k < 3; ++k) {
+  faces.each([&](const int* c, int k) {
+    append_int(out, k);
+    for (int i = 0; i < k; ++i) {
       out += ' ';
-      append_int(out, F(t, k));
+      append_int(out, c[i]);
     }
     out += '\n';
-  }
+  });
 }
 
 }  // namespace
 
-std::string write_obj(const Vertices& V, const Triangles& F, const Vertices* N) {
+std::string write_obj(const Vertices& V, const Triangles& F, const Vertices* N,
+                      std::span<const PolygonFan> polygons) {
+  const Faces faces(F, polygons, kAnyCorners);
   std::string out = "# hdeform\n";
   reserve_text(out, V, F, N);
   for (Eigen::Index i = 0; i < V.rows(); ++i) {
@@ -78,29 +135,31 @@ std::string write_obj(const Vertices& V, const Triangles& F, const Vertices* N) 
       append_row(out, "vn ", *N, i);
       out += '\n';
     }
-  for (Eigen::Index t = 0; t < F.rows(); ++t) {
+  faces.each([&](const int* c, int k) {
     out += 'f';
-    for (int k = 0; k < 3; ++k) {
+    for (int i = 0; i < k; ++i) {
       out += ' ';
-      append_int(out, F(t, k) + 1LL);
+      append_int(out, c[i] + 1LL);
       if (N) {
         out += "//";
-        append_int(out, F(t, k) + 1LL);
+        append_int(out, c[i] + 1LL);
       }
     }
     out += '\n';
-  }
+  });
   return out;
 }
 
-std::string write_off(const Vertices& V, const Triangles& F, const Vertices* N) {
+std::string write_off(const Vertices& V, const Triangles& F, const Vertices* N,
+                      std::span<const PolygonFan> polygons) {
+  const Faces faces(F, polygons, kAnyCorners);
   std::string out = N ? "NOFF\n" : "OFF\n";
   reserve_text(out, V, F, N);
   append_int(out, V.rows());
   out += ' ';
-  append_int(out, F.rows());
+  append_int(out, faces.count());
   out += " 0\n";
-  append_vertices_and_faces(out, V, F, N);
+  append_vertices_and_faces(out, V, faces, N);
   return out;
 }
 
@@ -108,7 +167,7 @@ namespace {
 
 // The PLY header both encodings share: doubles per vertex, a uchar-counted int list per face.
 void append_ply_header(std::string& out, const char* format, const Vertices& V,
-                       const Triangles& F, const Vertices* N) {
+                       const Faces& faces, const Vertices* N) {
   out += "ply\nformat ";
   out += format;
   out += " 1.0\ncomment hdeform\nelement vertex ";
@@ -116,28 +175,33 @@ void append_ply_header(std::string& out, const char* format, const Vertices& V,
   out += "\nproperty double x\nproperty double y\nproperty double z\n";
   if (N) out += "property double nx\nproperty double ny\nproperty double nz\n";
   out += "element face ";
-  append_int(out, F.rows());
+  append_int(out, faces.count());
   out += "\nproperty list uchar int vertex_indices\nend_header\n";
 }
 
 }  // namespace
 
-std::string write_ply(const Vertices& V, const Triangles& F, const Vertices* N) {
+std::string write_ply(const Vertices& V, const Triangles& F, const Vertices* N,
+                      std::span<const PolygonFan> polygons) {
+  const Faces faces(F, polygons, kPlyCorners);
   std::string out;
   reserve_text(out, V, F, N);
-  append_ply_header(out, "ascii", V, F, N);
-  append_vertices_and_faces(out, V, F, N);
+  append_ply_header(out, "ascii", V, faces, N);
+  append_vertices_and_faces(out, V, faces, N);
   return out;
 }
 
-std::string write_ply_binary(const Vertices& V, const Triangles& F, const Vertices* N) {
+std::string write_ply_binary(const Vertices& V, const Triangles& F, const Vertices* N,
+                             std::span<const PolygonFan> polygons) {
+  const Faces faces(F, polygons, kPlyCorners);
   std::string out;
-  append_ply_header(out, "binary_little_endian", V, F, N);
+  append_ply_header(out, "binary_little_endian", V, faces, N);
   static_assert(std::endian::native == std::endian::little, "binary PLY is written as is");
   const int per_vertex = N ? 6 : 3;
   const std::size_t header = out.size();
+  // Faces: a count byte and 4 bytes per corner; a fan's corners are its triangles + 2.
   out.resize(header + static_cast<std::size_t>(V.rows()) * per_vertex * 8 +
-             static_cast<std::size_t>(F.rows()) * 13);
+             static_cast<std::size_t>(faces.count()) + static_cast<std::size_t>(F.rows()) * 12);
   char* p = out.data() + header;
   for (Eigen::Index i = 0; i < V.rows(); ++i)
     for (int k = 0; k < per_vertex; ++k) {
@@ -145,14 +209,15 @@ std::string write_ply_binary(const Vertices& V, const Triangles& F, const Vertic
       std::memcpy(p, &v, 8);
       p += 8;
     }
-  for (Eigen::Index t = 0; t < F.rows(); ++t) {
-    *p++ = 3;
-    for (int k = 0; k < 3; ++k) {
-      const std::int32_t idx = F(t, k);
+  faces.each([&](const int* c, int k) {
+    *p++ = static_cast<char>(k);
+    for (int i = 0; i < k; ++i) {
+      const std::int32_t idx = c[i];
       std::memcpy(p, &idx, 4);
       p += 4;
     }
-  }
+  });
+  out.resize(static_cast<std::size_t>(p - out.data()));
   return out;
 }
 

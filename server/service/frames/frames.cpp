@@ -132,7 +132,12 @@ std::string FrameLayout::input_gltf(std::string_view original, const std::string
 std::string FrameLayout::mesh_file(MeshFileFormat format, const Vertices& V,
                                    const WriteOptions& options) const {
   const Triangles& F = mesh_->mesh().F;
-  if (format != MeshFileFormat::glb) return write_mesh_bytes(format, V, F, nullptr, options);
+  if (format != MeshFileFormat::glb) {
+    // The input's own polygons back (OBJ/OFF/PLY uploads keep their vertex order).
+    WriteOptions with_polygons = options;
+    if (!remapped()) with_polygons.polygons = layout_.polygons;
+    return write_mesh_bytes(format, V, F, nullptr, with_polygons);
+  }
   const Vertices N = vertex_normals(V, F);
   if (identity_) return write_mesh_bytes(format, V, layout_.input_triangles, &N, options);
   // Not LoadedMesh::to_input_layout: layout_'s engine mesh was moved into the PreparedMesh
