@@ -44,6 +44,7 @@ import { historyChecks } from "./history_checks.mjs";
 import { weightsChecks } from "./weights_checks.mjs";
 import { timelineChecks } from "./timeline_checks.mjs";
 import { finishedEditorChecks } from "./finished_editor_checks.mjs";
+import { perfChecks, rigExportChecks, selectionChecks } from "./rig_perf_selection_checks.mjs";
 
 /**
  * A flat 7×5 grid (x = 0.5 i, y = 0.5 j) as GLB in two vertex blocks that both carry the
@@ -322,9 +323,11 @@ try {
   const helpers = { context, base, log, check, sleep, shot, watchPage, waitLoaded, waitIdle, positions, maxDiff, artifacts, requireViewer: require };
   // `--only history` runs just the history checks (history_checks.mjs), `--only weights` just
   // the weight preview's (weights_checks.mjs), `--only timeline` the timeline strip's
-  // (timeline_checks.mjs), `--only finished` issue 37's (finished_editor_checks.mjs).
+  // (timeline_checks.mjs), `--only finished` issue 37's (finished_editor_checks.mjs); `--only rig`,
+  // `--only perf`, `--only selection` one group of rig_perf_selection_checks.mjs.
   const only = args.only;
-  if (only !== undefined && !["editor", "history", "weights", "timeline", "finished"].includes(only)) throw new Error(`--only ${only}: one of editor, history, weights, timeline, finished`);
+  const groups = ["editor", "history", "weights", "timeline", "finished", "rig", "perf", "selection"];
+  if (only !== undefined && !groups.includes(only)) throw new Error(`--only ${only}: one of ${groups.join(", ")}`);
   if (only === undefined || only === "editor") {
     await editorChecks(helpers);
     await severalEditorsChecks(helpers);
@@ -342,6 +345,9 @@ try {
       prodServer.proc.kill("SIGTERM");
     }
   }
+  if (only === undefined || only === "editor" || only === "rig") await rigExportChecks(helpers);
+  if (only === undefined || only === "editor" || only === "selection") await selectionChecks(helpers);
+  if (only === undefined || only === "editor" || only === "perf") await perfChecks(helpers);
   if (only !== undefined) throw new StopHere();
 
   // 1. Open the cactus from the library.

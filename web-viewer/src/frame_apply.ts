@@ -7,6 +7,7 @@ import type { App } from "./app";
 import { FrameDecoder } from "./decode/frame_decoder";
 import { FrameEncoding, type Frame } from "./gen/hdeform/v1/deform_pb";
 import type { Sync } from "./sync/sync";
+import type { PerfStats } from "./perf/perf_stats";
 
 const RESYNC_QUIET_MS = 250;
 
@@ -22,7 +23,7 @@ export interface FrameApply {
   readonly workerDecodeMs: readonly number[];
 }
 
-export function setupFrameApply({ state, client, banner, status }: App, sync: Sync): FrameApply {
+export function setupFrameApply({ state, client, banner, status }: App, sync: Sync, perf?: PerfStats, myClientId?: () => string): FrameApply {
   const decoder = new FrameDecoder();
   let chain: Promise<void> = Promise.resolve();
   let pending = 0;
@@ -59,18 +60,29 @@ export function setupFrameApply({ state, client, banner, status }: App, sync: Sy
   sync.on("frame", ({ frame, source }) => {
     const mesh = state.mesh;
     if (!mesh) return;
+    // The page's cost of this frame (perf overlay): decode (on the main thread for FLOAT32, else
+    // the worker's time), then the copy into the state and the display's buffers, and normals.
+    const t0 = performance.now();
     const decoding = decoder.decode(frame, mesh.n, mesh.m); // starts now, shown in turn
+    const mainDecodeMs = performance.now() - t0;
     pending++;
     chain = chain.then(async () => {
       try {
         const decoded = await decoding;
         if (state.mesh !== mesh) return; // another session opened meanwhile
+        const t1 = performance.now();
+        const decodeMs = mainDecodeMs + (decoded.workerMs ?? 0);
         if (decoded.positions) {
           state.setShape(decoded.positions, decoded.normals); // copies: the arrays go round
           decoder.recycle(decoded);
           if (source === "watch") scheduleResync();
         }
         if (decoded.energies) state.setEnergies(decoded.energies);
+        const applied = performance.now();
+        if (perf && decoded.positions) {
+          const sent = myClientId && frame.clientId === myClientId() && frame.sequence > 0n ? sync.sentTime(Number(frame.sequence)) : undefined;
+          perf.record({ at: applied, bytes: bufferBytes(frame), costMs: decodeMs + (applied - t1), decodeMs, latencyMs: sent === undefined ? null : applied - sent });
+        }
         showFrameInfo(frame);
         showFrameSize(frame);
       } catch (err) {

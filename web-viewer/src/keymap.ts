@@ -15,6 +15,12 @@ export type KeyAction =
   | "clearSelection" // Delete / Backspace: clear the region being assigned
   | "toggleWeights" // V: the active handle's weights on the mesh (soft-selection preview)
   | "setKey" // K: a timeline key at the playhead (Blender's "insert keyframe" is I; K is free here)
+  | "togglePerf" // P: the perf overlay
+  | "selectAll" // A (Blender)
+  | "selectNone" // Alt+A (Blender)
+  | "selectInvert" // I (Blender: Ctrl+I)
+  | "selectGrow" // + (Blender: Ctrl+numpad +)
+  | "selectShrink" // - (Blender: Ctrl+numpad -)
   | "help"; // ?
 
 export interface KeyInput {
@@ -23,10 +29,14 @@ export interface KeyInput {
   metaKey?: boolean;
   altKey?: boolean;
   shiftKey?: boolean;
+  /** The physical key ("KeyA"): Alt+A types "å" on macOS. */
+  code?: string;
 }
 
 /** The action of a key press; null for keys that are not shortcuts (or with Ctrl / Alt / ⌘). */
 export function keyAction(ev: KeyInput): KeyAction | null {
+  // Alt+A: select none, as in Blender (Alt alone with A is not the browser's).
+  if (ev.altKey && !ev.ctrlKey && !ev.metaKey && (ev.code === "KeyA" || ev.key === "a" || ev.key === "A")) return "selectNone";
   if (ev.ctrlKey || ev.metaKey || ev.altKey) return null; // the browser's own (copy, reload, …)
   switch (ev.key) {
     case "w":
@@ -66,6 +76,21 @@ export function keyAction(ev: KeyInput): KeyAction | null {
     case "k":
     case "K":
       return "setKey";
+    case "p":
+    case "P":
+      return "togglePerf";
+    case "a":
+    case "A":
+      return "selectAll";
+    case "i":
+    case "I":
+      return "selectInvert";
+    case "+":
+    case "=":
+      return "selectGrow";
+    case "-":
+    case "_":
+      return "selectShrink";
     case "?":
       return "help";
     default:
@@ -133,5 +158,10 @@ export const SHORTCUTS: [string, string][] = [
   ["Delete (timeline focused)", "delete the selected key"],
   ["Ctrl+Z (⌘Z)", "undo your last change"],
   ["Ctrl+Shift+Z · Ctrl+Y", "redo it"],
+  ["A / Alt+A", "select all / none (of the region Assign to names)"],
+  ["I", "invert the selection"],
+  ["+ / −", "grow / shrink the selection by one ring of neighbours"],
+  ["Shift+drag · Ctrl+drag", "Brush, Box, Vertex: add to / remove from the selection"],
+  ["P", "perf overlay (frames/s, latency, bytes, page cost per frame)"],
   ["?", "this list"],
 ];

@@ -48,6 +48,9 @@ import { contentBox } from "./viewport/content_box";
 import { AnimationPlayer } from "./timeline/animation_player";
 import { Scrub } from "./timeline/scrub";
 import { setupTimelinePanel } from "./timeline/timeline_panel";
+import { setupRigExport } from "./rig/rig_export";
+import { PerfStats } from "./perf/perf_stats";
+import { setupPerfOverlay } from "./perf/perf_overlay";
 
 const link = readPageLink();
 // Another link pasted over this one's fragment (same page, same query) must not leave the
@@ -116,7 +119,9 @@ sync.on("revert", ({ transforms }) => {
   state.handles = transforms.map((t, h) => fromProtoTransform(create(HandleTransformSchema, t), state.pivots[h]));
   state.emit("handles", undefined);
 });
-const frameApply = setupFrameApply(app, sync);
+// Every applied frame's cost, bytes and latency, for the perf overlay (P).
+const perfStats = new PerfStats();
+const frameApply = setupFrameApply(app, sync, perfStats, () => editors.identity.clientId);
 // Home, Frame all and the default view frame the current shape and the gizmos; so does a
 // session that opens already deformed, once its current shape is in.
 viewport.contentBox = () => contentBox(state);
@@ -144,7 +149,14 @@ const scrub: Scrub = new Scrub(app, sync, editors, (m, e) => timeline.say(m, e))
 const player = new AnimationPlayer(viewport, display);
 const exportUp = setupExportUp(state, () => viewport.upAxis);
 const timeline = setupTimelinePanel(app, sync, editors, scrub, player, exportUp);
-setupShortcuts(app, gizmo, viewport, () => weights.toggle(), () => timeline.setKey());
+const rig = setupRigExport(app, exportUp, (m, e) => timeline.say(m, e));
+const perf = setupPerfOverlay(state, perfStats);
+setupShortcuts(app, gizmo, viewport, {
+  toggleWeights: () => weights.toggle(),
+  setKey: () => timeline.setKey(),
+  togglePerf: () => perf.toggle(),
+  select: (command) => regions.select(command),
+});
 setupOnboarding(app);
 setupBetaPanel(app);
 setupDisplayPanel(app, display);
@@ -196,4 +208,7 @@ if (import.meta.env.MODE === "test") installTestHook(app, {
   timeline,
   scrub,
   player,
+  rig,
+  perf,
+  select: regions.select,
 });

@@ -32,6 +32,11 @@ import type { Scrub } from "./timeline/scrub";
 import type { AnimationPlayer } from "./timeline/animation_player";
 import { loadAnimation, morphedPositions } from "./timeline/animation_glb";
 import type { HandleTransform } from "./gen/hdeform/v1/deform_pb";
+import type { RigExport } from "./rig/rig_export";
+import { fetchRig } from "./rig/rig_export";
+import type { PerfOverlay } from "./perf/perf_overlay";
+import { quantile } from "./perf/perf_stats";
+import type { SelectionCommand } from "./selection/commands";
 
 /** A handle transform as plain numbers (the server answers every scale as a 3×3 stretch). */
 function plainTransform(t: HandleTransform) {
@@ -80,6 +85,9 @@ export interface HookParts {
   timeline: TimelinePanel;
   scrub: Scrub;
   player: AnimationPlayer;
+  rig: RigExport;
+  perf: PerfOverlay;
+  select: (command: SelectionCommand) => number;
 }
 
 export function installTestHook({ state, client, banner, status }: App, parts: HookParts): void {
@@ -442,6 +450,38 @@ export function installTestHook({ state, client, banner, status }: App, parts: H
     get status() {
       return status.shown;
     },
+    /** The rig report the page shows (null: none), and the size of its last rig download. */
+    rigReportShown: () => parts.rig.report,
+    get rigBytes() {
+      return parts.rig.bytes;
+    },
+    /** ExportRig called afresh (the page's token, its influences and up): the report of its first chunk, as plain numbers. */
+    async exportRigReport(influences: number, up: "y" | "z") {
+      const { report, bytes } = await fetchRig(client, state.sessionName, influences, up);
+      return report
+        ? { joints: report.joints, influences: report.influences, bboxDiagonal: report.bboxDiagonal, version: Number(report.version), bytes: bytes.byteLength, poses: report.poses.map((p) => ({ current: p.current, timeS: p.timeS, max: p.max, rms: p.rms })) }
+        : null;
+    },
+    /** The perf overlay: shown, its text, and the page's cost per applied frame since `perfReset` (median, count, all). */
+    get perfShown() {
+      return parts.perf.shown;
+    },
+    perfText: () => document.getElementById("perf")?.textContent ?? "",
+    perfReset: () => parts.perf.stats.reset(),
+    perfCosts: () => {
+      const costs = [...parts.perf.stats.costs];
+      const decodes = [...parts.perf.stats.decodes];
+      return { count: costs.length, median: quantile(costs, 0.5), p90: quantile(costs, 0.9), decodeMedian: quantile(decodes, 0.5), costs, decodes };
+    },
+    perfSummary: () => parts.perf.stats.summary(performance.now()),
+    /** Vertices in the region `label` (the selection when Assign to names it). */
+    regionCount: (label: number) => (state.mesh ? state.mesh.labels.reduce((a, l) => a + (l === label ? 1 : 0), 0) : 0),
+    get currentLabel() {
+      return state.currentLabel;
+    },
+    select: (command: SelectionCommand) => parts.select(command),
+    /** Assigns these vertex ids to `label` (as the tools do); how many changed. */
+    selectIds: (ids: number[], label: number) => state.assign(ids, label),
     /** The tokens this page holds (it sends them with every call anyway). */
     tokens: () => tokens(),
     /**

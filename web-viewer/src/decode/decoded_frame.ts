@@ -13,6 +13,8 @@ export interface DecodedFrame {
   positions: Float32Array | null; // 3 per vertex
   normals: Float32Array | null; // 3 per vertex
   energies: Float32Array | null; // 1 per triangle
+  /** The decode worker's time for this frame (ms); absent when decoded on the main thread. */
+  workerMs?: number;
 }
 
 /**

@@ -129,6 +129,7 @@ export class FrameDecoder {
       }
       for (const a of [data.decoded.positions, data.decoded.normals]) if (a) this.fromWorker.add(a.buffer);
       if (data.decoded.positions) {
+        data.decoded.workerMs = data.ms;
         this.workerMs.push(data.ms);
         if (this.workerMs.length > KEPT_TIMES) this.workerMs.shift();
       }

@@ -9,8 +9,16 @@ import { openMeshFirst } from "./banner";
 import type { App } from "../app";
 import { $ } from "../dom";
 import { handleName, handleWord, labelName } from "../handle_names";
+import { adjacency, selectionChange, type Adjacency, type SelectionCommand } from "../selection/commands";
+import type { MeshData } from "../state";
 
-export function setupRegionsPanel(app: App): { applyConstraints: () => Promise<void> } {
+export interface RegionsPanel {
+  applyConstraints: () => Promise<void>;
+  /** Select all / none / invert / grow / shrink on the region being assigned; the count changed (−1: not done). */
+  select: (command: SelectionCommand) => number;
+}
+
+export function setupRegionsPanel(app: App): RegionsPanel {
   const { state, banner, status, edits } = app;
   const labelSelect = $<HTMLSelectElement>("label-select");
   const activeSelect = $<HTMLSelectElement>("active-handle");
@@ -120,10 +128,37 @@ export function setupRegionsPanel(app: App): { applyConstraints: () => Promise<v
     showLabels();
   });
   $("apply").addEventListener("click", () => void applyConstraints());
+
+  // Selection commands (selection/commands.ts) on the region "Assign to" names; the mesh's
+  // neighbours are worked out once per mesh, on the first grow or shrink.
+  const neighbours = new WeakMap<MeshData, Adjacency>();
+  const select = (command: SelectionCommand): number => {
+    const mesh = state.mesh;
+    if (!mesh) {
+      openMeshFirst(banner);
+      return -1;
+    }
+    if (state.watchOnly || state.mode === "move") return -1;
+    const label = state.currentLabel;
+    if (label < 0) {
+      status.set("Selection commands work on a region: pick Fixed or a handle in Assign to");
+      return -1;
+    }
+    const adj = () => {
+      let a = neighbours.get(mesh);
+      if (!a) neighbours.set(mesh, (a = adjacency(mesh.n, mesh.index)));
+      return a;
+    };
+    const { add, remove } = selectionChange(command, mesh.labels, label, adj);
+    return state.assign(add, label) + state.assign(remove, -1);
+  };
+  for (const command of ["all", "none", "invert", "grow", "shrink"] as const) {
+    $(`select-${command}`).addEventListener("click", () => select(command));
+  }
   const brush = $<HTMLInputElement>("brush-radius");
   const showBrush = () => ($("brush-radius-val").textContent = `${brush.value}%`);
   brush.addEventListener("input", showBrush);
   showBrush();
   showLabels();
-  return { applyConstraints };
+  return { applyConstraints, select };
 }

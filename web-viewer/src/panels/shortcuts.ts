@@ -6,6 +6,7 @@ import { $ } from "../dom";
 import { isTyping, keyAction, SHORTCUTS } from "../keymap";
 import type { HandleGizmo } from "../viewport/handle_gizmo";
 import type { Viewport } from "../viewport/viewport";
+import type { SelectionCommand } from "../selection/commands";
 
 /** The box of the vertices labelled `label` (current positions), or null when there are none. */
 export function regionBox(app: App, label: number): THREE.Box3 | null {
@@ -26,7 +27,14 @@ export function frameSelection(app: App, viewport: Viewport): void {
   else viewport.frameAll();
 }
 
-export function setupShortcuts(app: App, gizmo: HandleGizmo, viewport: Viewport, toggleWeights: () => void, setKey: () => void): void {
+export interface ShortcutActions {
+  toggleWeights: () => void;
+  setKey: () => void;
+  togglePerf: () => void;
+  select: (command: SelectionCommand) => number;
+}
+
+export function setupShortcuts(app: App, gizmo: HandleGizmo, viewport: Viewport, { toggleWeights, setKey, togglePerf, select }: ShortcutActions): void {
   const { state } = app;
   const overlay = $("shortcuts");
   $("shortcuts-list").innerHTML = SHORTCUTS.map(([k, what]) => `<tr><th><kbd>${k}</kbd></th><td>${what}</td></tr>`).join("");
@@ -78,6 +86,17 @@ export function setupShortcuts(app: App, gizmo: HandleGizmo, viewport: Viewport,
       case "setKey":
         if (!editor) return;
         setKey();
+        break;
+      case "togglePerf":
+        togglePerf();
+        break;
+      case "selectAll":
+      case "selectNone":
+      case "selectInvert":
+      case "selectGrow":
+      case "selectShrink":
+        if (!editor || !state.mesh || state.mode === "move") return;
+        select(action.slice(6).toLowerCase() as SelectionCommand);
         break;
       case "help":
         toggleHelp();

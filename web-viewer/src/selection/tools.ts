@@ -1,5 +1,7 @@
 // The region tools on the canvas: Vertex (click), Brush (drag with a radius), Box (screen
 // rectangle). In selection modes the left button selects; the right orbits, the middle pans.
+// As in Blender: a drag (or Shift+drag) adds to the region "Assign to" names, Ctrl+drag (⌘ on
+// macOS) removes from it — only that region's vertices, the other regions are left alone.
 import * as THREE from "three";
 import { $ } from "../dom";
 import type { Mode, SessionState } from "../state";
@@ -11,6 +13,8 @@ import { verticesInScreenRect, type Point } from "./screen_rect";
 export class SelectionTools {
   private brushing = false;
   private boxStart: Point | null = null;
+  /** The gesture removes from the region (Ctrl / ⌘ held when it began) rather than adding. */
+  private subtract = false;
 
   constructor(private readonly viewport: Viewport, private readonly display: MeshDisplay, private readonly state: SessionState) {
     state.on("mode", (mode) => this.modeChanged(mode));
@@ -20,10 +24,20 @@ export class SelectionTools {
     canvas.addEventListener("pointerup", (ev) => this.up(ev));
   }
 
-  /** Assigns the vertices in the screen rectangle a–b (viewport pixels) to `label`. */
-  selectScreenRect(a: Point, b: Point, label: number): number {
+  /** Assigns the vertices in the screen rectangle a–b (viewport pixels) to `label` (subtract: takes them out of it). */
+  selectScreenRect(a: Point, b: Point, label: number, subtract = false): number {
     const mesh = this.state.mesh;
-    return mesh ? this.state.assign(verticesInScreenRect(this.viewport, mesh, a, b), label) : 0;
+    return mesh ? this.apply(verticesInScreenRect(this.viewport, mesh, a, b), label, subtract) : 0;
+  }
+
+  /** `ids` into region `label`, or (subtract) those of them in it out of it; how many changed. */
+  private apply(ids: Iterable<number>, label: number, subtract: boolean): number {
+    const mesh = this.state.mesh;
+    if (!mesh) return 0;
+    if (!subtract) return this.state.assign(ids, label);
+    const out: number[] = [];
+    for (const id of ids) if (mesh.labels[id] === label && label >= 0) out.push(id);
+    return this.state.assign(out, -1);
   }
 
   private modeChanged(mode: Mode): void {
@@ -32,6 +46,7 @@ export class SelectionTools {
       ? { LEFT: null as unknown as THREE.MOUSE, MIDDLE: THREE.MOUSE.PAN, RIGHT: THREE.MOUSE.ROTATE }
       : { LEFT: THREE.MOUSE.ROTATE, MIDDLE: THREE.MOUSE.DOLLY, RIGHT: THREE.MOUSE.PAN };
     this.viewport.canvas.style.cursor = selecting ? "crosshair" : "";
+    document.body.classList.toggle("selecting", selecting); // the Select row shows (style.css)
   }
 
   brushRadius(): number {
@@ -42,7 +57,7 @@ export class SelectionTools {
     const mesh = this.state.mesh;
     if (!mesh) return;
     const hit = pick(this.viewport, this.display.object, ev);
-    if (hit) this.state.assign(verticesWithin(mesh, hit.point, this.brushRadius()), this.state.currentLabel);
+    if (hit) this.apply(verticesWithin(mesh, hit.point, this.brushRadius()), this.state.currentLabel, this.subtract);
   }
 
   private local(ev: PointerEvent): Point {
@@ -55,9 +70,10 @@ export class SelectionTools {
     const mesh = state.mesh;
     if (ev.button !== 0 || !mesh || state.watchOnly) return;
     const canvas = this.viewport.canvas;
+    this.subtract = ev.ctrlKey || ev.metaKey;
     if (state.mode === "vertex") {
       const hit = pick(this.viewport, this.display.object, ev);
-      if (hit) state.assign(withTwins(mesh, nearestCorner(mesh, hit.point, hit.triangle)), state.currentLabel);
+      if (hit) this.apply(withTwins(mesh, nearestCorner(mesh, hit.point, hit.triangle)), state.currentLabel, this.subtract);
     } else if (state.mode === "brush") {
       this.brushing = true;
       canvas.setPointerCapture(ev.pointerId);
@@ -77,7 +93,7 @@ export class SelectionTools {
   private up(ev: PointerEvent): void {
     this.brushing = false;
     if (this.boxStart) {
-      this.selectScreenRect(this.boxStart, this.local(ev), this.state.currentLabel);
+      this.selectScreenRect(this.boxStart, this.local(ev), this.state.currentLabel, this.subtract);
       this.boxStart = null;
       $("boxsel").classList.add("hidden");
     }

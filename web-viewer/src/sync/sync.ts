@@ -127,6 +127,8 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
   private inFlight = 0;
   private held = false;
   private sequence = 0;
+  /** Send times of the newest updates by sequence (sentTime). */
+  private readonly sentAt = new Map<number, number>();
   /** The newest of this page's updates answered so far: an older answer confirms nothing. */
   private answeredSeq = 0;
   private lastSentDragging = false;
@@ -171,6 +173,14 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
   }
   get framesApplied(): number {
     return this.order.applied;
+  }
+
+  /**
+   * When this page sent its update `seq` (performance.now(), ms); undefined when unknown (too old,
+   * another page's). The perf overlay's update→frame latency (frames name the sequence they answer).
+   */
+  sentTime(seq: number): number | undefined {
+    return this.sentAt.get(seq);
   }
 
   /** Switches to session `name` (stops watching the previous one); watch() follows. */
@@ -255,6 +265,8 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
     let sent: Pose | null = null;
     this.edit(() => {
       seq = ++this.sequence;
+      this.sentAt.set(seq, performance.now());
+      if (this.sentAt.size > 64) this.sentAt.delete(this.sentAt.keys().next().value!);
       omitBuffers = this.pipelined && this.streamLive;
       sent = this.pose();
       const { transforms, handles, energies } = sent;

@@ -79,9 +79,11 @@ export class MeshDisplay {
     this.split = energyTop(this.state) !== null;
     const count = this.split ? 3 * mesh.m : mesh.n;
     const geometry = new THREE.BufferGeometry();
-    for (const name of ["position", "normal", "color"]) {
-      geometry.setAttribute(name, new THREE.BufferAttribute(new Float32Array(3 * count), 3));
-    }
+    // Indexed, the display draws the state's own arrays (no copy per frame: a 100K frame is 2.4 MB
+    // of positions and normals); split, its own per-corner ones.
+    geometry.setAttribute("position", new THREE.BufferAttribute(this.split ? new Float32Array(3 * count) : mesh.cur, 3));
+    geometry.setAttribute("normal", new THREE.BufferAttribute(this.split ? new Float32Array(3 * count) : mesh.normals, 3));
+    geometry.setAttribute("color", new THREE.BufferAttribute(new Float32Array(3 * count), 3));
     if (!this.split) geometry.setIndex(new THREE.BufferAttribute(mesh.index, 1));
     this.geometry = geometry;
     this.object = new THREE.Mesh(geometry, this.material);
@@ -102,8 +104,8 @@ export class MeshDisplay {
     const N = nor.array as Float32Array;
     const { index, cur, normals } = mesh;
     if (!this.split) {
-      P.set(cur);
-      N.set(normals);
+      if (P !== cur) P.set(cur);
+      if (N !== normals) N.set(normals);
     } else {
       for (let c = 0; c < index.length; c++) {
         const v = index[c] * 3;
@@ -118,8 +120,24 @@ export class MeshDisplay {
     }
     pos.needsUpdate = true;
     nor.needsUpdate = true;
-    this.geometry.computeBoundingSphere();
-    this.geometry.computeBoundingBox();
+    // Bounds for culling and picking in one pass (three's computeBoundingSphere makes two more):
+    // the box, and the sphere around it (a little larger than the tightest; that is all culling needs).
+    let x0 = Infinity, y0 = Infinity, z0 = Infinity, x1 = -Infinity, y1 = -Infinity, z1 = -Infinity;
+    for (let i = 0; i < P.length; i += 3) {
+      const x = P[i], y = P[i + 1], z = P[i + 2];
+      if (x < x0) x0 = x;
+      if (x > x1) x1 = x;
+      if (y < y0) y0 = y;
+      if (y > y1) y1 = y;
+      if (z < z0) z0 = z;
+      if (z > z1) z1 = z;
+    }
+    const box = (this.geometry.boundingBox ??= new THREE.Box3());
+    box.min.set(x0, y0, z0);
+    box.max.set(x1, y1, z1);
+    const sphere = (this.geometry.boundingSphere ??= new THREE.Sphere());
+    box.getCenter(sphere.center);
+    sphere.radius = 0.5 * Math.hypot(x1 - x0, y1 - y0, z1 - z0);
     this.viewport.requestRender();
   }
 
