@@ -11,24 +11,14 @@
 // Prints bytes per vertex for each encoding.
 // Usage: node glb_compression.mjs --cli PATH/hdeform --data DIR --viewer DIR --out DIR
 import { execFileSync } from "node:child_process";
-import { mkdirSync, readFileSync, writeFileSync } from "node:fs";
-import { createRequire } from "node:module";
-import { join, resolve } from "node:path";
+import { readFileSync, writeFileSync } from "node:fs";
+import { join } from "node:path";
 import { pathToFileURL } from "node:url";
+import { cliArgs, splitGlb, viewerModules } from "./node_tools.mjs";
 
-const args = Object.fromEntries(
-  process.argv.slice(2).reduce((a, v, i, all) => (i % 2 === 0 ? [...a, [v.replace(/^--/, ""), all[i + 1]]] : a), []),
-);
-for (const k of ["cli", "data", "viewer", "out"]) {
-  if (!args[k]) throw new Error(`--${k} is required`);
-  args[k] = resolve(args[k]);
-}
-mkdirSync(args.out, { recursive: true });
-const modules = join(args.viewer, "node_modules");
-const require = createRequire(join(args.viewer, "package.json"));
+const args = cliArgs(["cli", "data", "viewer", "out"]);
+const { modules, require, THREE, GLTFLoader } = await viewerModules(args.viewer);
 const validator = require("gltf-validator");
-const THREE = await import(pathToFileURL(join(modules, "three/build/three.module.js")).href);
-const { GLTFLoader } = await import(pathToFileURL(join(modules, "three/examples/jsm/loaders/GLTFLoader.js")).href);
 const { MeshoptDecoder } = await import(pathToFileURL(join(modules, "meshoptimizer/meshopt_decoder.mjs")).href);
 await MeshoptDecoder.ready;
 
@@ -39,14 +29,6 @@ const check = (ok, what) => {
 };
 
 // ---- GLB container ---------------------------------------------------------------------------
-function splitGlb(bytes) {
-  const dv = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
-  const jsonLength = dv.getUint32(12, true);
-  const doc = JSON.parse(new TextDecoder().decode(bytes.subarray(20, 20 + jsonLength)));
-  const at = 20 + jsonLength;
-  const bin = bytes.subarray(at + 8, at + 8 + dv.getUint32(at, true));
-  return { doc, bin };
-}
 function joinGlb(doc, bin) {
   const pad = (n) => (n + 3) & ~3;
   const json = new TextEncoder().encode(JSON.stringify(doc));

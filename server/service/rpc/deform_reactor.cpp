@@ -48,15 +48,7 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
           const auto status = guarded(
               [&] { found = svc_->session_for(*ctx_, name, Access::kEdit, "Deform"); }, "Deform");
           std::unique_lock lock(mutex_);
-          --inflight_;
-          if (done_) {
-            if (inflight_ == 0) {
-              lock.unlock();
-              delete this;
-            }
-            return;
-          }
-          if (finished_) return;
+          if (!returned(lock) || finished_) return;
           if (!status.ok()) {
             finish_locked(status);
             return;
@@ -199,18 +191,22 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
     });
   }
 
+  // A pool task of this stream came back (lock held): false when the call is over, and then
+  // the last task back deletes the reactor (lock released).
+  bool returned(std::unique_lock<std::mutex>& lock) {
+    --inflight_;
+    if (!done_) return true;
+    if (inflight_ == 0) {
+      lock.unlock();
+      delete this;
+    }
+    return false;
+  }
+
   void solved(const grpc::Status& status, std::shared_ptr<const v1::Frame> frame) {
     std::unique_lock lock(mutex_);
-    --inflight_;
     solving_ = false;
-    if (done_) {
-      if (inflight_ == 0) {
-        lock.unlock();
-        delete this;
-      }
-      return;
-    }
-    if (finished_) return;
+    if (!returned(lock) || finished_) return;
     if (!status.ok()) {
       finish_locked(status);
       return;
