@@ -69,7 +69,9 @@ def ply_bytes(V: npt.ArrayLike, F: FacesLike) -> bytes:
 
 
 def parse_off(text: Union[str, bytes]) -> Tuple[Float64Array, Int64Array]:
-    """(V float64 n×3, F int64 m×3) from an OFF file's text (triangles only)."""
+    """(V float64 n×3, F int64 m×3) from an OFF file's text. The server writes an upload's
+    polygons back as they were; each becomes the fan the server solved on (triangulate()), so F
+    is the session's triangles in frame order."""
     if isinstance(text, bytes):
         text = text.decode("ascii")
     tokens = []
@@ -83,11 +85,21 @@ def parse_off(text: Union[str, bytes]) -> Tuple[Float64Array, Int64Array]:
     pos = 4
     V = np.asarray(tokens[pos:pos + 3 * n], dtype=np.float64).reshape(n, 3)
     pos += 3 * n
-    rows = np.asarray(tokens[pos:pos + 4 * m], dtype=np.int64).reshape(m, 4)
-    if m and not (rows[:, 0] == 3).all():
-        raise ValueError("OFF: only triangles are parsed")
-    F: Int64Array = rows[:, 1:]
-    return V, F
+    ids = np.asarray(tokens[pos:], dtype=np.int64)
+    faces: List[Int64Array] = []
+    at = 0
+    for f in range(m):
+        if at >= ids.size:
+            raise ValueError(f"OFF: face {f} of {m} is missing")
+        k = int(ids[at])
+        if k < 3 or at + 1 + k > ids.size:
+            raise ValueError(f"OFF: face {f} has {k} corners (at least 3, all present)")
+        faces.append(ids[at + 1:at + 1 + k])
+        at += 1 + k
+    if all(len(f) == 3 for f in faces):
+        F: Int64Array = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+        return V, F
+    return V, triangulate(faces)
 
 
 def stl_bytes(V: npt.ArrayLike, F: npt.ArrayLike) -> bytes:
