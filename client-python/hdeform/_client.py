@@ -24,7 +24,7 @@ from ._frames import (Encoding, Float64Array, Frame, Int64Array, Measures, PathL
                       encoding_value)
 from ._meshio import parse_off, ply_bytes, stl_bytes
 from ._proto import pb, pb_grpc
-from ._records import HistoryStep, Keyframe, RigExport, Snapshot, Timeline
+from ._records import HistoryStep, Keyframe, RigExport, Snapshot, Timeline, csv_text
 from ._selectors import RegionLike, Selector, region
 from ._server import LocalServer
 from ._transforms import Transform, TransformLike, to_transform
@@ -265,12 +265,7 @@ class SweepResult(List[SweepRow]):
                 [format(float(v), ".17g") for v in (m.e, m.e_iso_n, m.e_conf_n, m.e_area_pct,
                                                       m.max_e_iso, m.max_e_conf, m.max_ef2)] +
                 [str(int(m.flips))]))
-        text = "\n".join(lines) + "\n"
-        if path is None:
-            return text
-        with open(os.fspath(path), "w", newline="") as f:
-            f.write(text)
-        return None
+        return csv_text(lines, path)
 
 
 class Client:

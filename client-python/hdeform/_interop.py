@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING, Any, List, Tuple, Union
 import numpy as np
 
 from ._meshio import Float64Array, Int64Array, triangulate
+from ._optional import require
 
 if TYPE_CHECKING:  # pragma: no cover - types only
     from ._frames import Frame
@@ -18,14 +19,7 @@ _SKIPPED = ("vertex", "line")
 
 def require_meshio(what: str) -> Any:
     """The meshio module, or an ImportError naming the fix."""
-    try:
-        import meshio  # noqa: PLC0415 - optional dependency
-    except ImportError as e:
-        raise ImportError(
-            f"{what} needs meshio: apt-get install python3-meshio (for Debian's "
-            "/usr/bin/python3 or a venv made with --system-site-packages)",
-            name="meshio") from e
-    return meshio
+    return require("meshio", what)
 
 
 def _blocks(mesh: Any) -> List[Tuple[str, Any]]:

@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING, Any, List, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from ._frames import MEASURE_NAMES
+from ._optional import require
 
 if TYPE_CHECKING:  # pragma: no cover - types only
     from ._client import SweepResult
@@ -20,14 +21,7 @@ _FRAME_BARS = ("e_iso_n", "e_conf_n", "max_e_iso", "max_e_conf", "max_ef2")
 
 def require_matplotlib(what: str) -> Any:
     """The matplotlib module, or an ImportError naming the fix."""
-    try:
-        import matplotlib  # noqa: PLC0415 - optional dependency
-    except ImportError as e:
-        raise ImportError(
-            f"{what} needs matplotlib: apt-get install python3-matplotlib (for Debian's "
-            "/usr/bin/python3 or a venv made with --system-site-packages)",
-            name="matplotlib") from e
-    return matplotlib
+    return require("matplotlib", what)
 
 
 def _axes(what: str, ax: Any, path: Optional[PathLike], ncols: int,

@@ -2,7 +2,7 @@
 timeline keys, timelines, named snapshots and rigs."""
 import os
 from dataclasses import dataclass, field
-from typing import Any, Optional, Tuple, Union
+from typing import Any, List, Optional, Tuple, Union
 
 from ._proto import pb
 from ._transforms import Transform
@@ -15,6 +15,16 @@ _STEP_KINDS = {
     pb.STEP_KIND_TIMELINE: "timeline", pb.STEP_KIND_SNAPSHOT_SAVE: "snapshot_save",
     pb.STEP_KIND_SNAPSHOT_DELETE: "snapshot_delete"}
 _EASING_NAMES = {pb.EASING_LINEAR: "linear", pb.EASING_SMOOTHSTEP: "smoothstep"}
+
+
+def csv_text(lines: List[str], path: "Optional[Union[str, os.PathLike[str]]]") -> Optional[str]:
+    """CSV lines as text, or written to `path` (then None): the CLI's line endings."""
+    text = "\n".join(lines) + "\n"
+    if path is None:
+        return text
+    with open(os.fspath(path), "w", newline="") as f:
+        f.write(text)
+    return None
 
 
 @dataclass(frozen=True)
@@ -178,9 +188,4 @@ class RigExport:
             time_s = "" if p.current or p.time_s is None else _shortest(p.time_s)
             lines.append(",".join(["current" if p.current else "key", time_s,
                                    _shortest(p.max), _shortest(p.rms)]))
-        text = "\n".join(lines) + "\n"
-        if path is None:
-            return text
-        with open(os.fspath(path), "w", newline="") as f:
-            f.write(text)
-        return None
+        return csv_text(lines, path)
