@@ -115,10 +115,13 @@ const { chromium } = require("playwright-core");
 
 const log = (...a) => console.log(`[e2e ${new Date().toISOString().slice(11, 23)}]`, ...a);
 let failures = 0;
+// CI shows only the head and tail of a long log: the summary repeats what failed.
+const failed = [];
 function check(cond, what) {
   if (cond) log(`ok   ${what}`);
   else {
     failures++;
+    failed.push(what);
     log(`FAIL ${what}`);
   }
   return cond;
@@ -813,6 +816,7 @@ try {
   if (err instanceof StopHere) log(`--only ${args.only}: stopping after the ${args.only} checks`);
   else {
     failures++;
+    failed.push(`exception: ${err.message ?? err}`);
     log(`FAIL exception: ${err.stack ?? err}`);
   }
 } finally {
@@ -826,4 +830,5 @@ try {
   rmSync(stateDir, { recursive: true, force: true });
 }
 log(`${failures === 0 ? "PASSED" : `${failures} check(s) FAILED; screenshots in ${artifacts}`} (${((Date.now() - t00) / 1000).toFixed(1)} s)`);
+for (const what of failed) log(`FAILED: ${what}`);
 process.exit(failures === 0 ? 0 : 1);

@@ -17,6 +17,18 @@
 // Screenshots `timeline-*.png`. Against a server without GetTimeline: SKIP, nothing checked.
 import { readFileSync } from "node:fs";
 
+// The strip redraws its markers (innerHTML) on every timeline event, so a marker found a moment
+// ago may be detached when it is measured (boundingBox → null): measure until one holds still.
+async function keyMarkerBox(page, index) {
+  const marker = page.locator(`.tl-key[data-index="${index}"]`);
+  for (let tries = 0; tries < 100; tries++) {
+    const box = await marker.boundingBox({ timeout: 2_000 }).catch(() => null);
+    if (box) return box;
+    await new Promise((r) => setTimeout(r, 20));
+  }
+  throw new Error(`the timeline's key marker ${index} is not on screen`);
+}
+
 export async function timelineChecks({ context, base, log, check, sleep, shot, watchPage, waitLoaded, waitIdle, positions, maxDiff, requireViewer }) {
   const page = await context.newPage();
   watchPage(page, "timeline");
@@ -187,7 +199,7 @@ export async function timelineChecks({ context, base, log, check, sleep, shot, w
   check(snapped.playhead === times[1] && snapped.selected === 1, `a click 3 px from key 2 snaps the playhead onto it (${snapped.playhead} s) and selects its marker`);
   // A scrub may start on a key's marker (issue 37: the marker used to swallow the press): from
   // key 3's marker back to 1.6 s.
-  const mk = await page.locator('.tl-key[data-index="2"]').boundingBox();
+  const mk = await keyMarkerBox(page, 2);
   const [mx, my] = [mk.x + mk.width / 2, mk.y + mk.height / 2];
   const toB = await hook(() => window.hdeform.rulerPoint(1.6));
   await page.mouse.move(mx, my);
@@ -221,7 +233,7 @@ export async function timelineChecks({ context, base, log, check, sleep, shot, w
   check(live, `Tia's 4th key appears on Bob's strip live (${JSON.stringify((await bob.evaluate(() => window.hdeform.timeline())).keys)})`);
   await shot(bob, "timeline-03-bob-sees-key");
   // Select the marker with the mouse, Delete with the strip focused.
-  const marker = await page.locator('.tl-key[data-index="3"]').boundingBox();
+  const marker = await keyMarkerBox(page, 3);
   await page.mouse.click(marker.x + marker.width / 2, marker.y + marker.height / 2);
   await settle();
   const sel = await tl();
