@@ -614,16 +614,17 @@ TEST(RedisState, HungServerTimesOutAfterTwoSeconds) {
   EXPECT_EQ(state->get_session("x"), "1");  // a fresh connection, in step again
 }
 
-// A change the server applied but could not store is answered DATA_LOSS (never UNAVAILABLE,
-// which clients retry); a retry with its request_id gets the same answer and applies
-// nothing; once Redis is back the flusher stores it.
-TEST(RedisState, AChangeAppliedButNotStoredIsDataLossAndItsRetryAppliesNothing) {
+// A change the store does not acknowledge is refused UNAVAILABLE and not applied (nothing
+// recorded, nobody told), so the client's retry with its request_id applies it once when
+// the store is back.
+TEST(RedisState, AChangeTheStoreRefusesIsNotAppliedAndItsRetryAppliesItOnce) {
   RedisServer redis;
   hdeform::service::ServerOptions o;
   o.state_redis = redis.url();
   hdeform::testing::TestServer t(o);
   namespace pb = hdeform::v1;
   pb::Session s = t.library_session("cactus");
+  const auto created = s.version();
   redis.stop(SIGTERM);
   pb::SetBetaRequest r;
   r.set_name(s.name());
@@ -633,27 +634,114 @@ TEST(RedisState, AChangeAppliedButNotStoredIsDataLossAndItsRetryAppliesNothing) 
   pb::Session out;
   grpc::ClientContext c1;
   auto st = t.stub->SetBeta(&c1, r, &out);
-  EXPECT_EQ(st.error_code(), grpc::StatusCode::DATA_LOSS) << st.error_message();
-  EXPECT_NE(st.error_message().find("do not send it again"), std::string::npos)
-      << st.error_message();
-  grpc::ClientContext c2;
-  pb::GetSessionRequest g;
-  g.set_name(s.name());
-  ASSERT_TRUE(t.stub->GetSession(&c2, g, &out).ok());
-  EXPECT_DOUBLE_EQ(out.beta().value(), 0.3);  // applied
-  const auto version = out.version();
-  grpc::ClientContext c3;
-  st = t.stub->SetBeta(&c3, r, &out);  // the client's retry
-  EXPECT_EQ(st.error_code(), grpc::StatusCode::DATA_LOSS) << st.error_message();
-  grpc::ClientContext c4;
-  ASSERT_TRUE(t.stub->GetSession(&c4, g, &out).ok());
-  EXPECT_EQ(out.version(), version);  // nothing applied again
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::UNAVAILABLE) << st.error_message();
+  EXPECT_NE(st.error_message().find("not applied"), std::string::npos) << st.error_message();
+  redis.start();
   pb::ListHistoryRequest h;
   h.set_name(s.name());
   pb::ListHistoryResponse steps;
-  grpc::ClientContext c5;
-  ASSERT_TRUE(t.stub->ListHistory(&c5, h, &steps).ok());
+  {
+    grpc::ClientContext c;
+    pb::GetSessionRequest g;
+    g.set_name(s.name());
+    ASSERT_TRUE(t.stub->GetSession(&c, g, &out).ok());
+    EXPECT_GE(out.version(), created);  // the refused change's number is skipped
+    EXPECT_DOUBLE_EQ(out.beta().value(), 0.0);  // not applied
+    grpc::ClientContext c5;
+    ASSERT_TRUE(t.stub->ListHistory(&c5, h, &steps).ok());
+    EXPECT_EQ(steps.total(), 0);  // nothing recorded
+  }
+  grpc::ClientContext c3;
+  st = t.stub->SetBeta(&c3, r, &out);  // the client's retry
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_DOUBLE_EQ(out.beta().value(), 0.3);
+  grpc::ClientContext c4;
+  st = t.stub->SetBeta(&c4, r, &out);  // and a second one: answered, not applied again
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  grpc::ClientContext c6;
+  ASSERT_TRUE(t.stub->ListHistory(&c6, h, &steps).ok());
   EXPECT_EQ(steps.total(), 1);  // one β step
+  hdeform::testing::TestServer b(o);  // stored: another replica restores it
+  ASSERT_TRUE(b.get_session(s.name(), &out).ok());
+  EXPECT_DOUBLE_EQ(out.beta().value(), 0.3);
+}
+
+// A token rotation the store does not acknowledge is applied (the old tokens stop at once)
+// and answered DATA_LOSS, never UNAVAILABLE, which clients retry.
+TEST(RedisState, ATokenRotationAppliedButNotStoredIsDataLoss) {
+  RedisServer redis;
+  hdeform::service::ServerOptions o;
+  o.state_redis = redis.url();
+  hdeform::testing::TestServer t(o);
+  namespace pb = hdeform::v1;
+  const pb::Session s = t.library_session("cactus");
+  redis.stop(SIGTERM);
+  pb::RotateTokensRequest r;
+  r.set_name(s.name());
+  pb::Session out;
+  grpc::ClientContext c;
+  const auto st = t.stub->RotateTokens(&c, r, &out);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::DATA_LOSS) << st.error_message();
+  EXPECT_NE(st.error_message().find("do not send it again"), std::string::npos)
+      << st.error_message();
+}
+
+// Every answered move is in Redis: a move Redis does not acknowledge (stalled past the 2 s
+// timeout, or down) is refused UNAVAILABLE and changes nothing — on UpdateHandles and on a
+// Deform stream — even when the timed-out write lands after all (a stalled Redis resumes
+// and runs it); the next answered move is what another replica restores.
+TEST(RedisState, AMoveRedisDoesNotAcknowledgeIsRefusedAndNotApplied) {
+  namespace pb = hdeform::v1;
+  using hdeform::testing::translation;
+  RedisServer redis;
+  hdeform::service::ServerOptions o;
+  o.state_redis = redis.url();
+  hdeform::testing::TestServer a(o);
+  const pb::Session s = hdeform::testing::constrained_cactus(a);
+  pb::Frame f;
+  ASSERT_TRUE(a.update(s.name(), 1, {translation(0.1, 0, 0)}, &f).ok());
+  const auto answered = f.version();
+
+  redis.pause();
+  auto st = a.update(s.name(), 2, {translation(0.3, 0, 0)}, &f);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::UNAVAILABLE) << st.error_message();
+  EXPECT_NE(st.error_message().find("not applied"), std::string::npos) << st.error_message();
+  redis.resume();  // and runs the write that timed out
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the flusher's turn
+  pb::Session now;
+  ASSERT_TRUE(a.get_session(s.name(), &now).ok());
+  EXPECT_DOUBLE_EQ(now.transforms(0).translation().x(), 0.1);
+  const auto refused = now.version();  // a refused move's version is not used again
+  EXPECT_GT(refused, answered);
+  {
+    hdeform::testing::TestServer c(o);  // what another replica finds: the answered pose
+    pb::Session there;
+    ASSERT_TRUE(c.get_session(s.name(), &there).ok());
+    EXPECT_DOUBLE_EQ(there.transforms(0).translation().x(), 0.1);
+  }
+
+  redis.stop(SIGTERM);
+  {
+    grpc::ClientContext ctx;
+    auto stream = a.stub->Deform(&ctx);
+    ASSERT_TRUE(stream->Write(hdeform::testing::deform_request(s.name(), 3, translation(0.4, 0, 0))));
+    pb::Frame g;
+    EXPECT_FALSE(stream->Read(&g));
+    stream->WritesDone();
+    const auto dst = stream->Finish();
+    EXPECT_EQ(dst.error_code(), grpc::StatusCode::UNAVAILABLE) << dst.error_message();
+  }
+  redis.start();  // empty (no persistence): the next answered move writes the record again
+  ASSERT_TRUE(a.get_session(s.name(), &now).ok());
+  EXPECT_DOUBLE_EQ(now.transforms(0).translation().x(), 0.1);
+
+  st = a.update(s.name(), 4, {translation(0.2, 0, 0)}, &f);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_GT(f.version(), refused);
+  hdeform::testing::TestServer b(o);  // another replica finds exactly the last answered move
+  ASSERT_TRUE(b.get_session(s.name(), &now).ok());
+  EXPECT_EQ(now.version(), f.version());
+  EXPECT_DOUBLE_EQ(now.transforms(0).translation().x(), 0.2);
 }
 
 // Idle on one replica is not idle everywhere: when replica A's copy expires after replica B

@@ -180,10 +180,9 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
             u.client_id = request->client_id();
             u.float64 = format.encoding() == v1::FRAME_ENCODING_FLOAT64;
             frame = session_->update(u);
-            // Handle moves are saved as SessionStore::moved() says; a β change is an
-            // accepted change like SetBeta: durable before its frame goes out.
-            if (u.beta) svc_->sessions().save(*session_);
-            else svc_->sessions().moved(*session_);
+            // Stored as the store promises (Session::StoreGate): a β change before its frame
+            // goes out, handle moves as SessionStore::moved() says.
+            svc_->sessions().moved(*session_);
             frame = encode_frame(std::move(frame), format);
           },
           "Deform");

@@ -263,18 +263,19 @@ grpc::ServerUnaryReactor* DeformService::finish_change(grpc::CallbackServerConte
                                                        const std::string& request_id,
                                                        google::protobuf::Message* response,
                                                        std::function<void(Session&)> fn) {
-  auto admit = [op, &request_id](Session&) { RequestLog::check_id(request_id, op); };
+  auto admit = [op, request_id](Session&) { RequestLog::check_id(request_id, op); };
   auto change = [this, op, request_id, response, fn = std::move(fn)](Session& s) {
     grpc::Status first;
     if (s.requests().replay(op, request_id, response, &first)) {
       if (!first.ok()) throw ServiceError(first.error_code(), first.error_message());
       return;
     }
-    fn(s);  // throws when nothing was applied: a retry may try again
     try {
-      store_.save(s);
+      fn(s);  // stores the change (Session::StoreGate); throws when nothing was applied
     } catch (const ServiceError& e) {
-      s.requests().remember(op, request_id, *response, e.status());
+      // Applied but not stored (a token rotation): a retry must not apply it again.
+      if (e.status().error_code() == grpc::StatusCode::DATA_LOSS)
+        s.requests().remember(op, request_id, *response, e.status());
       throw;
     }
     s.requests().remember(op, request_id, *response, grpc::Status::OK);
@@ -809,12 +810,13 @@ grpc::ServerUnaryReactor* DeformService::RotateTokens(grpc::CallbackServerContex
                                                       const v1::RotateTokensRequest* request,
                                                       v1::Session* response) {
   return finish_change(ctx, "RotateTokens", request->name(), "", response,
-                       [response](Session& s) {
+                       [this, response](Session& s) {
                          const IssuedTokens tokens = s.rotate_tokens();
                          *response = s.describe();
                          response->set_edit_token(tokens.edit);
                          response->set_view_token(tokens.view);
                          spdlog::info("{}: tokens rotated", s.name());
+                         store_.save(s);
                        });
 }
 

@@ -51,19 +51,17 @@ std::shared_ptr<const LocalBeta> make_field(const Eigen::VectorXd& local_max, co
   return field;
 }
 
-// The session's β as a proto (Session, Snapshot; with_local = false for frames: the local
-// entries may carry whole .sel files and every frame would repeat them).
-void beta_to_proto(const SessionBeta& b, pb::Beta* out, bool with_local = true) {
+double ms_between(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+}  // namespace
+
+void beta_to_proto(const SessionBeta& b, pb::Beta* out, bool with_local) {
   out->Clear();
   to_proto(b.uniform, out);
   out->set_automatic(b.automatic);
   if (with_local) *out->mutable_local() = b.local;
 }
-
-double ms_between(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-}  // namespace
 
 bool SessionBeta::same_as(const SessionBeta& o) const {
   if (uniform.value != o.uniform.value || uniform.units != o.uniform.units ||
@@ -92,6 +90,11 @@ Session::Session(std::string id, std::shared_ptr<const MeshRef> mesh, WorkerPool
                              limits.max_lease}) {
   create_ms_ = update_ms_ = unix_ms_now();
   touch();
+}
+
+std::int64_t Session::next_version() const {
+  std::lock_guard lock(mutex_);
+  return version_ + 1;
 }
 
 void Session::touch() { last_used_ns_.store(steady_ns()); }
@@ -323,6 +326,7 @@ pb::Session Session::execute(Change change) {
   pb::Session out;
   pb::HistoryStep info;
   bool pose_changed = false;
+  Applied applied;
   {
     std::lock_guard lock(mutex_);
     // Check: everything below must succeed once it starts.
@@ -346,8 +350,8 @@ pb::Session Session::execute(Change change) {
       step.constraints = true;
       step.handles.clear();
       for (int j = 0; j < (cs ? cs->num_handles() : 0); ++j) step.handles.push_back(j);
-      history_.forget_drags();
     }
+    applied = applied_locked(step.snapshot);
     pose_changed = step.changes_pose();
     if (pose_changed) {
       cs_ = cs;
@@ -374,7 +378,12 @@ pb::Session Session::execute(Change change) {
       else snapshots_.erase(step.snapshot);
     }
     step.after = std::move(target);
-
+  }
+  // Store: a refusal puts the session back as it was; nothing was recorded or told.
+  if (store_gate_) store(nullptr, &applied, step.snapshot);  // applied: no lock to hold
+  {
+    std::lock_guard lock(mutex_);
+    if (step.constraints) history_.forget_drags();
     info = record_locked(std::move(step));
   }
   // Broadcast.
@@ -384,6 +393,43 @@ pb::Session Session::execute(Change change) {
   if (constraints_changed && roster_.release_all()) broadcast_presence();  // renumbered
   if (change.send_frame && pose_changed) broadcast_frame(info.client_id());
   return out;
+}
+
+std::unique_lock<std::mutex> Session::store(const PendingPose* pose, Applied* applied,
+                                            const std::string& snapshot) {
+  try {
+    return store_gate_(*this, pose);
+  } catch (...) {
+    std::lock_guard lock(mutex_);
+    if (applied) put_back_locked(std::move(*applied), snapshot);
+    // A write that timed out may still land: the refused change's version is never used
+    // again, so this copy's next record (the flusher's) overrides whatever the store holds.
+    ++version_;
+    throw;
+  }
+}
+
+Session::Applied Session::applied_locked(const std::string& snapshot) const {
+  return {edit_state_locked(snapshot), cs_, version_, config_version_, update_ms_, last_frame_,
+          last_frame_version_};
+}
+
+void Session::put_back_locked(Applied a, const std::string& snapshot) {
+  cs_ = std::move(a.cs);
+  cs_key_ = std::move(a.state.cs_key);
+  given_ = std::move(a.state.given);
+  beta_ = std::move(a.state.beta);
+  transforms_ = std::move(a.state.transforms);
+  timeline_ = std::move(a.state.timeline);
+  if (!snapshot.empty()) {
+    if (a.state.snapshot) snapshots_[snapshot] = std::move(a.state.snapshot);
+    else snapshots_.erase(snapshot);
+  }
+  version_ = a.version;
+  config_version_ = a.config_version;
+  update_ms_ = a.update_ms;
+  last_frame_ = std::move(a.last_frame);
+  last_frame_version_ = a.last_frame_version;
 }
 
 pb::Session Session::set_beta(const pb::Beta& beta_msg, std::int64_t expected_version,
@@ -481,6 +527,11 @@ Session::Move Session::begin_move(const Update& u) {
 pb::Frame Session::supersede(const Update& u) {
   touch();
   Move m = begin_move(u);
+  std::unique_lock<std::mutex> stored;
+  if (store_gate_ && !m.newer) {
+    const PendingPose pose{m.transforms, m.beta, next_version(), false};
+    stored = store(&pose);
+  }
   std::lock_guard lock(mutex_);
   if (cs_ == m.cs && !m.newer) {
     history_.drag_moved(u.client_id, m.moved, transforms_);  // the newer update ends the step
@@ -529,6 +580,12 @@ std::shared_ptr<pb::Frame> Session::update(const Update& given) {
   std::shared_ptr<hdeform::Frame> frame = solve_move(*cs, transforms, beta, u);
   if (beta_changed) cache_.update_size(key, cs->base_bytes());
 
+  // Stored first where an answered move must be durable: a refusal leaves nothing applied.
+  std::unique_lock<std::mutex> stored;
+  if (store_gate_) {
+    const PendingPose pose{transforms, beta, next_version(), beta_changed};
+    stored = store(&pose);
+  }
   auto out = std::make_shared<pb::Frame>();
   pb::HistoryStep recorded;
   mesh_->layout->fill(*frame, out.get());

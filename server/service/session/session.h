@@ -172,6 +172,22 @@ class Session : public std::enable_shared_from_this<Session> {
   // A coalesced update whose turn came after a newer one: its moves are committed (so a
   // partial update from another editor is never lost) without a solve; answers superseded.
   pb::Frame supersede(const Update& update);
+  // The pose a move is about to commit, with the version it will have.
+  struct PendingPose {
+    const std::vector<HandleTransform>& transforms;
+    const SessionBeta& beta;
+    std::int64_t version;
+    bool beta_changed;
+  };
+  // The durable store's step of the one commit path (SessionStore): called on the strand
+  // with a move about to be committed (`pose`), or with null after any other change was
+  // applied and before it is recorded and broadcast. Writes the session's record where the
+  // store promises it (every change; a move where each must be durable before it is
+  // answered); throws ServiceError UNAVAILABLE to refuse the change, which then changes
+  // nothing. The lock it returns is held until the change is committed, so no other write
+  // of this session's record comes between. Set before the session is shared.
+  using StoreGate = std::function<std::unique_lock<std::mutex>(Session&, const PendingPose* pose)>;
+  void set_store_gate(StoreGate gate) { store_gate_ = std::move(gate); }
   // A Sweep in steps, so it never holds the strand (edits go on between its βs): plan()
   // checks the request and captures the session's state; row() solves one β transiently
   // (no factorization enters the shared cache). Both may run on any thread.
@@ -276,6 +292,7 @@ class Session : public std::enable_shared_from_this<Session> {
 
  private:
   void check_queue_locked(std::size_t limit) const;
+  std::int64_t next_version() const;  // the version the next committed change gets
   // Every open stream, taken out of the session (close, end_streams).
   struct OpenStreams {
     std::vector<std::shared_ptr<EventSink>> watchers;
@@ -319,9 +336,23 @@ class Session : public std::enable_shared_from_this<Session> {
   };
   // The one commit path of every change but a handle move's (update()): builds what the
   // target needs (its constraint set, the β factorization) and charges it to the cache,
-  // checks the change still fits (another client's keys, the snapshot cap), then applies it,
-  // records the step and tells the watchers. Persisting is the caller's (SessionStore::save).
+  // checks the change still fits (another client's keys, the snapshot cap), applies it,
+  // stores it (StoreGate; a refusal puts everything back), records the step and tells the
+  // watchers.
   pb::Session execute(Change change);
+  // What execute() puts back when the store refuses a change.
+  struct Applied {
+    EditState state;
+    std::shared_ptr<const ConstraintSet> cs;
+    std::int64_t version = 0, config_version = 0, update_ms = 0;
+    std::shared_ptr<const hdeform::Frame> last_frame;
+    std::int64_t last_frame_version = 0;
+  };
+  Applied applied_locked(const std::string& snapshot) const;
+  // Through store_gate_; when it refuses, puts `applied` back (execute) and rethrows.
+  std::unique_lock<std::mutex> store(const PendingPose* pose, Applied* applied = nullptr,
+                                     const std::string& snapshot = {});
+  void put_back_locked(Applied applied, const std::string& snapshot);
   // The step's bookkeeping (version, time, author, what it touched) and into the history,
   // which may merge it with its predecessor (History::record). Returns it as recorded.
   pb::HistoryStep record_locked(Step step);
@@ -397,6 +428,7 @@ class Session : public std::enable_shared_from_this<Session> {
   std::vector<std::weak_ptr<AuthorizedStream>> streams_auth_;  // Deform streams
   SessionTokens tokens_;
   Persisted persisted_;
+  StoreGate store_gate_;  // empty: not durable
   Roster roster_;
   ClientSequences sequences_;  // guarded by mutex_
   EncodedFrameCache encoded_frames_;

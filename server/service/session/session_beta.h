@@ -28,4 +28,8 @@ struct SessionBeta {
   bool same_as(const SessionBeta& other) const;
 };
 
+// The session's β as a proto (Session, Snapshot; with_local = false for frames: the local
+// entries may carry whole .sel files and every frame would repeat them).
+void beta_to_proto(const SessionBeta& b, pb::Beta* out, bool with_local = true);
+
 }  // namespace hdeform::service

@@ -1,10 +1,12 @@
 #include "service/session/session_record.h"
 
+#include "service/session/convert.h"
 
 namespace hdeform::service {
 
 hdeform::state::StoredSession make_record(const Session& session, const std::string& mesh_key,
-                                          std::int64_t last_used_unix_ms, std::int64_t* version) {
+                                          std::int64_t last_used_unix_ms, std::int64_t* version,
+                                          const Session::PendingPose* pending) {
   hdeform::state::StoredSession r;
   r.set_format(kRecordFormat);
   r.set_id(session.id());
@@ -23,6 +25,18 @@ hdeform::state::StoredSession make_record(const Session& session, const std::str
   r.set_last_used_unix_ms(last_used_unix_ms);
   r.mutable_described()->set_version(v);  // describe() may have seen a newer one
   r.mutable_described()->set_observers(0);
+  if (pending) {
+    v = pending->version;
+    r.set_version(v);
+    r.mutable_described()->set_version(v);
+    for (auto* transforms : {r.mutable_snapshot()->mutable_transforms(),
+                             r.mutable_described()->mutable_transforms()}) {
+      transforms->Clear();
+      for (const auto& h : pending->transforms) to_proto(h, transforms->Add());
+    }
+    beta_to_proto(pending->beta, r.mutable_snapshot()->mutable_beta());
+    beta_to_proto(pending->beta, r.mutable_described()->mutable_beta());
+  }
   if (version) *version = v;
   return r;
 }

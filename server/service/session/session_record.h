@@ -10,8 +10,10 @@
 
 namespace hdeform::service {
 
-// The record of `session` now; `*version` is the version it shows.
+// The record of `session` now; `*version` is the version it shows. With `pending`, the record
+// of the move about to be committed: its transforms, β and version in place of the session's.
 hdeform::state::StoredSession make_record(const Session& session, const std::string& mesh_key,
-                                          std::int64_t last_used_unix_ms, std::int64_t* version);
+                                          std::int64_t last_used_unix_ms, std::int64_t* version,
+                                          const Session::PendingPose* pending = nullptr);
 
 }  // namespace hdeform::service

@@ -85,6 +85,7 @@ std::shared_ptr<Session> SessionStore::create(std::shared_ptr<const MeshRef> mes
     while (id.empty() || sessions_.count(id)) id = random_hex64();
   }
   auto s = std::make_shared<Session>(id, std::move(mesh), pool_, cache_, limits_.request);
+  gate(*s);
   // Initialised before anyone can reach it (ImportSession's restore): no strand needed,
   // and a failed restore leaves nothing behind.
   if (init) init(*s);
@@ -279,6 +280,7 @@ std::shared_ptr<Session> SessionStore::restore(const std::string& id) const {
   try {
     auto mesh = persistence_.load_mesh(record.snapshot(), record.mesh_key());
     s = std::make_shared<Session>(id, std::move(mesh), pool_, cache_, limits_.request);
+    gate(*s);
     s->restore(record.snapshot());
     s->adopt_snapshots(record.snapshots());
   } catch (const StateError& e) {
@@ -524,7 +526,8 @@ void SessionStore::purge_stored(bool meshes_too) {
     spdlog::info("session state: {} stored sessions expired", expired);
 }
 
-void SessionStore::save_locked(Session& s, Session::Persisted& p) const {
+void SessionStore::save_locked(Session& s, Session::Persisted& p,
+                               const Session::PendingPose* pending) const {
   p.dirty = false;
   std::int64_t version = 0;
   const std::int64_t now = unix_ms_now();
@@ -532,7 +535,7 @@ void SessionStore::save_locked(Session& s, Session::Persisted& p) const {
       now - std::chrono::duration_cast<std::chrono::milliseconds>(
                 std::chrono::steady_clock::now() - s.last_used())
                 .count();
-  const auto record = make_record(s, p.mesh_key, last_used, &version);
+  const auto record = make_record(s, p.mesh_key, last_used, &version, pending);
   if (version < p.saved_version) return;  // deleted (INT64_MAX), or a newer one is stored
   persistence_.backend->put_session(s.id(), record.SerializeAsString());
   // A store that may have lost data since the mesh was written (Redis restarted empty; the
@@ -569,17 +572,30 @@ void SessionStore::save(Session& s) const {
 }
 
 void SessionStore::moved(Session& s) const {
-  if (!durable()) return;
+  if (!durable() || persistence_.save_every_move) return;
   s.persisted().dirty = true;
-  if (!persistence_.save_every_move) return;
-  auto& p = s.persisted();
-  std::lock_guard lock(p.mutex);
-  try {
-    save_locked(s, p);
-  } catch (const StateError& e) {
-    p.dirty = true;
-    spdlog::error("{}: saving its state: {}", s.name(), e.what());
-  }
+}
+
+void SessionStore::gate(Session& session) const {
+  if (!durable()) return;
+  session.set_store_gate([this](Session& s, const Session::PendingPose* pose) {
+    auto& p = s.persisted();
+    std::unique_lock lock(p.mutex);
+    // A drag's moves are coalesced (flush_period) unless every move must be durable, or it
+    // changes β (an accepted change like SetBeta).
+    if (pose && !persistence_.save_every_move && !pose->beta_changed) return std::unique_lock<std::mutex>{};
+    try {
+      save_locked(s, p, pose);
+    } catch (const StateError& e) {
+      p.dirty = true;  // the flusher writes what the session holds over what may have landed
+      spdlog::error("{}: a change was refused: {}", s.name(), e.what());
+      fail(grpc::StatusCode::UNAVAILABLE,
+           std::string(pose ? "the move" : "the change") +
+               " was not applied: the session store did not acknowledge it (" + e.what() +
+               "); the session is unchanged, send it again");
+    }
+    return lock;
+  });
 }
 
 void SessionStore::flush() {

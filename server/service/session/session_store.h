@@ -103,11 +103,15 @@ class SessionStore {
   // asked, unreferenced meshes). Sessions are restored lazily, on first use.
   void attach(Persistence persistence);
   bool durable() const { return persistence_.backend != nullptr; }
-  // Writes the session's record now (an accepted change: durable before it is answered).
-  // Throws ServiceError UNAVAILABLE when the store fails.
+  // Writes the session's record now, for a change outside the commit path (token rotation;
+  // every other change is stored by the session's StoreGate before it is answered). Throws
+  // ServiceError DATA_LOSS when the store fails: the change is applied, and the flusher
+  // stores it once the store answers again.
   void save(Session& session) const;
-  // The session's handles moved: saved now (save_every_move) or within flush_period. Never
-  // throws: a failed save is logged and retried by the flusher.
+  // The session's handles moved: saved within flush_period. Never throws: a failed save is
+  // logged and retried by the flusher. With save_every_move each move was written before it
+  // was applied (StoreGate: a move the store does not acknowledge is refused and changes
+  // nothing), so this has nothing left to do.
   void moved(Session& session) const;
   // Writes every dirty session's record (the flusher's job; also at shutdown).
   void flush();
@@ -135,7 +139,10 @@ class SessionStore {
   // deleted — an expired one's only while the store still holds what this replica wrote —
   // and its streams end.
   void forget(Session& s, bool expired = false);
-  void save_locked(Session& session, Session::Persisted& p) const;
+  void save_locked(Session& session, Session::Persisted& p,
+                   const Session::PendingPose* pending = nullptr) const;
+  // Installs the store's step of the session's commit path (Session::StoreGate).
+  void gate(Session& session) const;
   void purge_stored(bool meshes_too);
 
   Limits limits_;
