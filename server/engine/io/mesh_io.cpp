@@ -38,8 +38,14 @@ Vertices LoadedMesh::to_input_layout(const Vertices& engine_positions) const {
                                 " positions for a mesh of " +
                                 std::to_string(mesh.num_vertices()) + " vertices");
   Vertices out(static_cast<Eigen::Index>(input_to_engine.size()), 3);
-  for (size_t i = 0; i < input_to_engine.size(); ++i)
-    out.row(static_cast<Eigen::Index>(i)) = engine_positions.row(input_to_engine[i]);
+  for (size_t i = 0; i < input_to_engine.size(); ++i) {
+    const int e = input_to_engine[i];
+    if (e < 0 || e >= engine_positions.rows())
+      throw std::invalid_argument("to_input_layout: input vertex " + std::to_string(i) +
+                                  " maps to engine vertex " + std::to_string(e) + ", outside [0, " +
+                                  std::to_string(engine_positions.rows()) + ")");
+    out.row(static_cast<Eigen::Index>(i)) = engine_positions.row(e);
+  }
   return out;
 }
 

@@ -29,16 +29,24 @@ struct PolygonFan {
 
 struct LoadedMesh {
   TriMesh mesh;                       // welded surface, what the engine deforms
-  // Input layout: one entry per input vertex → its engine vertex. Identity for
-  // OBJ/OFF/PLY/STL; the weld map for glTF.
+  // Input layout: one entry per input vertex → its engine vertex, always a valid engine id
+  // (the frame writers index with it unchecked). Identity for OBJ/OFF/PLY/STL; the weld map
+  // for glTF; see repair_loaded.h for a repaired mesh.
   std::vector<int> input_to_engine;
   Triangles input_triangles;          // triangles in input-vertex ids (triangulated)
   std::vector<std::string> warnings;  // e.g. polygons triangulated
   // OBJ/OFF/PLY faces with more than 3 corners (ascending first_triangle): what the writers
   // need to give the user's own polygons back (WriteOptions::polygons).
   std::vector<PolygonFan> polygons;
+  // Set only when repair_loaded_mesh changed the mesh (empty otherwise: engine ids are the
+  // ids as read). Engine vertex → the vertex of the mesh as read (the file's vertex id for
+  // OBJ/OFF/PLY/STL, the welded id for glTF), and engine triangle → the triangle as read:
+  // the map back to the user's ids.
+  std::vector<int> repair_to_input;
+  std::vector<int> repair_triangles_to_input;
   bool identity_layout() const;
-  // Engine positions rearranged into the input layout (input vertex count × 3).
+  // Engine positions rearranged into the input layout (input vertex count × 3). Throws
+  // std::invalid_argument when the row count or an input_to_engine entry does not fit.
   Vertices to_input_layout(const Vertices& engine_positions) const;
 };
 

@@ -100,11 +100,11 @@ ValidationResult validate_mesh(const TriMesh& mesh) {
                          " NaN or infinite coordinates (first: vertices " + join(first, bad) + ")");
   }
 
-  // Zero-area triangles: area ≤ 1e-14 · (bbox diagonal)².
+  // Zero-area triangles: area ≤ kZeroAreaScale · (bbox diagonal)².
   {
     const Eigen::RowVector3d lo = V.colwise().minCoeff(), hi = V.colwise().maxCoeff();
     const double diag2 = (hi - lo).squaredNorm();
-    const double min_area = 1e-14 * diag2;
+    const double min_area = kZeroAreaScale * diag2;
     size_t bad = 0;
     std::vector<int> first;
     for (int t = 0; t < m; ++t) {
@@ -116,10 +116,12 @@ ValidationResult validate_mesh(const TriMesh& mesh) {
       }
     }
     if (bad > 0) {
-      char thr[32];
+      char scale[32], thr[32];
+      std::snprintf(scale, sizeof scale, "%.3g", kZeroAreaScale);
       std::snprintf(thr, sizeof thr, "%.3g", min_area);
       throw InvalidInput("zero-area triangles: " + count_of(bad, "triangle has", "triangles have") +
-                         " area ≤ 1e-14·(bbox diagonal)² = " + thr + " (first: triangles " + join(first, bad) + ")");
+                         " area ≤ " + scale + "·(bbox diagonal)² = " + thr + " (first: triangles " +
+                         join(first, bad) + ")");
     }
   }
 

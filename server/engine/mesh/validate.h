@@ -9,6 +9,11 @@
 
 namespace hdeform {
 
+// A triangle whose area is ≤ kZeroAreaScale · (bbox diagonal)² counts as zero-area (relative to
+// the model's size, so independent of its units). Shared with repair_mesh, which drops exactly
+// the triangles validate_mesh refuses as zero-area.
+inline constexpr double kZeroAreaScale = 1e-14;
+
 struct ValidationResult {
   std::vector<int> unreferenced;      // vertex ids no triangle uses (kept, pinned at rest)
   std::vector<std::string> warnings;  // human-readable, one per issue
@@ -16,7 +21,7 @@ struct ValidationResult {
 
 // Throws InvalidInput naming the first problem class found and how many elements it
 // affects, with the first offending ids: empty mesh, index out of range, non-finite
-// coordinates, zero-area triangles (area ≤ 1e-14 · bbox diagonal²), non-manifold edges
+// coordinates, zero-area triangles (area ≤ kZeroAreaScale · bbox diagonal²), non-manifold edges
 // (> 2 triangles or inconsistent orientation), non-manifold vertices (more than one fan).
 // Unreferenced vertices are not an error: they are reported and kept, so ids stay stable.
 ValidationResult validate_mesh(const TriMesh& mesh);
