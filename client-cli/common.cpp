@@ -17,6 +17,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iostream>
 #include <random>
 #include <set>
 #include <sstream>
@@ -319,7 +320,8 @@ std::string mib_text(std::size_t bytes) {
 
 // Not retried: a CreateSession that reached the server before it died may have created the
 // session, and its tokens are answered only once.
-SessionClient SessionClient::create(Connection& conn, const std::string& mesh) {
+SessionClient SessionClient::create(Connection& conn, const std::string& mesh,
+                                    const pb::MeshRepair* repair) {
   const std::string id = random_id();
   pb::CreateSessionRequest header_msg;
   auto* header = header_msg.mutable_header();
@@ -336,6 +338,7 @@ SessionClient SessionClient::create(Connection& conn, const std::string& mesh) {
   } else {
     header->set_library_mesh(mesh);
   }
+  if (repair) *header->mutable_repair() = *repair;
 
   grpc::ClientContext ctx;
   conn.prepare(ctx, id, conn.options().call_timeout_s, TokenScope::kNone);
@@ -356,13 +359,26 @@ SessionClient SessionClient::create(Connection& conn, const std::string& mesh) {
   writer->WritesDone();
   if (!bytes.empty()) activity.set("CreateSession: the server reads " + header->filename());
   grpc::Status status = writer->Finish();
-  if (!status.ok()) throw RpcError("CreateSession", status);
+  if (!status.ok()) {
+    // The defects repair_mesh fixes (a duplicated triangle shows as a non-manifold edge).
+    const std::string& m = status.error_message();
+    if (!repair && !bytes.empty() && status.error_code() == grpc::StatusCode::INVALID_ARGUMENT &&
+        (m.rfind("zero-area triangles", 0) == 0 || m.rfind("non-manifold", 0) == 0))
+      status = grpc::Status(status.error_code(), m + " (--repair may fix it)");
+    throw RpcError("CreateSession", status);
+  }
   // The routing key stays the id we proposed: should a server pick another id (an old server
   // that ignores session_id), the proposed key still routes to the replica that holds it.
   if (session_id_of(session.name()) != id)
     spdlog::debug("server named the session {} (proposed {})", session.name(), id);
   spdlog::info("created {} ({} vertices, {} triangles)", session.name(), session.vertex_count(),
                session.triangle_count());
+  if (repair) {
+    if (session.repair().lines_size() == 0)
+      std::cerr << "hdeform: repair of " << header->filename() << ": nothing to repair\n";
+    for (const auto& line : session.repair().lines())
+      std::cerr << "hdeform: repair of " << header->filename() << ": " << line << "\n";
+  }
   conn.remember_tokens(session);
   session.clear_edit_token();  // kept in the jar only
   session.clear_view_token();

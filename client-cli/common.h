@@ -118,7 +118,10 @@ class SessionClient {
   SessionClient(Connection& conn, std::string name);
 
   // MESH is an existing file (uploaded in 1 MiB chunks) or else a library mesh name.
-  static SessionClient create(Connection& conn, const std::string& mesh);
+  // `repair` (optional): CreateSessionHeader.repair for an uploaded file; what it changed
+  // is printed on stderr.
+  static SessionClient create(Connection& conn, const std::string& mesh,
+                              const pb::MeshRepair* repair = nullptr);
   static SessionClient import(Connection& conn, const pb::Snapshot& snapshot);
   // Re-creates a session under a chosen id (e.g. its old one, after a replica was lost).
   static SessionClient import(Connection& conn, const pb::Snapshot& snapshot,

@@ -41,6 +41,16 @@ void add_constraint_options(CLI::App& cmd, ConstraintOptions& o) {
   cmd.add_option("--session", o.session,
                  "use this existing session (needs --server) instead of creating one; MESH is "
                  "then optional");
+  auto* repair = cmd.add_flag(
+      "--repair", o.repair,
+      "repair the uploaded MESH before it is checked: merge coincident vertices, drop "
+      "degenerate and duplicate triangles and unused vertices, split bowtie vertices (what "
+      "changed is printed on stderr)");
+  cmd.add_option("--merge-tolerance", o.merge_tolerance,
+                 "with --repair: merge vertices this close, as a fraction of the bounding-box "
+                 "diagonal (0 to 0.01; default 0: equal positions only)")
+      ->needs(repair)
+      ->check(CLI::Range(0.0, 0.01));
 }
 
 void add_beta_options(CLI::App& cmd, ConstraintOptions& o, bool with_beta_value) {

@@ -24,6 +24,8 @@ struct ConstraintOptions {
   std::string beta_units = "area";
   std::vector<std::string> local_betas;  // SEL@BETA[@RADIUS], repeatable
   std::string session;                 // use this existing session instead of creating one
+  bool repair = false;                 // repair the uploaded MESH (CreateSessionHeader.repair)
+  double merge_tolerance = 0;          // with repair: fraction of the bounding-box diagonal
 };
 
 void add_constraint_options(CLI::App& cmd, ConstraintOptions& options);

@@ -12,7 +12,10 @@ WorkSession open_work_session(Connection& conn, const std::string& mesh,
     w.client = std::make_unique<SessionClient>(conn, c.session);
     w.client->get();
   } else {
-    w.client = std::make_unique<SessionClient>(SessionClient::create(conn, mesh));
+    pb::MeshRepair repair;
+    repair.set_merge_tolerance(c.merge_tolerance);
+    w.client = std::make_unique<SessionClient>(
+        SessionClient::create(conn, mesh, c.repair ? &repair : nullptr));
     w.created = true;
   }
   return w;
@@ -56,6 +59,7 @@ void check_mesh_or_session(const std::string& mesh, const ConstraintOptions& c,
                            const GlobalOptions& global) {
   if (!c.session.empty()) {
     if (!mesh.empty()) throw CliError("give either MESH or --session, not both");
+    if (c.repair) throw CliError("--repair applies to an uploaded MESH, not to --session");
     if (global.server.empty()) throw CliError("--session needs --server HOST:PORT");
   } else {
     if (mesh.empty()) throw CliError("MESH is required (a file or a library name like cactus)");

@@ -162,6 +162,22 @@ deform)
   head -c 40 "$TMP/ascii.ply" | grep -aq 'format ascii' || fail "--ply ascii: not ASCII"
   expect_fail "--up x" "--up: Check x value in" -- \
     "$HDEFORM" deform cactus --sel "$BS/cactus.sel" --up x -o "$TMP/x.glb"
+  # --repair: a bowtie (two triangles touching at vertex 0) is refused with the hint, and
+  # opens repaired with what changed on stderr (vertex 0 split: 6 vertices written)
+  printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nv -1 0 0\nv 0 -1 0\nf 1 2 3\nf 1 4 5\n' >"$TMP/bowtie.obj"
+  expect_fail "bowtie without --repair" "non-manifold vertex.*\(--repair may fix it\)" -- \
+    "$HDEFORM" deform "$TMP/bowtie.obj" --fixed ids:1,2,4,5 --handle ids:3 --translate 0,0,0.1 \
+    -o "$TMP/bowtie-out.obj"
+  "$HDEFORM" deform "$TMP/bowtie.obj" --repair --fixed ids:1,2,4,5 --handle ids:3 \
+    --translate 0,0,0.1 -o "$TMP/bowtie-out.obj" >"$TMP/out" 2>"$TMP/err" \
+    || { cat "$TMP/err" >&2; fail "deform --repair exited $?"; }
+  grep -q '^hdeform: repair of bowtie.obj: split 1 non-manifold vertex' "$TMP/err" \
+    || fail "no repair report on stderr: $(cat "$TMP/err")"
+  [ "$(grep -c '^v ' "$TMP/bowtie-out.obj")" = 6 ] || fail "repaired bowtie: not 6 vertices"
+  expect_fail "--merge-tolerance without --repair" "needs --repair|requires --repair|Needs: --repair" -- \
+    "$HDEFORM" deform "$TMP/bowtie.obj" --merge-tolerance 0.001 --fixed ids:1 --handle ids:3
+  expect_fail "--merge-tolerance 0.5" "merge-tolerance" -- \
+    "$HDEFORM" deform "$TMP/bowtie.obj" --repair --merge-tolerance 0.5 --fixed ids:1 --handle ids:3
   ;;
 sweep)
   "$HDEFORM" sweep cactus --sel "$BS/cactus.sel" --def "$BS/cactus.def" --betas 0,0.1,0.25 \

@@ -44,6 +44,9 @@ struct LoadedMesh {
   // the map back to the user's ids.
   std::vector<int> repair_to_input;
   std::vector<int> repair_triangles_to_input;
+  // The repair renumbered the input layout (it is the repaired mesh's): input-layout ids are
+  // engine ids, mapped back by repair_to_input. False: they are still the ids as read.
+  bool repair_renumbered = false;
   bool identity_layout() const;
   // Engine positions rearranged into the input layout (input vertex count × 3). Throws
   // std::invalid_argument when the row count or an input_to_engine entry does not fit.

@@ -43,6 +43,7 @@ RepairReport repair_loaded_mesh(LoadedMesh& m, const RepairOptions& options) {
     m.input_to_engine.resize(r.to_input.size());
     for (size_t i = 0; i < r.to_input.size(); ++i) m.input_to_engine[i] = static_cast<int>(i);
     m.input_triangles = r.mesh.F;
+    m.repair_renumbered = true;
   }
 
   m.warnings.insert(m.warnings.end(), r.report.lines.begin(), r.report.lines.end());

@@ -112,6 +112,12 @@ class CreateSessionReactor final : public grpc::ServerReadReactor<v1::CreateSess
         fail(grpc::StatusCode::INVALID_ARGUMENT,
              "CreateSessionHeader needs library_mesh or filename");
     }
+    if (header_.has_repair()) {
+      if (header_.has_library_mesh())
+        fail(grpc::StatusCode::INVALID_ARGUMENT,
+             "repair applies to uploads; library meshes need none");
+      repair_options(&header_.repair());  // fail fast, before an upload
+    }
     if (header_.total_bytes() < 0)
       fail(grpc::StatusCode::INVALID_ARGUMENT, "total_bytes must not be negative");
     if (static_cast<std::uint64_t>(header_.total_bytes()) > limits.max_upload_bytes)
@@ -139,8 +145,10 @@ class CreateSessionReactor final : public grpc::ServerReadReactor<v1::CreateSess
           [&] {
             svc_->sessions().check_capacity();
             std::shared_ptr<const MeshRef> mesh =
-                header_.has_library_mesh() ? svc_->load_library_mesh(header_.library_mesh())
-                                           : svc_->load_upload(bytes, header_.filename());
+                header_.has_library_mesh()
+                    ? svc_->load_library_mesh(header_.library_mesh())
+                    : svc_->load_upload(bytes, header_.filename(),
+                                        header_.has_repair() ? &header_.repair() : nullptr);
             // The client left while its mesh was parsed: create nothing nobody will own.
             if (ctx_->IsCancelled())
               fail(grpc::StatusCode::CANCELLED, "upload cancelled by the client");
@@ -152,6 +160,7 @@ class CreateSessionReactor final : public grpc::ServerReadReactor<v1::CreateSess
             *response_ = session->describe();
             response_->set_edit_token(tokens.edit);
             response_->set_view_token(tokens.view);
+            if (session->mesh().repair) describe_repair(session->mesh(), response_->mutable_repair());
           },
           "CreateSession");
       Finish(status);

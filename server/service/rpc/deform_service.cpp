@@ -61,6 +61,17 @@ void DeformService::begin_shutdown() {
 void DeformService::close_sessions() { store_.shutdown(); }  // after begin_shutdown
 void DeformService::stop_workers() { pool_->stop(); }
 
+std::optional<RepairOptions> repair_options(const v1::MeshRepair* repair) {
+  if (!repair) return std::nullopt;
+  const double t = repair->merge_tolerance();
+  // Bounded: a large tolerance would merge whole regions (and the grid would have few cells).
+  if (!std::isfinite(t) || t < 0 || t > 0.01)
+    fail(grpc::StatusCode::INVALID_ARGUMENT,
+         "repair.merge_tolerance must be between 0 and 0.01 (a fraction of the bounding-box "
+         "diagonal), got " + fmt::format("{}", t));
+  return RepairOptions{t};
+}
+
 std::shared_ptr<const MeshRef> DeformService::load_library_mesh(const std::string& name) {
   auto entry = library_.find(name);
   if (!entry) fail(grpc::StatusCode::NOT_FOUND, "no mesh '" + name + "' in the library");
@@ -69,12 +80,14 @@ std::shared_ptr<const MeshRef> DeformService::load_library_mesh(const std::strin
 }
 
 std::shared_ptr<const MeshRef> DeformService::load_upload(std::shared_ptr<const std::string> bytes,
-                                                          const std::string& filename) {
+                                                          const std::string& filename,
+                                                          const v1::MeshRepair* repair) {
   if (bytes->size() > options_.max_upload_bytes)
     fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
          "upload exceeds the limit of " + std::to_string(options_.max_upload_bytes) + " bytes");
-  return load_mesh(std::move(bytes), filename, "", cache_, read_limits());
+  return load_mesh(std::move(bytes), filename, "", cache_, read_limits(), repair_options(repair));
 }
+
 
 void DeformService::open_state() {
   if (!options_.state_dir.empty() && !options_.state_redis.empty())
@@ -106,7 +119,8 @@ std::shared_ptr<const MeshRef> DeformService::load_stored_mesh(const v1::Snapsho
     auto bytes = state_->get_mesh(key);
     if (!bytes) throw StateError("its mesh " + key + " is missing from " + state_->describe());
     mesh = load_mesh(std::make_shared<const std::string>(std::move(*bytes)), snap.filename(), "",
-                     cache_, read_limits());
+                     cache_, read_limits(),
+                     repair_options(snap.has_repair() ? &snap.repair() : nullptr));
   }
   if (!snap.mesh_hash().empty() && snap.mesh_hash() != mesh->hash)
     fail(grpc::StatusCode::FAILED_PRECONDITION,
@@ -603,7 +617,7 @@ grpc::ServerUnaryReactor* DeformService::ImportSession(grpc::CallbackServerConte
         fail(grpc::StatusCode::INVALID_ARGUMENT, "snapshot mesh_bytes need a filename");
       auto bytes = std::make_shared<const std::string>(snap.mesh_bytes());
       mesh = snap.library_mesh().empty()
-                 ? load_upload(bytes, filename)
+                 ? load_upload(bytes, filename, snap.has_repair() ? &snap.repair() : nullptr)
                  : load_mesh(bytes, filename, snap.library_mesh(), cache_, read_limits());
     } else if (!snap.library_mesh().empty()) {
       mesh = load_library_mesh(snap.library_mesh());
@@ -631,6 +645,7 @@ grpc::ServerUnaryReactor* DeformService::ImportSession(grpc::CallbackServerConte
     *response = session->describe();
     response->set_edit_token(tokens.edit);
     response->set_view_token(tokens.view);
+    if (mesh->repair) describe_repair(*mesh, response->mutable_repair());
   });
 }
 

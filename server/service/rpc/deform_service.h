@@ -20,6 +20,10 @@
 
 namespace hdeform::service {
 
+// CreateSessionHeader.repair / Snapshot.repair as engine options; null: no repair. Throws
+// ServiceError INVALID_ARGUMENT for a tolerance outside [0, 0.01].
+std::optional<RepairOptions> repair_options(const v1::MeshRepair* repair);
+
 class DeformService final : public v1::Deformation::CallbackService {
  public:
   explicit DeformService(const ServerOptions& options);
@@ -149,8 +153,10 @@ class DeformService final : public v1::Deformation::CallbackService {
 
   // Blocking helpers used by the reactors (run on the pool).
   std::shared_ptr<const MeshRef> load_library_mesh(const std::string& name);
+  // `repair` (optional): CreateSessionHeader.repair / Snapshot.repair.
   std::shared_ptr<const MeshRef> load_upload(std::shared_ptr<const std::string> bytes,
-                                             const std::string& filename);
+                                             const std::string& filename,
+                                             const v1::MeshRepair* repair = nullptr);
 
  private:
   using Work = std::function<void()>;

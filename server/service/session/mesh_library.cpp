@@ -1,6 +1,7 @@
 #include "service/session/mesh_library.h"
 
 #include "engine/io/mesh_io.h"
+#include "engine/io/repair_loaded.h"
 #include "service/infra/service_error.h"
 
 #include <spdlog/spdlog.h>
@@ -26,7 +27,8 @@ bool is_mesh_extension(std::string ext) {
 }  // namespace
 
 std::size_t MeshRef::memory_bytes() const {
-  std::size_t b = sizeof(MeshRef) + (file_bytes ? file_bytes->size() : 0);
+  std::size_t b = sizeof(MeshRef) + (file_bytes ? file_bytes->size() : 0) +
+                  sizeof(int) * repair_base_to_input.size();
   if (layout) b += 16u * static_cast<std::size_t>(layout->vertex_count()) +
                    12u * static_cast<std::size_t>(layout->triangle_count());
   return b;
@@ -92,7 +94,8 @@ std::string read_file(const std::string& path) {
 std::shared_ptr<const MeshRef> load_mesh(std::shared_ptr<const std::string> bytes,
                                          const std::string& filename,
                                          const std::string& library_name, Cache& cache,
-                                         const ReadLimits& limits) {
+                                         const ReadLimits& limits,
+                                         const std::optional<RepairOptions>& repair) {
   std::string ext = fs::path(filename).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
@@ -101,13 +104,19 @@ std::shared_ptr<const MeshRef> load_mesh(std::shared_ptr<const std::string> byte
                        "' (use .obj .off .ply .stl .gltf .glb)");
   // Identical files (same format, same bytes) share one MeshRef. SHA-256 keys, and every
   // hit is verified byte for byte: a shared entry can be neither forged nor mistaken.
-  const std::string file_key =
+  std::string file_key =
       "file/" + Sha256().add(ext).add(std::string_view("\0", 1)).add(*bytes).hex() + "/" +
       library_name;
+  if (repair) file_key += fmt::format("/repair:{}", repair->merge_tolerance);
   auto build = [&]() -> std::shared_ptr<const MeshRef> {
     // The vertex limit is applied while parsing (a header count over it fails at once).
     LoadedMesh loaded = read_mesh_bytes(*bytes, filename, limits);
     auto r = std::make_shared<MeshRef>();
+    if (repair) {
+      r->repair = repair;
+      r->repair_report = repair_loaded_mesh(loaded, *repair);
+      if (loaded.repair_renumbered) r->repair_base_to_input = loaded.repair_to_input;
+    }
     r->hash = mesh_hash(loaded.mesh);
     r->library_name = library_name;
     r->filename = fs::path(filename).filename().string();
@@ -139,6 +148,19 @@ std::shared_ptr<const MeshRef> load_mesh(std::shared_ptr<const std::string> byte
     ref = build();
   }
   return ref;
+}
+
+void describe_repair(const MeshRef& mesh, hdeform::v1::MeshRepairReport* out) {
+  const RepairReport& r = mesh.repair_report;
+  out->set_merged_vertices(r.merged_vertices);
+  out->set_degenerate_triangles(r.degenerate_triangles);
+  out->set_duplicate_triangles(r.duplicate_triangles);
+  out->set_unreferenced_vertices(r.unreferenced_vertices);
+  out->set_split_vertices(r.split_vertices);
+  out->set_added_vertices(r.added_vertices);
+  for (const auto& line : r.lines) out->add_lines(line);
+  out->mutable_base_to_input()->Add(mesh.repair_base_to_input.begin(),
+                                    mesh.repair_base_to_input.end());
 }
 
 }  // namespace hdeform::service

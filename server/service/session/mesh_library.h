@@ -5,6 +5,7 @@
 
 #include "engine/deform/deformer.h"
 #include "engine/io/mesh_io.h"
+#include "engine/mesh/repair.h"
 #include "service/frames/frames.h"
 #include "service/infra/cache.h"
 
@@ -25,6 +26,11 @@ struct MeshRef {
   std::shared_ptr<const FrameLayout> layout;
   Eigen::Vector3d bbox_min = Eigen::Vector3d::Zero(), bbox_max = Eigen::Vector3d::Zero();
   std::vector<std::string> warnings;
+  // An upload repaired on request (CreateSessionHeader.repair): the options, what changed,
+  // and base-GLB vertex → the upload's vertex id (empty: the same ids).
+  std::optional<RepairOptions> repair;
+  RepairReport repair_report;
+  std::vector<int> repair_base_to_input;
 
   const std::string& display_name() const {
     return library_name.empty() ? filename : library_name;
@@ -56,13 +62,18 @@ class MeshLibrary {
 std::string default_mesh_dir();
 
 // Parses a mesh file, enforces the vertex limit while parsing (LimitExceeded →
-// RESOURCE_EXHAUSTED), polls limits' cancellation (ReadCancelled → CANCELLED) and finds or
-// builds its MeshRef / PreparedMesh in the cache. Throws InvalidInput for a bad mesh.
+// RESOURCE_EXHAUSTED), polls limits' cancellation (ReadCancelled → CANCELLED), repairs it
+// when asked (repair_loaded_mesh) and finds or builds its MeshRef / PreparedMesh in the
+// cache. Throws InvalidInput for a bad mesh.
 std::shared_ptr<const MeshRef> load_mesh(std::shared_ptr<const std::string> bytes,
                                          const std::string& filename,
                                          const std::string& library_name, Cache& cache,
-                                         const ReadLimits& limits);
+                                         const ReadLimits& limits,
+                                         const std::optional<RepairOptions>& repair = {});
 
 std::string read_file(const std::string& path);  // throws ServiceError NOT_FOUND
+
+// What the repair of a repaired upload changed (MeshRef::repair set).
+void describe_repair(const MeshRef& mesh, hdeform::v1::MeshRepairReport* out);
 
 }  // namespace hdeform::service

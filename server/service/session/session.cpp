@@ -804,6 +804,7 @@ pb::Snapshot Session::export_snapshot(bool include_mesh, std::int64_t* version) 
   s.set_library_mesh(mesh_->library_name);
   s.set_filename(mesh_->library_name.empty() ? upload_name_ : mesh_->filename);
   if (include_mesh && mesh_->file_bytes) s.set_mesh_bytes(*mesh_->file_bytes);
+  if (mesh_->repair) s.mutable_repair()->set_merge_tolerance(mesh_->repair->merge_tolerance);
   std::lock_guard lock(mutex_);
   if (version) *version = version_;
   if (cs_ && given_) *s.mutable_constraints() = *given_;
