@@ -38,7 +38,9 @@
 //   POST /hdeform.v1.Deformation/<Method>   application/grpc-web(+proto) — the API
 //   POST /upload?filename=NAME              raw mesh bytes → client-streaming CreateSession;
 //   POST /upload?library=NAME               (empty body) a library mesh; optional
-//                                           &session_id=ID (CreateSessionHeader.session_id).
+//                                           &session_id=ID (CreateSessionHeader.session_id),
+//                                           &repair=TOL (CreateSessionHeader.repair with
+//                                           merge_tolerance TOL; 0: equal positions).
 //                                           Needs the header X-Session-Id or X-Hdeform-Upload.
 //                                           Reply: the Session as
 //                                           binary protobuf (application/x-protobuf), or a
@@ -56,6 +58,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <charconv>
 #include <boost/asio.hpp>
 #include <boost/asio/ssl.hpp>
 #include <boost/beast/core.hpp>
@@ -1088,6 +1091,16 @@ struct HttpGateway::Impl {
     }
     // The client may choose the id (for load balancers that hash x-session-id).
     if (auto id = query_param(query, "session_id"); !id.empty()) header->set_session_id(id);
+    if (auto repair = query_param(query, "repair"); !repair.empty()) {
+      double tolerance = 0;
+      const auto [end, ec] =
+          std::from_chars(repair.data(), repair.data() + repair.size(), tolerance);
+      if (ec != std::errc() || end != repair.data() + repair.size())
+        return refuse(c, http::status::bad_request,
+                      "upload: repair must be a number (the merge tolerance, 0 to 0.01)\n",
+                      version);
+      header->mutable_repair()->set_merge_tolerance(tolerance);  // the service checks the range
+    }
 
     GenericCall call(stub, std::string(kServicePrefix) + "CreateSession",
                      c.stream.socket().native_handle(), c.stream.is_tls(), head);

@@ -20,6 +20,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 #include <thread>
@@ -61,6 +62,7 @@ class FakeService final : public Deformation::Service {
     ++create_calls;
     CreateSessionRequest msg;
     std::string source, id;
+    std::optional<double> repair;
     std::size_t bytes = 0;
     int messages = 0;
     while (in->Read(&msg)) {
@@ -68,6 +70,7 @@ class FakeService final : public Deformation::Service {
       if (msg.has_header()) {
         source = msg.header().has_filename() ? msg.header().filename() : msg.header().library_mesh();
         id = msg.header().session_id();
+        if (msg.header().has_repair()) repair = msg.header().repair().merge_tolerance();
       } else {
         bytes += msg.chunk().size();
       }
@@ -77,6 +80,8 @@ class FakeService final : public Deformation::Service {
     out->set_mesh_name(source);
     out->set_vertex_count(static_cast<int>(bytes));
     out->set_triangle_count(messages);
+    // Echoes the header's repair request (its tolerance as the report's first line).
+    if (repair) out->mutable_repair()->add_lines(std::to_string(*repair));
     return grpc::Status::OK;
   }
   grpc::Status WatchSession(grpc::ServerContext* ctx, const WatchSessionRequest* req,
@@ -338,6 +343,22 @@ TEST_F(GatewayTest, UploadBecomesClientStreamingCreateSession) {
   res = request(http::verb::post, "/upload", "xx", "application/octet-stream",
                 {{"X-Hdeform-Upload", "1"}});
   EXPECT_EQ(res.result(), http::status::bad_request);
+
+  // &repair=TOL becomes CreateSessionHeader.repair; anything but a number is refused here.
+  res = request(http::verb::post, "/upload?filename=m.obj&repair=0.001", "v 0 0 0\n",
+                "application/octet-stream", {{"X-Hdeform-Upload", "1"}});
+  ASSERT_EQ(res.result(), http::status::ok) << res.body();
+  ASSERT_TRUE(s.ParseFromString(res.body()));
+  ASSERT_EQ(s.repair().lines_size(), 1);
+  EXPECT_EQ(s.repair().lines(0), std::to_string(0.001));
+  res = request(http::verb::post, "/upload?filename=m.obj", "v 0 0 0\n",
+                "application/octet-stream", {{"X-Hdeform-Upload", "1"}});
+  ASSERT_TRUE(s.ParseFromString(res.body()));
+  EXPECT_FALSE(s.has_repair());
+  res = request(http::verb::post, "/upload?filename=m.obj&repair=yes", "v 0 0 0\n",
+                "application/octet-stream", {{"X-Hdeform-Upload", "1"}});
+  EXPECT_EQ(res.result(), http::status::bad_request);
+  EXPECT_NE(res.body().find("repair must be a number"), std::string::npos) << res.body();
 }
 
 TEST_F(GatewayTest, BodyAboveTheLimitGets413) {
