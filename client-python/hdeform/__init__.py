@@ -39,7 +39,7 @@ from ._selectors import (  # noqa: E402
 from ._transforms import Transform, transform, axis_angle, read_def  # noqa: E402
 from ._frames import Encoding, Frame, FrameDecodeError, Measures  # noqa: E402
 from ._records import (  # noqa: E402
-    Beta, HistoryStep, Keyframe, RigExport, RigPoseError, Snapshot, Timeline)
+    Beta, HistoryStep, Keyframe, RepairReport, RigExport, RigPoseError, Snapshot, Timeline)
 from ._client import Client, Session, Watch, SweepRow, SweepResult, LibraryMesh, connect  # noqa: E402
 from ._server import LocalServer, find_server  # noqa: E402
 from ._meshio import ply_bytes, parse_off, stl_bytes, triangulate  # noqa: E402
@@ -51,7 +51,7 @@ __all__ = [
     "connect", "Client", "Session", "Watch", "Frame", "FrameDecodeError", "Encoding",
     "Measures", "SweepRow", "SweepResult", "LibraryMesh", "LocalServer", "find_server",
     "Beta", "HistoryStep", "Keyframe", "Snapshot", "Timeline", "RigExport", "RigPoseError",
-    "from_meshio",
+    "RepairReport", "from_meshio",
     "Selector", "ids", "base_ids", "box", "sphere", "half_space", "sel", "sel_file", "FIXED",
     "HANDLE", "Transform", "transform", "axis_angle", "read_def", "ply_bytes", "parse_off",
     "stl_bytes", "triangulate",

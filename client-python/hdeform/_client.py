@@ -24,7 +24,8 @@ from ._frames import (Encoding, Float64Array, Frame, Int64Array, Measures, PathL
                       encoding_value)
 from ._meshio import parse_off, ply_bytes, stl_bytes
 from ._proto import pb, pb_grpc
-from ._records import HistoryStep, Keyframe, RigExport, Snapshot, Timeline, csv_text
+from ._records import (HistoryStep, Keyframe, RepairReport, RigExport, Snapshot, Timeline,
+                       csv_text)
 from ._selectors import RegionLike, Selector, region
 from ._server import LocalServer
 from ._transforms import Transform, TransformLike, to_transform
@@ -134,6 +135,25 @@ def _units(units: str, what: str = "units") -> int:
 
 
 LocalBeta = Dict[str, Any]  # {"region": …, "beta": b, "falloff_radius": r}
+
+RepairLike = Union[bool, float]  # upload(repair=…): True (merge tolerance 0) or the tolerance
+_MAX_MERGE_TOLERANCE = 0.01  # of the bounding-box diagonal (docs/api.md "Repair")
+# Refusals of an upload that the server's repair may fix (as the CLI's `--repair` hint): a
+# duplicated triangle shows as a non-manifold edge; inconsistent orientation is not repaired.
+_REPAIRABLE = ("zero-area triangles", "non-manifold")
+_REPAIR_HINT = " (upload with repair=True may fix it)"
+
+
+def _repair_proto(repair: object) -> Any:
+    """The header's MeshRepair for upload(repair=…), or None for no repair: checked here."""
+    if isinstance(repair, (bool, np.bool_)):
+        return pb.MeshRepair() if repair else None
+    tolerance = float(repair) if isinstance(repair, numbers.Real) else math.nan
+    if not (math.isfinite(tolerance) and 0 <= tolerance <= _MAX_MERGE_TOLERANCE):
+        raise ValueError(f"repair: True, False or a merge tolerance in [0, "
+                         f"{_MAX_MERGE_TOLERANCE:g}] (a fraction of the bounding-box "
+                         f"diagonal), got {repair!r:.60}")
+    return pb.MeshRepair(merge_tolerance=tolerance)
 
 
 def _beta_proto(value: Union[float, str], units: str = "area",
@@ -314,17 +334,27 @@ class Client:
     def _create(self, header: Any, data: bytes = b"", timeout: Timeout = None) -> "Session":
         # The id is chosen here so that the creating call is routed by it, like every later
         # call of the session (docs/deployment.md).
+        repair = header.HasField("repair")
         if not header.session_id:
             header.session_id = uuid.uuid4().hex[:24]
         def requests() -> Iterator[Any]:
             yield pb.CreateSessionRequest(header=header)
             for i in range(0, len(data), CHUNK):
                 yield pb.CreateSessionRequest(chunk=data[i:i + CHUNK])
-        info = _rpc(self.stub.CreateSession, requests(),
-                    metadata=_metadata(None, header.session_id),
-                    deadline=self._deadline(timeout, "CreateSession"), change=True)
+        try:
+            info = _rpc(self.stub.CreateSession, requests(),
+                        metadata=_metadata(None, header.session_id),
+                        deadline=self._deadline(timeout, "CreateSession"), change=True)
+        except Error as e:
+            if (repair or header.WhichOneof("source") != "filename" or
+                    e.code != grpc.StatusCode.INVALID_ARGUMENT or
+                    not e.message.startswith(_REPAIRABLE)):
+                raise
+            raise type(e)(e.message + _REPAIR_HINT, e.code) from None
         s = Session(self, info, str(info.edit_token), view_token=str(info.view_token),
                     owned=True)
+        if repair:  # only CreateSession's answer has the report
+            s._repair = RepairReport.from_proto(info.repair)
         self._created.add(s)
         return s
 
@@ -337,31 +367,45 @@ class Client:
 
     def upload(self, V: npt.ArrayLike, F: Union[npt.ArrayLike, Sequence[Sequence[int]]],
                session_id: str = "", filename: str = "mesh.ply",
-               timeout: Timeout = None) -> "Session":
+               timeout: Timeout = None, repair: RepairLike = False) -> "Session":
         """A new session on the mesh (V n×3, F m×3 triangles; quads and other polygons are
         fan-triangulated as the server's file readers do, see hdeform.triangulate), sent as a
-        binary PLY of doubles: vertex ids and frame rows are V's rows."""
+        binary PLY of doubles: vertex ids and frame rows are V's rows (unless a repair
+        renumbers them: Session.repair.base_to_input). repair: True (merge equal positions)
+        or a merge tolerance in [0, 0.01] of the bounding-box diagonal asks the server to
+        repair the mesh first (docs/api.md "Repair"); the report is Session.repair."""
+        header = pb.CreateSessionHeader(session_id=session_id)
+        r = _repair_proto(repair)  # checked before the mesh is even converted
+        if r is not None:
+            header.repair.CopyFrom(r)
         data = ply_bytes(V, F)
-        return self._create(pb.CreateSessionHeader(filename=filename, total_bytes=len(data),
-                                                   session_id=session_id), data, timeout)
+        header.filename, header.total_bytes = filename, len(data)
+        return self._create(header, data, timeout)
 
     def upload_meshio(self, mesh: Any, session_id: str = "", filename: str = "mesh.ply",
-                      timeout: Timeout = None) -> "Session":
+                      timeout: Timeout = None, repair: RepairLike = False) -> "Session":
         """A new session on a meshio.Mesh: upload(*hdeform.from_meshio(mesh)) (its triangle
         cells; quads and polygons fan-triangulated; points and frame rows in mesh.points'
-        order)."""
+        order). repair: as upload()."""
+        _repair_proto(repair)
         from ._interop import from_meshio
         V, F = from_meshio(mesh)
-        return self.upload(V, F, session_id=session_id, filename=filename, timeout=timeout)
+        return self.upload(V, F, session_id=session_id, filename=filename, timeout=timeout,
+                           repair=repair)
 
     def upload_file(self, path: PathLike, session_id: str = "",
-                    timeout: Timeout = None) -> "Session":
-        """A new session on a mesh file (.obj .off .ply .stl .glb, or a self-contained .gltf)."""
+                    timeout: Timeout = None, repair: RepairLike = False) -> "Session":
+        """A new session on a mesh file (.obj .off .ply .stl .glb, or a self-contained .gltf).
+        repair: as upload()."""
+        header = pb.CreateSessionHeader(session_id=session_id)
+        r = _repair_proto(repair)
+        if r is not None:
+            header.repair.CopyFrom(r)
         with open(os.fspath(path), "rb") as f:
             data = f.read()
-        return self._create(pb.CreateSessionHeader(filename=os.path.basename(os.fspath(path)),
-                                                   total_bytes=len(data),
-                                                   session_id=session_id), data, timeout)
+        header.filename = os.path.basename(os.fspath(path))
+        header.total_bytes = len(data)
+        return self._create(header, data, timeout)
 
     def session(self, name: str, token: Optional[str] = None,
                 timeout: Timeout = None) -> "Session":
@@ -455,6 +499,7 @@ class Session:
         self._kept = False
         self._sequence = itertools.count(1)
         self._triangles: Optional[Int64Array] = None
+        self._repair: Optional[RepairReport] = None
 
     def _call(self, method: str, request: Any,
               timeout: Union[Timeout, _Deadline] = None) -> Any:
@@ -488,6 +533,13 @@ class Session:
         """Re-read the session's state (self.info) from the server."""
         self.info = self._call("GetSession", pb.GetSessionRequest(name=self.name), timeout)
         return self
+
+    @property
+    def repair(self) -> Optional[RepairReport]:
+        """What the server's repair changed (an hdeform.RepairReport) when this client
+        uploaded the mesh with repair=…; None otherwise (no repair asked, or a session
+        attached with Client.session())."""
+        return self._repair
 
     @property
     def vertex_count(self) -> int:
@@ -579,7 +631,10 @@ class Session:
     def save(self, path: PathLike, rest: bool = False, compression: Optional[str] = None,
              timeout: Timeout = None) -> None:
         """Write the current (or rest) mesh; the extension picks the format (.glb .obj .off
-        .ply .stl). compression: as mesh_bytes (a .glb only)."""
+        .ply .stl). compression: as mesh_bytes (a .glb only). OBJ, OFF and PLY are the
+        server's own files (GetMesh), byte for byte: an upload's quads and other polygons come
+        back as the same faces, with the vertices in engine order (exact doubles); STL is
+        written here, as triangles."""
         ext = os.path.splitext(os.fspath(path))[1].lower().lstrip(".")
         if ext not in _SAVE_FORMATS:
             raise ValueError(f"path: the extension picks the format, one of "

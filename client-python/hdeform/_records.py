@@ -1,8 +1,11 @@
 """What the server answers, as frozen dataclasses (never raw protobuf): β, history steps,
-timeline keys, timelines, named snapshots and rigs."""
+timeline keys, timelines, named snapshots, rigs and upload repairs."""
 import os
 from dataclasses import dataclass, field
 from typing import Any, List, Optional, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
 
 from ._proto import pb
 from ._transforms import Transform
@@ -189,3 +192,53 @@ class RigExport:
             lines.append(",".join(["current" if p.current else "key", time_s,
                                    _shortest(p.max), _shortest(p.rms)]))
         return csv_text(lines, path)
+
+
+@dataclass(frozen=True)
+class RepairReport:
+    """What the server's repair of an upload changed (hdeform.v1.MeshRepairReport; docs/api.md
+    "Repair"): merged_vertices (merged into a coincident vertex), degenerate_triangles and
+    duplicate_triangles (dropped), unreferenced_vertices (dropped: no triangle uses them),
+    split_vertices (bowtie vertices split) and added_vertices (the copies the splits added);
+    lines: one readable line per kind of change, with the first ids; base_to_input: for each
+    frame (base-GLB) vertex the upload's vertex id (read-only int64 array) when the repair
+    renumbered the vertices (a split or a dropped vertex), else None (the upload's ids)."""
+    merged_vertices: int = 0
+    degenerate_triangles: int = 0
+    duplicate_triangles: int = 0
+    unreferenced_vertices: int = 0
+    split_vertices: int = 0
+    added_vertices: int = 0
+    lines: Tuple[str, ...] = ()
+    base_to_input: Optional[npt.NDArray[np.int64]] = field(default=None, compare=False)
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, RepairReport):
+            return NotImplemented
+        a, b = self.base_to_input, other.base_to_input
+        return (self._counts() == other._counts() and
+                ((a is None and b is None) or
+                 (a is not None and b is not None and np.array_equal(a, b))))
+
+    def _counts(self) -> Tuple[Any, ...]:
+        return (self.merged_vertices, self.degenerate_triangles, self.duplicate_triangles,
+                self.unreferenced_vertices, self.split_vertices, self.added_vertices,
+                self.lines)
+
+    @property
+    def changed(self) -> bool:
+        """Whether the repair changed anything (False: the mesh needed none)."""
+        return any(self._counts()[:6])
+
+    @classmethod
+    def from_proto(cls, r: Any) -> "RepairReport":
+        ids: Optional[npt.NDArray[np.int64]] = None
+        if len(r.base_to_input):
+            ids = np.asarray(r.base_to_input, dtype=np.int64)
+            ids.setflags(write=False)
+        return cls(merged_vertices=int(r.merged_vertices),
+                   degenerate_triangles=int(r.degenerate_triangles),
+                   duplicate_triangles=int(r.duplicate_triangles),
+                   unreferenced_vertices=int(r.unreferenced_vertices),
+                   split_vertices=int(r.split_vertices), added_vertices=int(r.added_vertices),
+                   lines=tuple(str(line) for line in r.lines), base_to_input=ids)
