@@ -185,6 +185,12 @@ std::shared_ptr<Session> DeformService::session_for(const grpc::ServerContextBas
     }
     fail(grpc::StatusCode::NOT_FOUND, "no session '" + name + "'");
   }
+  return authorized(ctx, std::move(session), needed, op);
+}
+
+std::shared_ptr<Session> DeformService::authorized(const grpc::ServerContextBase& ctx,
+                                                   std::shared_ptr<Session> session,
+                                                   Access needed, const char* op) {
   authorize(ctx, *session, needed, op);
   return session;
 }
@@ -235,10 +241,11 @@ grpc::ServerUnaryReactor* DeformService::finish_on_session(grpc::CallbackServerC
   // Looks the session up, admits the call and posts it to the strand; here when the lookup
   // does no work, else from the pool (a restore parses and factorizes).
   auto enter = [this, reactor, ctx, op, name, needed, fn = std::move(fn),
-                admit = std::move(admit)]() mutable {
+                admit = std::move(admit)](std::shared_ptr<Session> found) mutable {
     const auto status = guarded(
         [&] {
-          auto session = session_for(*ctx, name, needed, op);
+          auto session = found ? authorized(*ctx, std::move(found), needed, op)
+                               : session_for(*ctx, name, needed, op);
           auto task = [reactor, op, session, fn = std::move(fn)] {
             reactor->Finish(guarded(
                 [&] {
@@ -259,8 +266,9 @@ grpc::ServerUnaryReactor* DeformService::finish_on_session(grpc::CallbackServerC
         op);
     if (!status.ok()) reactor->Finish(status);
   };
-  if (store_.resident(name)) {
-    enter();
+  bool resident = false;
+  if (auto found = store_.find_resident(name, &resident); found || resident) {
+    enter(std::move(found));
     return reactor;
   }
   const auto admitted = guarded([this] { admit_to_pool(); }, op);
@@ -268,7 +276,7 @@ grpc::ServerUnaryReactor* DeformService::finish_on_session(grpc::CallbackServerC
     reactor->Finish(admitted);
     return reactor;
   }
-  pool_->submit(std::move(enter));
+  pool_->submit([enter = std::move(enter)]() mutable { enter(nullptr); });
   return reactor;
 }
 

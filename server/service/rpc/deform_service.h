@@ -150,6 +150,10 @@ class DeformService final : public v1::Deformation::CallbackService {
   // The named session (restored from durable state if needed), authorized for `needed`.
   std::shared_ptr<Session> session_for(const grpc::ServerContextBase& ctx,
                                        const std::string& name, Access needed, const char* op);
+  // `session` once the call's tokens allow `needed` (else throws as session_for).
+  std::shared_ptr<Session> authorized(const grpc::ServerContextBase& ctx,
+                                      std::shared_ptr<Session> session, Access needed,
+                                      const char* op);
 
   // Blocking helpers used by the reactors (run on the pool).
   std::shared_ptr<const MeshRef> load_library_mesh(const std::string& name);

@@ -150,6 +150,13 @@ std::shared_ptr<Session> SessionStore::find(const std::string& name) const {
 }
 
 bool SessionStore::resident(const std::string& name) const {
+  bool resident = false;
+  find_resident(name, &resident);
+  return resident;
+}
+
+std::shared_ptr<Session> SessionStore::find_resident(const std::string& name,
+                                                     bool* resident) const {
   const std::string id = id_of(name);
   std::shared_ptr<Session> s;
   {
@@ -157,9 +164,18 @@ bool SessionStore::resident(const std::string& name) const {
     auto it = sessions_.find(id);
     if (it != sessions_.end()) s = it->second;
   }
-  if (!s) return !durable() || id.empty() || id.size() > 64;
-  if (persistence_.revalidate.count() == 0) return true;
-  return unix_ms_now() - s->persisted().checked_ms.load() < persistence_.revalidate.count();
+  if (!s) {
+    if (resident) *resident = !durable() || id.empty() || id.size() > 64;
+    return nullptr;
+  }
+  if (persistence_.revalidate.count() > 0 &&
+      unix_ms_now() - s->persisted().checked_ms.load() >= persistence_.revalidate.count()) {
+    if (resident) *resident = false;  // find() compares it with the store first
+    return nullptr;
+  }
+  if (resident) *resident = true;
+  s->touch();
+  return s;
 }
 
 bool SessionStore::still_current(Session& s) const {

@@ -78,6 +78,10 @@ class SessionStore {
   // lookup to the worker pool (a restore parses and factorizes; a revalidation reads the
   // store). Unknown names are "resident" only without durable state (nothing to read).
   bool resident(const std::string& name) const;
+  // The session when find() would return it without work (in memory, no revalidation due);
+  // else null, and *resident (optional) says whether find() would do no work anyway (an id
+  // that cannot be stored). One map lookup where resident() + find() would take two.
+  std::shared_ptr<Session> find_resident(const std::string& name, bool* resident = nullptr) const;
   // Restores that ran on a thread outside the worker pool (should stay 0; each is logged).
   std::size_t restores_off_pool() const { return restores_off_pool_.load(); }
   std::shared_ptr<Session> get(const std::string& name) const;  // NOT_FOUND
