@@ -360,10 +360,11 @@ SessionClient SessionClient::create(Connection& conn, const std::string& mesh,
   if (!bytes.empty()) activity.set("CreateSession: the server reads " + header->filename());
   grpc::Status status = writer->Finish();
   if (!status.ok()) {
-    // The defects repair_mesh fixes (a duplicated triangle shows as a non-manifold edge).
+    // The refusals for defects repair_mesh fixes.
     const std::string& m = status.error_message();
     if (!repair && !bytes.empty() && status.error_code() == grpc::StatusCode::INVALID_ARGUMENT &&
-        (m.rfind("zero-area triangles", 0) == 0 || m.rfind("non-manifold", 0) == 0))
+        (m.rfind("zero-area triangles", 0) == 0 || m.rfind("duplicate triangles", 0) == 0 ||
+         m.rfind("non-manifold", 0) == 0))
       status = grpc::Status(status.error_code(), m + " (--repair may fix it)");
     throw RpcError("CreateSession", status);
   }

@@ -133,6 +133,19 @@ TEST(Validate, NonManifoldEdgeWithThreeTriangles) {
   EXPECT_CONTAINS(e, "vertices 0–1, triangles 0, 1, 2");
 }
 
+TEST(Validate, DuplicateTrianglesAreNamedAsSuch) {
+  // A face written twice, in either orientation, is not reported as an edge problem.
+  for (const bool flipped : {false, true}) {
+    TriMesh m = tetra();
+    m.F.conservativeResize(5, 3);
+    m.F.row(4) = m.F.row(1);
+    if (flipped) m.F.row(4) << m.F(1, 0), m.F(1, 2), m.F(1, 1);
+    const std::string e = error_of(m);
+    EXPECT_CONTAINS(e, "duplicate triangles: 1 triangle has the same three vertices as an earlier one");
+    EXPECT_CONTAINS(e, "triangle 4 repeats triangle 1");
+  }
+}
+
 TEST(Validate, InconsistentOrientation) {
   // Flip one face of the tetrahedron: its 3 edges are each used twice in the same direction.
   TriMesh m = tetra();

@@ -11,6 +11,7 @@
 #include <Eigen/Geometry>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <numeric>
@@ -181,6 +182,28 @@ ValidationResult validate_mesh(const TriMesh& mesh) {
       }
       g = ge;
     }
+  }
+  // A face written twice shows as a non-manifold or misoriented edge: name it for what it is
+  // (only then is the sort paid for).
+  if (too_many > 0 || misoriented > 0) {
+    std::vector<std::pair<std::array<int, 3>, int>> keyed(static_cast<size_t>(m));
+    for (int t = 0; t < m; ++t) {
+      std::array<int, 3> key{F(t, 0), F(t, 1), F(t, 2)};
+      std::sort(key.begin(), key.end());
+      keyed[static_cast<size_t>(t)] = {key, t};
+    }
+    std::sort(keyed.begin(), keyed.end());
+    size_t repeats = 0;
+    std::string first_repeat;
+    for (size_t i = 1; i < keyed.size(); ++i)
+      if (keyed[i].first == keyed[i - 1].first && repeats++ == 0)
+        first_repeat = "triangle " + std::to_string(keyed[i].second) + " repeats triangle " +
+                       std::to_string(keyed[i - 1].second);
+    if (repeats > 0)
+      throw InvalidInput("duplicate triangles: " +
+                         count_of(repeats, "triangle has", "triangles have") +
+                         " the same three vertices as an earlier one (first: " + first_repeat +
+                         ")");
   }
   if (too_many > 0)
     throw InvalidInput("non-manifold edge: " + count_of(too_many, "edge has", "edges have") +
