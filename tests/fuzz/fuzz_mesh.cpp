@@ -5,8 +5,10 @@
 // consistent: every index in range, the input layout as long as its map. The input's size
 // picks the limits, so the limit and cancellation paths are fuzzed too: size % 4 == 1 →
 // at most 40 vertices and 60 triangles; == 2 → cancelled at the second poll (ReadCancelled
-// is then allowed); otherwise unlimited.
+// is then allowed); == 3 → the upload's opt-in repair runs on what was read (its tolerance
+// from the first byte), which must keep the same invariants and be idempotent.
 #include "engine/io/mesh_io.h"
+#include "engine/io/repair_loaded.h"
 
 #include <cstddef>
 #include <cstdint>
@@ -27,7 +29,14 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     limits.should_cancel = [&polls] { return ++polls >= 2; };
   }
   try {
-    const hdeform::LoadedMesh m = hdeform::read_mesh_bytes(bytes, HDEFORM_FUZZ_FILENAME, limits);
+    hdeform::LoadedMesh m = hdeform::read_mesh_bytes(bytes, HDEFORM_FUZZ_FILENAME, limits);
+    if (size % 4 == 3) {
+      const double tolerance = (data[0] % 3) * 1e-3;
+      hdeform::repair_loaded_mesh(m, {tolerance});
+      if (hdeform::repair_mesh(m.mesh, {tolerance}).report.changed()) __builtin_trap();
+      for (const int v : m.repair_to_input)
+        if (v < 0) __builtin_trap();
+    }
     if (limits.max_vertices > 0 && static_cast<std::size_t>(m.input_to_engine.size()) > limits.max_vertices)
       __builtin_trap();
     if (limits.max_triangles > 0 && static_cast<std::size_t>(m.input_triangles.rows()) > limits.max_triangles)
