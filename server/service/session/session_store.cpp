@@ -595,11 +595,12 @@ void SessionStore::moved(Session& s) const {
 void SessionStore::gate(Session& session) const {
   if (!durable()) return;
   session.set_store_gate([this](Session& s, const Session::PendingPose* pose) {
+    // A drag's moves are coalesced (flush_period) unless every move must be durable, or it
+    // changes β (an accepted change like SetBeta). Decided before the lock: a flusher's
+    // write holds it, and a coalesced move must not wait for that.
+    if (pose && !persistence_.save_every_move && !pose->beta_changed) return std::unique_lock<std::mutex>{};
     auto& p = s.persisted();
     std::unique_lock lock(p.mutex);
-    // A drag's moves are coalesced (flush_period) unless every move must be durable, or it
-    // changes β (an accepted change like SetBeta).
-    if (pose && !persistence_.save_every_move && !pose->beta_changed) return std::unique_lock<std::mutex>{};
     try {
       save_locked(s, p, pose);
     } catch (const StateError& e) {
