@@ -22,6 +22,16 @@ inline bool same_bits(const Eigen::MatrixXd& a, const Eigen::MatrixXd& b) {
          std::memcmp(a.data(), b.data(), sizeof(double) * a.size()) == 0;
 }
 
+// Closed, consistently oriented (outward) tetrahedron.
+inline TriMesh tetra() {
+  TriMesh m;
+  m.V.resize(4, 3);
+  m.V << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1;
+  m.F.resize(4, 3);
+  m.F << 0, 2, 1, 0, 1, 3, 1, 2, 3, 0, 3, 2;
+  return m;
+}
+
 inline std::string slurp(const std::string& path) {
   std::ifstream f(path);
   std::stringstream s;

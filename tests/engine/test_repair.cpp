@@ -25,15 +25,7 @@ namespace {
 using test::data_path;
 using test::same_bits;
 
-// Closed, consistently oriented (outward) tetrahedron.
-TriMesh tetra() {
-  TriMesh m;
-  m.V.resize(4, 3);
-  m.V << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1;
-  m.F.resize(4, 3);
-  m.F << 0, 2, 1, 0, 1, 3, 1, 2, 3, 0, 3, 2;
-  return m;
-}
+using test::tetra;
 
 int add_vertex(TriMesh& m, double x, double y, double z) {
   m.V.conservativeResize(m.V.rows() + 1, 3);

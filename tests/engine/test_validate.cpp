@@ -1,5 +1,6 @@
 // Mesh validation: one test per error class, each on a small hand-made bad mesh.
 #include "engine/mesh/validate.h"
+#include "fixtures.h"
 
 #include <gtest/gtest.h>
 
@@ -11,15 +12,7 @@
 namespace hdeform {
 namespace {
 
-// Closed, consistently oriented (outward) tetrahedron.
-TriMesh tetra() {
-  TriMesh m;
-  m.V.resize(4, 3);
-  m.V << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1;
-  m.F.resize(4, 3);
-  m.F << 0, 2, 1, 0, 1, 3, 1, 2, 3, 0, 3, 2;
-  return m;
-}
+using test::tetra;
 
 void add_vertex(TriMesh& m, double x, double y, double z) {
   m.V.conservativeResize(m.V.rows() + 1, 3);

@@ -8,6 +8,8 @@
 
 #include "engine/mesh/repair.h"
 
+#include "engine/mesh/union_find.h"
+
 #include "engine/mesh/validate.h"
 
 #include <Eigen/Geometry>
@@ -141,27 +143,6 @@ std::vector<int> merge_within(const Vertices& V, double eps, const Eigen::RowVec
   }
   return rep;
 }
-
-// Union-find over corners: union by size, path halving (iterative, no recursion).
-struct UnionFind {
-  std::vector<int> parent, size;
-  explicit UnionFind(size_t n) : parent(n), size(n, 1) { std::iota(parent.begin(), parent.end(), 0); }
-  int find(int x) {
-    while (parent[static_cast<size_t>(x)] != x) {
-      parent[static_cast<size_t>(x)] = parent[static_cast<size_t>(parent[static_cast<size_t>(x)])];
-      x = parent[static_cast<size_t>(x)];
-    }
-    return x;
-  }
-  void unite(int a, int b) {
-    a = find(a);
-    b = find(b);
-    if (a == b) return;
-    if (size[static_cast<size_t>(a)] < size[static_cast<size_t>(b)]) std::swap(a, b);
-    parent[static_cast<size_t>(b)] = a;
-    size[static_cast<size_t>(a)] += size[static_cast<size_t>(b)];
-  }
-};
 
 // Calls fn(group) for each edge of the triangles `ids` (3 per triangle, vertex ids < n) with
 // the halfedges on it (h = 3t + k runs from ids[h] to ids[3t + (k + 1) % 3]), in O(n + size):

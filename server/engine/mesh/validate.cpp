@@ -8,6 +8,8 @@
 
 #include "engine/mesh/validate.h"
 
+#include "engine/mesh/union_find.h"
+
 #include <Eigen/Geometry>
 
 #include <algorithm>
@@ -37,23 +39,6 @@ std::string join(const std::vector<T>& ids, size_t total) {
   if (total > ids.size()) s += ", …";
   return s;
 }
-
-struct UnionFind {
-  std::vector<int> parent;
-  explicit UnionFind(size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
-  int find(int x) {
-    while (parent[static_cast<size_t>(x)] != x) {
-      parent[static_cast<size_t>(x)] = parent[static_cast<size_t>(parent[static_cast<size_t>(x)])];
-      x = parent[static_cast<size_t>(x)];
-    }
-    return x;
-  }
-  void unite(int a, int b) {
-    a = find(a);
-    b = find(b);
-    if (a != b) parent[static_cast<size_t>(std::max(a, b))] = std::min(a, b);
-  }
-};
 
 }  // namespace
 
