@@ -364,7 +364,7 @@ SessionClient SessionClient::create(Connection& conn, const std::string& mesh,
     const std::string& m = status.error_message();
     if (!repair && !bytes.empty() && status.error_code() == grpc::StatusCode::INVALID_ARGUMENT &&
         (m.rfind("zero-area triangles", 0) == 0 || m.rfind("duplicate triangles", 0) == 0 ||
-         m.rfind("non-manifold", 0) == 0))
+         m.rfind("non-manifold vertex", 0) == 0))
       status = grpc::Status(status.error_code(), m + " (--repair may fix it)");
     throw RpcError("CreateSession", status);
   }

@@ -139,8 +139,8 @@ LocalBeta = Dict[str, Any]  # {"region": …, "beta": b, "falloff_radius": r}
 RepairLike = Union[bool, float]  # upload(repair=…): True (merge tolerance 0) or the tolerance
 _MAX_MERGE_TOLERANCE = 0.01  # of the bounding-box diagonal (docs/api.md "Repair")
 # Refusals of an upload that the server's repair may fix (as the CLI's `--repair` hint);
-# inconsistent orientation is not repaired.
-_REPAIRABLE = ("zero-area triangles", "duplicate triangles", "non-manifold")
+# non-manifold edges and inconsistent orientation are not repaired.
+_REPAIRABLE = ("zero-area triangles", "duplicate triangles", "non-manifold vertex")
 _REPAIR_HINT = " (upload with repair=True may fix it)"
 
 

@@ -44,6 +44,7 @@ import { historyChecks } from "./history_checks.mjs";
 import { weightsChecks } from "./weights_checks.mjs";
 import { timelineChecks } from "./timeline_checks.mjs";
 import { finishedEditorChecks } from "./finished_editor_checks.mjs";
+import { repairChecks } from "./repair_checks.mjs";
 import { perfChecks, rigExportChecks, selectionChecks } from "./rig_perf_selection_checks.mjs";
 
 /**
@@ -326,10 +327,11 @@ try {
   const helpers = { context, base, log, check, sleep, shot, watchPage, waitLoaded, waitIdle, positions, maxDiff, artifacts, requireViewer: require };
   // `--only history` runs just the history checks (history_checks.mjs), `--only weights` just
   // the weight preview's (weights_checks.mjs), `--only timeline` the timeline strip's
-  // (timeline_checks.mjs), `--only finished` issue 37's (finished_editor_checks.mjs); `--only rig`,
-  // `--only perf`, `--only selection` one group of rig_perf_selection_checks.mjs.
+  // (timeline_checks.mjs), `--only finished` issue 37's (finished_editor_checks.mjs), `--only repair`
+  // repair on upload (repair_checks.mjs); `--only rig`, `--only perf`, `--only selection` one
+  // group of rig_perf_selection_checks.mjs.
   const only = args.only;
-  const groups = ["editor", "history", "weights", "timeline", "finished", "rig", "perf", "selection"];
+  const groups = ["editor", "history", "weights", "timeline", "finished", "repair", "rig", "perf", "selection"];
   if (only !== undefined && !groups.includes(only)) throw new Error(`--only ${only}: one of ${groups.join(", ")}`);
   if (only === undefined || only === "editor") {
     await editorChecks(helpers);
@@ -348,6 +350,7 @@ try {
       prodServer.proc.kill("SIGTERM");
     }
   }
+  if (only === undefined || only === "editor" || only === "repair") await repairChecks(helpers);
   if (only === undefined || only === "editor" || only === "rig") await rigExportChecks(helpers);
   if (only === undefined || only === "editor" || only === "selection") await selectionChecks(helpers);
   if (only === undefined || only === "editor" || only === "perf") await perfChecks(helpers);

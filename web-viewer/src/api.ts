@@ -113,13 +113,21 @@ export async function fetchMesh(
   return out;
 }
 
+/** An upload the server answered with an error: its HTTP status, grpc-status and message. */
+export class UploadRejected extends Error {
+  constructor(readonly httpStatus: number, readonly grpcStatus: number | null, readonly reason: string) {
+    super(`Upload rejected (HTTP ${httpStatus}): ${reason}`);
+  }
+}
+
 /**
  * CreateSession is client-streaming, which browsers cannot do over gRPC-Web; the gateway's
  * POST /upload turns the raw request body into that call. XMLHttpRequest gives upload
- * progress (fetch does not).
+ * progress (fetch does not). `repair`: repair the file first, merging vertices this close
+ * (docs/api.md "Repair"; the answer's Session.repair says what changed).
  */
 export function createSessionViaUpload(
-  query: { filename: string; body: Blob } | { library: string },
+  query: { filename: string; body: Blob; repair?: number } | { library: string },
   onProgress?: (loaded: number, total: number) => void,
 ): Promise<Session> {
   return new Promise((resolve, reject) => {
@@ -128,7 +136,8 @@ export function createSessionViaUpload(
     const q =
       ("library" in query
         ? `library=${encodeURIComponent(query.library)}`
-        : `filename=${encodeURIComponent(query.filename)}`) + `&session_id=${id}`;
+        : `filename=${encodeURIComponent(query.filename)}` + (query.repair === undefined ? "" : `&repair=${query.repair}`)) +
+      `&session_id=${id}`;
     xhr.open("POST", `upload?${q}`);
     xhr.setRequestHeader("x-session-id", id);
     // The new session needs no token; sending the page's current one is harmless and keeps
@@ -148,7 +157,8 @@ export function createSessionViaUpload(
         }
       } else {
         const text = new TextDecoder().decode(xhr.response as ArrayBuffer).trim();
-        reject(new Error(`Upload rejected (HTTP ${xhr.status}): ${text || xhr.statusText}`));
+        const grpc = xhr.getResponseHeader("grpc-status");
+        reject(new UploadRejected(xhr.status, grpc === null ? null : Number(grpc), text || xhr.statusText));
       }
     };
     xhr.onerror = () => reject(new Error("Upload failed: lost connection to the server"));

@@ -1,5 +1,6 @@
 // Errors (and amber notices): one banner over the top of the canvas, never a blank canvas. A
 // kind ("rejected", "lost", …) lets the success of the same kind of call clear only its own error.
+// An error may offer one action (a button after the message, e.g. "Repair and open").
 import { describeError, isAbort } from "../api";
 import { $ } from "../dom";
 
@@ -7,8 +8,15 @@ export class Banner {
   private kind = "";
   private message = "";
 
+  private action: (() => void) | null = null;
+
   constructor() {
     $("banner-close").addEventListener("click", () => this.clear());
+    $("banner-action").addEventListener("click", () => {
+      const run = this.action;
+      this.clear();
+      run?.();
+    });
     window.addEventListener("unhandledrejection", (e) => {
       if (!isAbort(e.reason)) this.show(describeError(e.reason));
     });
@@ -19,8 +27,14 @@ export class Banner {
     return $("banner").classList.contains("hidden") ? "" : this.message;
   }
 
-  show(message: string, kind = "error"): void {
+  /** An error; `action`: a button that clears the banner and runs `run`. */
+  show(message: string, kind = "error", action?: { label: string; run: () => void }): void {
     this.put(message, kind, false);
+    if (action) {
+      this.action = action.run;
+      $("banner-action").textContent = action.label;
+      $("banner-action").classList.remove("hidden");
+    }
     console.warn(`[hdeform] ${message}`);
   }
 
@@ -32,6 +46,8 @@ export class Banner {
   private put(message: string, kind: string, notice: boolean): void {
     this.message = message;
     this.kind = kind;
+    this.action = null;
+    $("banner-action").classList.add("hidden");
     $("banner-text").textContent = message;
     $("banner").classList.toggle("notice", notice);
     $("banner").classList.remove("hidden");
@@ -42,6 +58,7 @@ export class Banner {
     if (kind && kind !== this.kind) return;
     $("banner").classList.add("hidden");
     this.kind = "";
+    this.action = null;
   }
 }
 

@@ -1,6 +1,7 @@
 // Downloads (GLB / OBJ of the deformed mesh, snapshots as JSON or binary) and Import….
 import { fromBinary, fromJsonString, toBinary, toJsonString } from "@bufbuild/protobuf";
 import { describeError, fetchMesh, newSessionId, setRoutingSession } from "../api";
+import { repairNotice } from "../mesh_repair";
 import type { App } from "../app";
 import { $ } from "../dom";
 import { MeshFormat, SnapshotSchema, type Session } from "../gen/hdeform/v1/deform_pb";
@@ -60,6 +61,7 @@ export function setupFilesPanel({ state, client, banner }: App, load: (s: Sessio
       const s = await client.importSession({ snapshot, sessionId: id });
       await load(s);
       banner.clear();
+      if (s.repair?.lines.length) banner.notice(repairNotice(s.repair.lines), "repaired"); // a repaired upload's snapshot
     } catch (err) {
       if (state.sessionName) setRoutingSession(state.sessionName); // still showing the previous session
       banner.show(`Import failed: ${describeError(err)}`);

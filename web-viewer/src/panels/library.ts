@@ -1,9 +1,11 @@
-// Opening meshes: the bundled library (ListMeshes, Open) and Upload… with its progress bar.
-import { createSessionViaUpload, describeError } from "../api";
+// Opening meshes: the bundled library (ListMeshes, Open) and Upload… with its progress bar. An
+// upload refused for a defect the server's repair fixes offers "Repair and open" (the same file).
+import { createSessionViaUpload, describeError, UploadRejected } from "../api";
 import type { App } from "../app";
 import { $ } from "../dom";
 import type { SessionLoader } from "../session_loader";
 import { bundledRegions, hasBundledRegions } from "../benchmark_regions";
+import { repairFixes, repairNotice } from "../mesh_repair";
 
 export function setupLibraryPanel({ state, client, banner }: App, loader: SessionLoader, applyConstraints: () => Promise<void>): void {
   // An old "x.obj: failed" goes when another mesh opens.
@@ -21,7 +23,8 @@ export function setupLibraryPanel({ state, client, banner }: App, loader: Sessio
       banner.show(`Cannot reach the server: ${describeError(err)}`, "lost");
     }
   };
-  const upload = async (file: File) => {
+  /** `repair`: the merge tolerance of a repair first (0: equal positions only). */
+  const upload = async (file: File, repair?: number) => {
     const progress = $<HTMLProgressElement>("upload-progress");
     const label = $("upload-label");
     progress.classList.remove("hidden");
@@ -29,7 +32,7 @@ export function setupLibraryPanel({ state, client, banner }: App, loader: Sessio
     label.textContent = file.name;
     label.title = file.name;
     try {
-      const s = await createSessionViaUpload({ filename: file.name, body: file }, (loaded, total) => {
+      const s = await createSessionViaUpload({ filename: file.name, body: file, repair }, (loaded, total) => {
         progress.value = total > 0 ? loaded / total : 0;
         label.textContent = `${file.name}: ${Math.round((100 * loaded) / (total || file.size || 1))}%`;
       });
@@ -37,9 +40,11 @@ export function setupLibraryPanel({ state, client, banner }: App, loader: Sessio
       await loader.load(s);
       label.textContent = ""; // the session label names the mesh now
       banner.clear();
+      if (s.repair?.lines.length) banner.notice(repairNotice(s.repair.lines), "repaired");
     } catch (err) {
       label.textContent = `${file.name}: failed`;
-      banner.show(describeError(err));
+      const fixable = repair === undefined && err instanceof UploadRejected && repairFixes(err.httpStatus, err.grpcStatus, err.reason);
+      banner.show(describeError(err), "error", fixable ? { label: "Repair and open", run: () => void upload(file, 0) } : undefined);
     } finally {
       progress.classList.add("hidden");
     }
