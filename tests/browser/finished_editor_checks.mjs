@@ -27,6 +27,7 @@
 //     view buttons do not overlap; at 900 the side panel is a drawer (screenshots layout-*.png).
 import { readdirSync, readFileSync } from "node:fs";
 import { join } from "node:path";
+import { slabs } from "./rig_perf_selection_checks.mjs";
 
 /** The text of every script vite emitted into `dist`. */
 function bundleText(dist) {
@@ -165,15 +166,7 @@ export async function finishedEditorChecks({ context, base, prodBase, prodDist, 
   check((await bannerText()) === "", "opening a mesh clears the open-a-mesh-first notice");
 
   // ---- β and threshold boxes show their values whole ----------------------------------------------
-  const [bmin, bmax] = await hook(() => window.hdeform.bbox());
-  const up = bmax[2] - bmin[2] >= bmax[1] - bmin[1] ? 2 : 1;
-  const h = bmax[up] - bmin[up];
-  const slab = (from, to) => {
-    const lo = bmin.map((v) => v - 1), hi = bmax.map((v) => v + 1);
-    lo[up] = bmin[up] + from * h;
-    hi[up] = bmin[up] + to * h;
-    return [lo, hi];
-  };
+  const { slab, up, h } = await slabs(page);
   // A new session: History is empty and says so (not the after-a-restart note).
   await page.waitForSelector("#history-list li.empty", { timeout: 10_000 }).catch(() => {});
   const emptyNew = ((await page.textContent("#history-list")) ?? "").trim();

@@ -45,7 +45,7 @@ async function openCactus(context, base, name, { watchPage, waitLoaded }) {
 }
 
 /** Model-space slabs along the model's up axis (the cactus is z-up). */
-async function slabs(page) {
+export async function slabs(page) {
   const [bmin, bmax] = await page.evaluate(() => window.hdeform.bbox());
   const up = bmax[2] - bmin[2] >= bmax[1] - bmin[1] ? 2 : 1;
   const h = bmax[up] - bmin[up];

@@ -92,11 +92,6 @@ Session::Session(std::string id, std::shared_ptr<const MeshRef> mesh, WorkerPool
   touch();
 }
 
-std::int64_t Session::next_version() const {
-  std::lock_guard lock(mutex_);
-  return version_ + 1;
-}
-
 void Session::touch() { last_used_ns_.store(steady_ns()); }
 
 std::chrono::steady_clock::time_point Session::last_used() const {
@@ -510,6 +505,7 @@ Session::Move Session::begin_move(const Update& u) {
     m.beta = beta_;
     m.key = cs_key_;
     m.transforms = transforms_;  // updates run on the strand: nothing moves them meanwhile
+    m.version = version_;
     if (u.sequenced && u.coalesce && u.sequence > 0) {
       const auto last = sequences_.last(u.client_id);
       if (last && u.sequence <= last->sequence) m.newer = last;
@@ -529,7 +525,7 @@ pb::Frame Session::supersede(const Update& u) {
   Move m = begin_move(u);
   std::unique_lock<std::mutex> stored;
   if (store_gate_ && !m.newer) {
-    const PendingPose pose{m.transforms, m.beta, next_version(), false};
+    const PendingPose pose{m.transforms, m.beta, m.version + 1, false};
     stored = store(&pose);
   }
   std::lock_guard lock(mutex_);
@@ -583,7 +579,7 @@ std::shared_ptr<pb::Frame> Session::update(const Update& given) {
   // Stored first where an answered move must be durable: a refusal leaves nothing applied.
   std::unique_lock<std::mutex> stored;
   if (store_gate_) {
-    const PendingPose pose{transforms, beta, next_version(), beta_changed};
+    const PendingPose pose{transforms, beta, m.version + 1, beta_changed};
     stored = store(&pose);
   }
   auto out = std::make_shared<pb::Frame>();

@@ -292,7 +292,6 @@ class Session : public std::enable_shared_from_this<Session> {
 
  private:
   void check_queue_locked(std::size_t limit) const;
-  std::int64_t next_version() const;  // the version the next committed change gets
   // Every open stream, taken out of the session (close, end_streams).
   struct OpenStreams {
     std::vector<std::shared_ptr<EventSink>> watchers;
@@ -308,6 +307,7 @@ class Session : public std::enable_shared_from_this<Session> {
     std::string key;
     std::vector<HandleTransform> transforms;
     std::vector<int> moved;  // the handles the update changes
+    std::int64_t version = 0;  // the session's when the move began (the strand keeps it)
     // Set when the update is stale: the client's newer update, already applied.
     std::optional<ClientSequences::Applied> newer;
   };
