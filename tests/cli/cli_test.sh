@@ -543,12 +543,13 @@ restart)
   # 2. kill -9 while a Sweep runs (64 β, each a factorization: seconds); the CLI retries it
   # once the server is back and prints every row.
   betas=$(seq -s, 0.01 0.01 0.64)
-  "$HDEFORM" --server "$ADDR" --token "$EDIT" --log-level info sweep --session "$SESSION" \
+  "$HDEFORM" --server "$ADDR" --token "$EDIT" --log-level debug sweep --session "$SESSION" \
     --betas "$betas" --csv - >"$TMP/sweep.csv" 2>"$TMP/sweep.err" &
   SWEEP_PID=$!
   # The kill must land mid-sweep: 64 transient factorizations of the cactus take ≈ 0.5 s on
-  # a quiet machine, the CLI's start ≈ 0.05 s.
-  sleep 0.15
+  # a quiet machine. Not before the CLI connected: a refused first connection fails at once
+  # by design (a loaded machine can take longer than a fixed pause to start the CLI).
+  wait_for "connected to " "$TMP/sweep.err"
   kill -0 "$SWEEP_PID" 2>/dev/null || { cat "$TMP/sweep.err" >&2; fail "the sweep ended before the kill (too fast for this test)"; }
   kill -9 "$SERVER_PID"; wait "$SERVER_PID" 2>/dev/null; SERVER_PID=""
   sleep 0.5

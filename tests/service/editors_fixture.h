@@ -50,6 +50,9 @@ struct TwoHandles {
     out.set_view_token(s.view_token());
     s = out;
   }
+  // The same session in another server (restarted on the same state).
+  TwoHandles(hdeform::service::ServerOptions options, pb::Session existing)
+      : t(std::move(options)), s(std::move(existing)) {}
   grpc::Status update(const std::string& client, std::vector<int> handles,
                       std::vector<pb::HandleTransform> ts, pb::Frame* out = nullptr,
                       bool coalesce = false, bool dragging = false) {

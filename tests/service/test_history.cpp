@@ -4,6 +4,8 @@
 #include "editors_fixture.h"
 #include "service/session/history.h"
 
+#include <sqlite3.h>
+
 #include <chrono>
 #include <filesystem>
 #include <thread>
@@ -335,6 +337,140 @@ TEST(Snapshots, AreDurableWithTheSession) {
     EXPECT_DOUBLE_EQ(list.snapshots(0).snapshot().transforms(1).translation().z(), 0.7);
   }
   fs::remove_all(dir);
+}
+
+// History survives a restart: the steps, their undone flags and the redo lists come back
+// with the session, and Undo / Redo work on them as before (timeline and snapshot steps too,
+// which compare their values by identity with the restored session's).
+TEST(History, SurvivesARestartAndUndoRedoWorkOnIt) {
+  TempDir dir;
+  hdeform::service::ServerOptions o;
+  o.state_dir = (dir.path / "state").string();
+  pb::Session session;
+  std::string before_restart;
+  auto set_beta = [](TwoHandles& e, double value) {
+    pb::SetBetaRequest r;
+    r.set_name(e.s.name());
+    r.set_client_id("alice");
+    r.mutable_beta()->set_value(value);
+    pb::Session out;
+    return e.t.bare_stub->SetBeta(as(e.s.edit_token()).get(), r, &out);
+  };
+  auto set_timeline = [](TwoHandles& e) {
+    pb::SetTimelineRequest r;
+    r.set_name(e.s.name());
+    r.set_client_id("alice");
+    for (int k = 0; k < 2; ++k) {
+      auto* key = r.mutable_timeline()->add_keys();
+      key->set_time_s(k);
+      for (int h = 0; h < 2; ++h) *key->add_transforms() = translation(0, 0, 0.2 * k);
+    }
+    pb::Timeline out;
+    return e.t.bare_stub->SetTimeline(as(e.s.edit_token()).get(), r, &out);
+  };
+  auto delete_snapshot = [](TwoHandles& e, const std::string& name) {
+    pb::DeleteSnapshotRequest d;
+    d.set_name(e.s.name());
+    d.set_snapshot(name);
+    d.set_client_id("alice");
+    pb::DeleteSnapshotResponse out;
+    return e.t.bare_stub->DeleteSnapshot(as(e.s.edit_token()).get(), d, &out);
+  };
+  {
+    TwoHandles e(o);
+    session = e.s;
+    Editor alice{e, "alice"};
+    alice.drag(1, 0.7);
+    ASSERT_TRUE(set_beta(e, 0.3).ok());
+    ASSERT_TRUE(set_timeline(e).ok());
+    ASSERT_TRUE(save(e, "A").ok());
+    ASSERT_TRUE(delete_snapshot(e, "A").ok());
+    ASSERT_TRUE(alice.undo().ok());  // the delete: "A" is back, and Redo may delete it again
+    before_restart = history(e, 500).SerializeAsString();
+    EXPECT_EQ(history(e).total(), 7);
+  }
+  TwoHandles e(o, session);  // a new server on the same state
+  Editor alice{e, "alice"};
+  EXPECT_EQ(history(e, 500).SerializeAsString(), before_restart);
+  auto snapshot_names = [&] {
+    pb::ListSnapshotsRequest r;
+    r.set_name(e.s.name());
+    pb::ListSnapshotsResponse out;
+    EXPECT_TRUE(e.t.bare_stub->ListSnapshots(as(e.s.view_token()).get(), r, &out).ok());
+    return out.snapshots_size();
+  };
+  auto keys = [&] {
+    pb::GetTimelineRequest r;
+    r.set_name(e.s.name());
+    pb::Timeline out;
+    EXPECT_TRUE(e.t.bare_stub->GetTimeline(as(e.s.view_token()).get(), r, &out).ok());
+    return out.keys_size();
+  };
+  ASSERT_EQ(snapshot_names(), 1);
+  auto st = alice.redo();  // the delete again
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_EQ(snapshot_names(), 0);
+  EXPECT_EQ(history(e).steps(0).id(), 8);  // ids go on where they were
+  ASSERT_TRUE(alice.undo().ok());  // the delete
+  EXPECT_EQ(snapshot_names(), 1);
+  st = alice.undo();  // the save
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_EQ(snapshot_names(), 0);
+  ASSERT_EQ(keys(), 2);
+  st = alice.undo();  // the timeline
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_EQ(keys(), 0);
+  pb::Session now;
+  st = alice.undo(&now);  // β
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_EQ(now.beta().value(), 0);
+  st = alice.undo(&now);  // the drag
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_EQ(now.transforms(1).translation().z(), 0);
+  st = alice.undo();  // the constraints: by another client id (the fixture's), not alice's
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+}
+
+// A session whose stored history is missing or unreadable opens with an empty one, and Undo
+// says why it finds nothing.
+TEST(History, AnUnreadableStoredHistoryIsSaidSo) {
+  TempDir dir;
+  hdeform::service::ServerOptions o;
+  o.state_dir = (dir.path / "state").string();
+  pb::Session session;
+  {
+    TwoHandles e(o);
+    session = e.s;
+    Editor alice{e, "alice"};
+    alice.drag(1, 0.5);
+  }
+  auto set_history = [&](const char* sql) {
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open((dir.path / "state" / "state.sqlite3").c_str(), &db), SQLITE_OK);
+    char* err = nullptr;
+    EXPECT_EQ(sqlite3_exec(db, sql, nullptr, nullptr, &err), SQLITE_OK) << (err ? err : "");
+    sqlite3_free(err);
+    sqlite3_close(db);
+  };
+  set_history("UPDATE sessions SET history = x'ffff01'");
+  {
+    TwoHandles e(o, session);
+    Editor alice{e, "alice"};
+    EXPECT_EQ(history(e).total(), 0);
+    const auto st = alice.undo();
+    EXPECT_EQ(st.error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+    EXPECT_NE(st.error_message().find("the stored history could not be read after a restart"),
+              std::string::npos)
+        << st.error_message();
+    alice.drag(0, 0.2);  // a new history starts
+  }
+  set_history("UPDATE sessions SET history = NULL");
+  TwoHandles e(o, session);
+  Editor alice{e, "alice"};
+  const auto st = alice.undo();
+  EXPECT_NE(st.error_message().find("restored from stored state that kept no history"),
+            std::string::npos)
+      << st.error_message();
 }
 
 TEST(History, AnUpdateThatChangesNothingIsNoStep) {

@@ -230,6 +230,32 @@ TEST_P(StateBackendTest, PutGetDeleteListRoundTrip) {
   EXPECT_EQ(state_->list_sessions(), std::vector<std::string>{"B_2"});
 }
 
+// A history lives beside its record: none without one, and it goes with the record.
+TEST_P(StateBackendTest, AHistoryIsKeptOnlyBesideItsRecord) {
+  EXPECT_FALSE(state_->put_history("h", "steps"));  // no record: nothing stored
+  EXPECT_EQ(state_->get_history("h"), std::nullopt);
+  ASSERT_TRUE(state_->create_session("h", "record"));
+  EXPECT_EQ(state_->get_history("h"), std::nullopt);  // a record without a history yet
+  const std::string binary = all_bytes();
+  EXPECT_TRUE(state_->put_history("h", binary));
+  EXPECT_EQ(state_->get_history("h"), binary);
+  state_->put_session("h", "record v2");  // a new record keeps the history
+  EXPECT_EQ(state_->get_history("h"), binary);
+  EXPECT_TRUE(state_->put_history("h", "newer"));
+  EXPECT_EQ(state_->get_history("h"), "newer");
+  state_->delete_session("h");
+  EXPECT_EQ(state_->get_history("h"), std::nullopt);
+  ASSERT_TRUE(state_->create_session("h", "another session, same id"));
+  EXPECT_EQ(state_->get_history("h"), std::nullopt);  // nothing of the deleted one
+  EXPECT_TRUE(state_->put_history("h", "its own"));
+  EXPECT_FALSE(state_->delete_session_if("h", "not this record"));
+  EXPECT_EQ(state_->get_history("h"), "its own");
+  EXPECT_TRUE(state_->delete_session_if("h", "another session, same id"));
+  EXPECT_EQ(state_->get_history("h"), std::nullopt);
+  EXPECT_THROW(state_->put_history("bad id!", "x"), StateError);
+  EXPECT_THROW(state_->get_history("bad id!"), StateError);
+}
+
 TEST_P(StateBackendTest, BinaryRecordsKeepNulBytes) {
   const std::string binary = all_bytes() + std::string("\0\0tail\0", 7);
   state_->put_session("bin", binary);
@@ -425,7 +451,7 @@ TEST(SqliteState, CreatesTheDocumentedLayout) {
   EXPECT_EQ(slurp(dir / "meshes" / (key + ".mesh")), "layout");
   const fs::path db = dir / "state.sqlite3";
   EXPECT_EQ(pragma(db, "PRAGMA application_id"), 0x6864666d);
-  EXPECT_EQ(pragma(db, "PRAGMA user_version"), 1);
+  EXPECT_EQ(pragma(db, "PRAGMA user_version"), 2);
   EXPECT_EQ(pragma_text(db, "PRAGMA journal_mode"), "wal");
   EXPECT_EQ(pragma(db, "SELECT count(*) FROM sqlite_schema WHERE name = 'sessions'"), 1);
   EXPECT_TRUE(fs::exists(dir / "lock"));
@@ -471,9 +497,31 @@ TEST(SqliteState, NewerSchemaIsRefusedAndUntouched) {
   TempDir tmp;
   const fs::path dir = tmp.path / "odd ?#% name";  // the check opens it through a URI
   open_sqlite_state(dir)->put_session("s", "r");  // closed: WAL checkpointed
-  make_sqlite_file(dir / "state.sqlite3", "PRAGMA user_version = 2;");
+  make_sqlite_file(dir / "state.sqlite3", "PRAGMA user_version = 3;");
   ASSERT_FALSE(fs::exists(dir / "state.sqlite3-wal"));
-  expect_refused_untouched(dir, "schema version 2 is newer");
+  expect_refused_untouched(dir, "schema version 3 is newer");
+}
+
+// A state folder of a server from before histories were stored (schema 1) keeps its
+// sessions and gains the history column.
+TEST(SqliteState, SchemaOneIsUpgradedKeepingItsSessions) {
+  TempDir tmp;
+  fs::create_directories(tmp.path);
+  fs::permissions(tmp.path, fs::perms::owner_all, fs::perm_options::replace);
+  make_sqlite_file(tmp.path / "state.sqlite3",
+                   "CREATE TABLE sessions(id TEXT PRIMARY KEY, record BLOB NOT NULL,"
+                   " updated_unix_ms INTEGER);"
+                   "INSERT INTO sessions VALUES('old', x'00726563', 1);"
+                   "PRAGMA application_id = 1751410285; PRAGMA user_version = 1;");
+  {
+    auto state = open_sqlite_state(tmp.path);
+    EXPECT_EQ(state->get_session("old"), std::string("\0rec", 4));
+    EXPECT_EQ(state->get_history("old"), std::nullopt);
+    EXPECT_TRUE(state->put_history("old", "steps"));
+  }
+  EXPECT_EQ(pragma(tmp.path / "state.sqlite3", "PRAGMA user_version"), 2);
+  auto state = open_sqlite_state(tmp.path);  // a second open needs no upgrade
+  EXPECT_EQ(state->get_history("old"), "steps");
 }
 
 TEST(SqliteState, SecondOpenOfALiveFolderThrows) {
@@ -779,11 +827,14 @@ TEST(RedisState, AfterRedisRestartsEmptyTheNextChangeRewritesRecordAndMesh) {
   hdeform::testing::TestServer a(o);
   pb::Session s;
   ASSERT_TRUE(a.upload(hdeform::testing::grid_off(12), "grid.off", &s).ok());
+  pb::Session out;
+  ASSERT_TRUE(a.set_beta(s.name(), 0.1, &out).ok());
+  std::this_thread::sleep_for(std::chrono::milliseconds(400));  // the flusher wrote its history
   redis.stop(SIGKILL);
   redis.start();  // no persistence: empty
-  pb::Session out;
   auto st = a.set_beta(s.name(), 0.2, &out);
   ASSERT_TRUE(st.ok()) << st.error_message();
+  std::this_thread::sleep_for(std::chrono::milliseconds(400));
   hdeform::testing::TestServer b(o);  // another replica restores it from Redis alone
   grpc::ClientContext ctx;
   pb::GetSessionRequest g;
@@ -792,4 +843,14 @@ TEST(RedisState, AfterRedisRestartsEmptyTheNextChangeRewritesRecordAndMesh) {
   ASSERT_TRUE(st.ok()) << st.error_message();
   EXPECT_DOUBLE_EQ(out.beta().value(), 0.2);
   EXPECT_EQ(out.vertex_count(), 144);
+  // The whole history too, the step from before Redis lost everything included.
+  grpc::ClientContext hctx;
+  pb::ListHistoryRequest h;
+  h.set_name(s.name());
+  pb::ListHistoryResponse steps;
+  st = b.stub->ListHistory(&hctx, h, &steps);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  ASSERT_EQ(steps.total(), 2);
+  EXPECT_EQ(steps.steps(1).kind(), pb::STEP_KIND_BETA);
+  EXPECT_EQ(steps.steps(0).kind(), pb::STEP_KIND_BETA);
 }

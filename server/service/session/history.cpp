@@ -80,6 +80,7 @@ const pb::HistoryStep& History::record(Step step) {
       last.after = std::move(step.after);
       last.info.set_version(step.info.version());
       last.info.set_time_unix_ms(step.info.time_unix_ms());
+      ++revision_;
       return last.info;
     }
   }
@@ -88,12 +89,27 @@ const pb::HistoryStep& History::record(Step step) {
     redo_.erase(step.info.client_id());
   bytes_ += kept_bytes(step);
   steps_.push_back(std::move(step));
+  enforce_limits();
+  ++revision_;
+  return steps_.back().info;
+}
+
+void History::enforce_limits() {
   while (steps_.size() > 1 &&
          (steps_.size() > limits_.max_steps || bytes_ > limits_.max_bytes)) {
     bytes_ -= kept_bytes(steps_.front());
     steps_.pop_front();
   }
-  return steps_.back().info;
+}
+
+void History::adopt(std::deque<Step> steps, std::int64_t next_id,
+                    std::map<std::string, std::vector<std::int64_t>> redo) {
+  clear();
+  steps_ = std::move(steps);
+  for (const auto& s : steps_) bytes_ += kept_bytes(s);
+  next_id_ = std::max(next_id, steps_.empty() ? 1 : steps_.back().info.id() + 1);
+  redo_ = std::move(redo);
+  enforce_limits();
 }
 
 void History::drag_moved(const std::string& client_id, const std::vector<int>& handles,
@@ -138,14 +154,18 @@ const Step& History::undo_target(const std::string& client_id, std::int64_t step
     if (it->info.client_id() == client_id && undoable_kind(it->info.kind()) && !it->info.undone())
       return *it;
   fail(grpc::StatusCode::FAILED_PRECONDITION,
-       "Undo: nothing to undo for client '" + client_id + "' (no change of its own in the history)");
+       "Undo: nothing to undo for client '" + client_id +
+           "' (no change of its own in the history" +
+           (why_empty_.empty() ? std::string() : "; " + why_empty_) + ")");
 }
 
-void History::clear() {
+void History::clear(std::string why) {
   steps_.clear();
   bytes_ = 0;
   redo_.clear();
   drags_.clear();
+  why_empty_ = std::move(why);
+  ++revision_;
 }
 
 const Step& History::redo_target(const std::string& client_id, std::int64_t step) const {
@@ -214,11 +234,13 @@ void History::check_unchanged(const Step& step, const EditState& current,
 }
 
 void History::mark_undone(std::int64_t target, const std::string& client_id) {
+  ++revision_;
   if (Step* s = find(target)) s->info.set_undone(true);
   redo_[client_id].push_back(target);
 }
 
 void History::mark_redone(std::int64_t target, const std::string& client_id) {
+  ++revision_;
   if (Step* s = find(target)) s->info.set_undone(false);
   auto& r = redo_[client_id];
   r.erase(std::remove(r.begin(), r.end(), target), r.end());

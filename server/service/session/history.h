@@ -86,7 +86,9 @@ class History {
   // The step Redo re-applies: `step` if non-zero (it must be undone), else `client_id`'s
   // latest undone step not redone since (and no new change of its own after it).
   const Step& redo_target(const std::string& client_id, std::int64_t step) const;
-  void clear();  // a restored session starts a new history
+  // Forgets every step; `why` (may be empty) is what Undo says when it finds nothing,
+  // e.g. that the stored history could not be read after a restart.
+  void clear(std::string why = {});
   // ABORTED unless `current` still has `expect`'s values for what `step` changed (nothing
   // later touched them). `what` is "undo" or "redo".
   void check_unchanged(const Step& step, const EditState& current, const EditState& expect,
@@ -100,13 +102,25 @@ class History {
   std::int64_t size() const { return static_cast<std::int64_t>(steps_.size()); }
   std::int64_t next_id() const { return next_id_; }
 
+  // Bumped by every change of the steps (record, undo/redo marks, clear, adopt): the store
+  // writes the history again when it differs from what it wrote (history_record.h).
+  std::uint64_t revision() const { return revision_; }
+  const std::deque<Step>& steps() const { return steps_; }
+  const std::map<std::string, std::vector<std::int64_t>>& redo_lists() const { return redo_; }
+  // Takes over a stored history (history_record.h), oldest first; the limits apply.
+  void adopt(std::deque<Step> steps, std::int64_t next_id,
+             std::map<std::string, std::vector<std::int64_t>> redo);
+
  private:
   const Step* find(std::int64_t id) const;
   Step* find(std::int64_t id);
   // The latest step after `after_id` that changed what `step` changed (for messages).
   const Step* later_change(const Step& step) const;
+  void enforce_limits();
 
   Limits limits_;
+  std::uint64_t revision_ = 0;
+  std::string why_empty_;  // appended to "nothing to undo" (clear's `why`)
   std::deque<Step> steps_;
   std::size_t bytes_ = 0;
   std::int64_t next_id_ = 1;

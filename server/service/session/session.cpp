@@ -1,5 +1,7 @@
 #include "service/session/session.h"
 
+#include "service/session/history_record.h"
+
 #include "service/session/handle_update.h"
 
 #include "engine/deform/auto_beta.h"
@@ -866,9 +868,39 @@ void Session::adopt(std::int64_t version, const SessionTokens& tokens, std::int6
   // Not stored: a client's config_version from before the restart is refused (it reloads).
   config_version_ = version;
   tokens_ = tokens;
-  history_.clear();  // not stored: the restored session starts a new history
+  history_.clear();  // adopt_history brings the stored one
   create_ms_ = create_ms;
   update_ms_ = update_ms;
+}
+
+void Session::adopt_history(const std::optional<std::string>& stored) {
+  std::lock_guard lock(mutex_);
+  if (!stored) {
+    history_.clear("the session was restored from stored state that kept no history");
+    return;
+  }
+  try {
+    hdeform::state::StoredHistory record;
+    if (!record.ParseFromString(*stored)) throw std::runtime_error("not a stored history");
+    HistoryContext context{edit_state_locked(), snapshots_,
+                           [this](const pb::Beta& b) { return parse_beta(b, true); }};
+    history_from_record(record, context, history_);
+  } catch (const std::exception& e) {
+    spdlog::warn("{}: its stored history cannot be read ({}); it starts a new one", name_, e.what());
+    history_.clear("the stored history could not be read after a restart: " +
+                   std::string(e.what()));
+  }
+}
+
+std::string Session::history_bytes(std::uint64_t* revision) const {
+  std::lock_guard lock(mutex_);
+  *revision = history_.revision();
+  return history_to_record(history_).SerializeAsString();
+}
+
+std::uint64_t Session::history_revision() const {
+  std::lock_guard lock(mutex_);
+  return history_.revision();
 }
 
 Access Session::grant(const std::vector<TokenHash>& token_hashes) const {

@@ -211,6 +211,12 @@ class Session : public std::enable_shared_from_this<Session> {
   // restore(). A fresh session only.
   void adopt(std::int64_t version, const SessionTokens& tokens, std::int64_t create_ms,
              std::int64_t update_ms);
+  // The stored history (history_record.h) after adopt(); nullopt: none was stored. One that
+  // cannot be read is logged and dropped, and Undo then says why it finds nothing.
+  void adopt_history(const std::optional<std::string>& stored);
+  // The history in its stored form and the revision it is of (History::revision()).
+  std::string history_bytes(std::uint64_t* revision) const;
+  std::uint64_t history_revision() const;
 
   // ---- non-blocking ----
   pb::Session describe() const;
@@ -240,6 +246,7 @@ class Session : public std::enable_shared_from_this<Session> {
     std::int64_t saved_ms = 0;          // when it was written (unix ms)
     std::atomic<bool> dirty{false};     // changed since (coalesced handle moves)
     std::string mesh_key;               // blob key of an uploaded mesh ("" for library)
+    std::uint64_t saved_history = 0;    // History::revision() last written (flusher only)
     std::uint64_t store_generation = 0;  // StateBackend::generation() at the last write
     std::atomic<std::int64_t> checked_ms{0};  // last compared with the store (revalidate)
   };

@@ -313,9 +313,18 @@ std::shared_ptr<Session> SessionStore::restore(const std::string& id) const {
   }
   s->adopt(record.version(), tokens_of(record), record.create_time_unix_ms(),
            record.update_time_unix_ms());
+  std::optional<std::string> history;
+  try {
+    history = persistence_.backend->get_history(id);
+  } catch (const StateError& e) {
+    // The session itself is whole: it opens with a new history, and Undo says why.
+    spdlog::warn("restoring sessions/{}: its history: {}", id, e.what());
+  }
+  s->adopt_history(history);
   {
     auto& p = s->persisted();
     std::lock_guard plock(p.mutex);
+    p.saved_history = s->history_revision();
     p.mesh_key = record.mesh_key();
     p.store_generation = persistence_.backend->generation();
     p.saved_version = record.version();
@@ -565,6 +574,7 @@ void SessionStore::save_locked(Session& s, Session::Persisted& p,
                    persistence_.backend->describe());
     }
     p.store_generation = g;
+    p.saved_history = s.history_revision() - 1;  // lost with the rest: the flusher rewrites it
   }
   p.saved_version = version;
   p.saved_ms = now;
@@ -626,14 +636,25 @@ void SessionStore::flush() {
     const bool refresh =
         now - p.saved_ms > persistence_.refresh_period.count() &&
         std::chrono::steady_clock::now() - s->last_used() < persistence_.refresh_period;
-    if (!p.dirty && !refresh) continue;
+    const bool history = s->history_revision() != p.saved_history;
+    if (!p.dirty && !refresh && !history) continue;
     try {
-      save_locked(*s, p);
+      if (p.dirty || refresh) save_locked(*s, p);
+      if (s->history_revision() != p.saved_history) save_history_locked(*s, p);
     } catch (const StateError& e) {
       p.dirty = true;
       spdlog::error("{}: saving its state: {}", s->name(), e.what());
     }
   }
+}
+
+void SessionStore::save_history_locked(Session& s, Session::Persisted& p) const {
+  if (p.saved_version == INT64_MAX) return;  // deleted: nothing of it is written again
+  std::uint64_t revision = 0;
+  const std::string bytes = s.history_bytes(&revision);
+  // Written after its record (the store keeps a history only beside one): false means the
+  // record is not there yet, and the next flush tries again.
+  if (persistence_.backend->put_history(s.id(), bytes)) p.saved_history = revision;
 }
 
 }  // namespace hdeform::service

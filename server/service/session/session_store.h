@@ -145,6 +145,9 @@ class SessionStore {
   void forget(Session& s, bool expired = false);
   void save_locked(Session& session, Session::Persisted& p,
                    const Session::PendingPose* pending = nullptr) const;
+  // Writes the session's history when it changed since the last write (the flusher's;
+  // a history is as durable as a coalesced move: docs/api.md "History and snapshots").
+  void save_history_locked(Session& session, Session::Persisted& p) const;
   // Installs the store's step of the session's commit path (Session::StoreGate).
   void gate(Session& session) const;
   void purge_stored(bool meshes_too);

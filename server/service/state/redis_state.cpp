@@ -29,6 +29,7 @@ constexpr std::string_view kSessionSet = "hdeform:sessions";
 // Set once per Redis dataset: a reconnection that finds it missing found an emptied store.
 constexpr std::string_view kMarker = "hdeform:marker";
 constexpr std::string_view kMeshPrefix = "hdeform:mesh:";
+constexpr std::string_view kHistoryPrefix = "hdeform:history:";
 
 // SET NX and SADD in one script so the id set never disagrees with the records.
 constexpr std::string_view kCreateScript =
@@ -36,11 +37,16 @@ constexpr std::string_view kCreateScript =
     "redis.call('SADD', KEYS[2], ARGV[2]) return 1 end return 0";
 constexpr std::string_view kPutScript =
     "redis.call('SET', KEYS[1], ARGV[1]) redis.call('SADD', KEYS[2], ARGV[2]) return 1";
+// A record and its history go together (KEYS[3]: the history).
 constexpr std::string_view kDeleteScript =
-    "redis.call('DEL', KEYS[1]) redis.call('SREM', KEYS[2], ARGV[1]) return 1";
+    "redis.call('DEL', KEYS[1], KEYS[3]) redis.call('SREM', KEYS[2], ARGV[1]) return 1";
 constexpr std::string_view kDeleteIfScript =
-    "if redis.call('GET', KEYS[1]) == ARGV[2] then redis.call('DEL', KEYS[1]) "
+    "if redis.call('GET', KEYS[1]) == ARGV[2] then redis.call('DEL', KEYS[1], KEYS[3]) "
     "redis.call('SREM', KEYS[2], ARGV[1]) return 1 end return 0";
+// A history only beside a record: none is left behind by a write racing a delete.
+constexpr std::string_view kPutHistoryScript =
+    "if redis.call('EXISTS', KEYS[1]) == 1 then redis.call('SET', KEYS[2], ARGV[1]) "
+    "return 1 end return 0";
 
 struct RedisUrl {
   std::string host;
@@ -297,14 +303,28 @@ class RedisState final : public StateBackend {
 
   void delete_session(const std::string& id) override {
     check_session_id(id);
-    Reply r = call("delete session", {"EVAL", kDeleteScript, "2", session_key(id), kSessionSet, id});
+    Reply r = call("delete session", {"EVAL", kDeleteScript, "3", session_key(id), kSessionSet,
+                                      history_key(id), id});
     integer(r, "delete session");
+  }
+
+  bool put_history(const std::string& id, const std::string& history) override {
+    check_session_id(id);
+    Reply r = call("put history",
+                   {"EVAL", kPutHistoryScript, "2", session_key(id), history_key(id), history});
+    return integer(r, "put history") == 1;
+  }
+
+  std::optional<std::string> get_history(const std::string& id) override {
+    check_session_id(id);
+    return string_or_nil(call("get history", {"GET", history_key(id)}), "get history");
   }
 
   bool delete_session_if(const std::string& id, const std::string& record) override {
     check_session_id(id);
     Reply r = call("delete session",
-                   {"EVAL", kDeleteIfScript, "2", session_key(id), kSessionSet, id, record});
+                   {"EVAL", kDeleteIfScript, "3", session_key(id), kSessionSet, history_key(id),
+                    id, record});
     return integer(r, "delete session") == 1;
   }
 
@@ -373,6 +393,9 @@ class RedisState final : public StateBackend {
     return std::string(kSessionPrefix) + id;
   }
   static std::string mesh_key(const std::string& key) { return std::string(kMeshPrefix) + key; }
+  static std::string history_key(const std::string& id) {
+    return std::string(kHistoryPrefix) + id;
+  }
 
   void check_session_id(const std::string& id) const {
     if (!is_session_id(id))

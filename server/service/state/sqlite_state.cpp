@@ -27,7 +27,7 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr std::int32_t kApplicationId = 0x6864666d;  // 'hdfm'
-constexpr int kSchemaVersion = 1;
+constexpr int kSchemaVersion = 2;  // 2: sessions.history
 constexpr int kBusyTimeoutMs = 5000;
 constexpr mode_t kFolderMode = 0700, kFileMode = 0600;  // the owner's alone
 
@@ -333,6 +333,31 @@ class SqliteState final : public StateBackend {
     return data ? std::string(data, static_cast<std::size_t>(size)) : std::string();
   }
 
+  bool put_history(const std::string& id, const std::string& history) override {
+    check_session_id(id);
+    std::lock_guard lock(mu_);
+    StmtUse s(put_history_.get());
+    bind_text(s.get(), 1, id);
+    if (sqlite3_bind_blob64(s.get(), 2, history.data(), history.size(), SQLITE_STATIC) != SQLITE_OK)
+      throw error("bind");
+    step_done(s.get(), "put history");
+    return sqlite3_changes(db_.get()) == 1;
+  }
+
+  std::optional<std::string> get_history(const std::string& id) override {
+    check_session_id(id);
+    std::lock_guard lock(mu_);
+    StmtUse s(get_history_.get());
+    bind_text(s.get(), 1, id);
+    const int rc = sqlite3_step(s.get());
+    if (rc == SQLITE_DONE) return std::nullopt;
+    if (rc != SQLITE_ROW) throw error("get history");
+    if (sqlite3_column_type(s.get(), 0) == SQLITE_NULL) return std::nullopt;
+    const auto* data = static_cast<const char*>(sqlite3_column_blob(s.get(), 0));
+    const int size = sqlite3_column_bytes(s.get(), 0);
+    return data ? std::string(data, static_cast<std::size_t>(size)) : std::string();
+  }
+
   void delete_session(const std::string& id) override {
     check_session_id(id);
     std::lock_guard lock(mu_);
@@ -432,14 +457,20 @@ class SqliteState final : public StateBackend {
       throw error("cannot switch to WAL mode");
     exec(db_.get(), db_path_, "PRAGMA synchronous=FULL");
     if (needs_schema) {
-      const std::string schema =
-          "BEGIN IMMEDIATE;"
-          "CREATE TABLE IF NOT EXISTS sessions(id TEXT PRIMARY KEY, record BLOB NOT NULL,"
-          " updated_unix_ms INTEGER);"
-          "PRAGMA application_id=" + std::to_string(kApplicationId) + ";"
-          "PRAGMA user_version=" + std::to_string(kSchemaVersion) + ";"
-          "COMMIT;";
-      exec(db_.get(), db_path_, schema.c_str());
+      // A blank file gets the tables; a version 1 file gains the history column.
+      exec(db_.get(), db_path_, "BEGIN IMMEDIATE");
+      exec(db_.get(), db_path_,
+           "CREATE TABLE IF NOT EXISTS sessions(id TEXT PRIMARY KEY, record BLOB NOT NULL,"
+           " updated_unix_ms INTEGER, history BLOB)");
+      if (query_int(db_.get(), "SELECT count(*) FROM pragma_table_info('sessions') WHERE name = 'history'",
+                    &rc) == 0 &&
+          rc == SQLITE_OK)
+        exec(db_.get(), db_path_, "ALTER TABLE sessions ADD COLUMN history BLOB");
+      if (rc != SQLITE_OK) throw error("cannot read the sessions table");
+      const std::string finish = "PRAGMA application_id=" + std::to_string(kApplicationId) +
+                                 ";PRAGMA user_version=" + std::to_string(kSchemaVersion) +
+                                 ";COMMIT;";
+      exec(db_.get(), db_path_, finish.c_str());
     }
     insert_ = prepare(
         "INSERT INTO sessions(id, record, updated_unix_ms) VALUES(?1, ?2, ?3)"
@@ -452,6 +483,8 @@ class SqliteState final : public StateBackend {
     delete_ = prepare("DELETE FROM sessions WHERE id = ?1");
     delete_if_ = prepare("DELETE FROM sessions WHERE id = ?1 AND record = ?2");
     list_ = prepare("SELECT id FROM sessions");
+    put_history_ = prepare("UPDATE sessions SET history = ?2 WHERE id = ?1");
+    get_history_ = prepare("SELECT history FROM sessions WHERE id = ?1");
   }
 
   Stmt prepare(const char* sql) {
@@ -523,7 +556,7 @@ class SqliteState final : public StateBackend {
   Fd lock_;
   std::mutex mu_;  // one connection; SQLite opened NOMUTEX, so we serialize here
   Db db_;
-  Stmt insert_, upsert_, select_, delete_, delete_if_, list_;
+  Stmt insert_, upsert_, select_, delete_, delete_if_, list_, put_history_, get_history_;
 };
 
 }  // namespace

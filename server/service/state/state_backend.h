@@ -46,6 +46,13 @@ class StateBackend {
   // Every stored id (any order).
   virtual std::vector<std::string> list_sessions() = 0;
 
+  // ---- a session's history, beside its record ----
+  // Stores `history` for `id` only while `id` has a record (false, nothing stored, when it has
+  // none); deleting the record deletes it too. The service writes it after the record, so a
+  // history may be older than its record, never of a record deleted since.
+  virtual bool put_history(const std::string& id, const std::string& history) = 0;
+  virtual std::optional<std::string> get_history(const std::string& id) = 0;
+
   // ---- mesh files, content-addressed ----
   // Stores `bytes` once (a second put of the same bytes is a no-op) and returns its key:
   // 64 lower-case hex digits, the SHA-256 of the bytes.
@@ -63,7 +70,8 @@ class StateBackend {
   virtual std::size_t purge_meshes(const std::vector<std::string>& keep) = 0;
 };
 
-// DIR/state.sqlite3 (WAL mode, synchronous=FULL, application_id 'hdfm', a schema version)
+// DIR/state.sqlite3 (WAL mode, synchronous=FULL, application_id 'hdfm', schema version 2:
+// version 1, without the history column, is upgraded in place)
 // and DIR/meshes/KEY.mesh; DIR is created if missing. One server per folder: an exclusive
 // lock on DIR/lock (StateError naming the folder when another process holds it). A file that
 // is not an hdeform state database (another program's SQLite file, a corrupt one, a newer
@@ -71,7 +79,8 @@ class StateBackend {
 std::unique_ptr<StateBackend> open_sqlite_state(const std::filesystem::path& dir);
 
 // redis://[:PASSWORD@]HOST[:PORT][/DB]. Keys under the prefix "hdeform:" (sessions as
-// hdeform:session:ID, their ids in the set hdeform:sessions, meshes as hdeform:mesh:KEY,
+// hdeform:session:ID, their histories as hdeform:history:ID, their ids in the set
+// hdeform:sessions, meshes as hdeform:mesh:KEY,
 // and hdeform:marker, set once per dataset: its absence on a reconnection bumps generation()).
 // Connects at once (StateError when the server cannot be reached), reconnects once per
 // call after a broken connection; every command has a 2 s timeout.

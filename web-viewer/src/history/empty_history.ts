@@ -1,7 +1,8 @@
-// What an empty History list says. The server keeps a session's history in memory only
-// (docs/api.md "History and snapshots"): a session restored after a server restart, or made by
-// ImportSession, has its state — constraints, β, poses, version — but no steps. So an empty list
-// for a session that has been changed means the steps are gone, not that nothing happened.
+// What an empty History list says. The server stores a session's history with it (docs/api.md
+// "History and snapshots"), but a session made by ImportSession, or restored from state that
+// kept no history (a crash within the flush window, a server from before histories were
+// stored), has its state — constraints, β, poses, version — and no steps. So an empty list for
+// a session that has been changed means the steps are gone, not that nothing happened.
 import { BetaUnits, type Session } from "../gen/hdeform/v1/deform_pb";
 import { isIdentity } from "../transforms";
 
@@ -13,7 +14,7 @@ export function sessionChanged(s: Session): boolean {
 /** The note an empty History list shows for session `s`. */
 export function emptyHistoryNote(s: Session | null): string {
   if (s && sessionChanged(s)) {
-    return "History starts at the server's last restart (or at this session's import): the server keeps steps in memory only, so earlier changes are not listed and cannot be undone.";
+    return "History starts at this session's import, or at a server restart that found no stored history: earlier changes are not listed and cannot be undone.";
   }
   return "No changes yet: each edit will be listed here, newest first.";
 }
