@@ -3,6 +3,8 @@
 // change, snapshots are kept with the session (durably). Real server over loopback.
 #include "editors_fixture.h"
 #include "service/session/history.h"
+#include "service/session/convert.h"
+#include "service/session/history_record.h"
 
 #include <sqlite3.h>
 
@@ -471,6 +473,72 @@ TEST(History, AnUnreadableStoredHistoryIsSaidSo) {
   EXPECT_NE(st.error_message().find("restored from stored state that kept no history"),
             std::string::npos)
       << st.error_message();
+}
+
+// A stored history is input too (a state folder or Redis others can write): what Undo
+// would apply from it is checked before it is adopted, and a bad one changes nothing.
+TEST(History, AStoredHistoryIsCheckedBeforeItIsAdopted) {
+  using hdeform::service::History;
+  namespace st = hdeform::state;
+  hdeform::service::HistoryContext context;
+  context.parse_beta = [](const pb::Beta& b) {
+    hdeform::service::SessionBeta out;
+    out.uniform = hdeform::service::from_proto(b);
+    return out;
+  };
+  auto step = [](st::StoredHistory& h, std::int64_t id) {
+    st::StoredStep* s = h.add_steps();
+    s->mutable_info()->set_id(id);
+    s->mutable_info()->set_kind(pb::STEP_KIND_BETA);
+    s->set_beta(true);
+    return s;
+  };
+  auto refused = [&](const st::StoredHistory& h, const std::string& why) {
+    History history({});
+    try {
+      hdeform::service::history_from_record(h, context, history);
+      ADD_FAILURE() << "adopted; expected: " << why;
+    } catch (const std::exception& e) {
+      EXPECT_NE(std::string(e.what()).find(why), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(history.size(), 0);
+  };
+  st::StoredHistory good;
+  good.set_format(hdeform::service::kHistoryFormat);
+  step(good, 1)->mutable_after()->mutable_beta()->set_value(0.25);
+  step(good, 2)->mutable_after()->mutable_beta()->set_value(0.5);
+  History adopted({});
+  hdeform::service::history_from_record(good, context, adopted);
+  EXPECT_EQ(adopted.size(), 2);
+  EXPECT_EQ(adopted.next_id(), 3);
+  EXPECT_EQ(adopted.steps().back().after.beta.uniform.value, 0.5);
+
+  st::StoredHistory h = good;
+  h.set_format(7);
+  refused(h, "format 7");
+  h = good;
+  h.mutable_steps(1)->mutable_info()->set_id(1);
+  refused(h, "not increasing");
+  h = good;
+  h.mutable_steps(1)->mutable_after()->mutable_beta()->set_value(1.5);
+  refused(h, "beta");
+  h = good;
+  h.mutable_steps(1)->set_beta(false);
+  h.mutable_steps(1)->set_timeline(true);
+  h.mutable_steps(1)->mutable_after()->set_timeline(3);
+  refused(h, "timeline reference 3 is out of range");
+  h.add_values()->mutable_snapshot();
+  h.add_values();
+  h.add_values();
+  refused(h, "timeline reference 3 names another kind of value");
+  h = good;
+  h.mutable_steps(1)->set_beta(false);
+  h.mutable_steps(1)->add_handles(4);
+  refused(h, "names handle 4");
+  h = good;
+  h.mutable_steps(1)->set_constraints(true);
+  h.mutable_steps(1)->mutable_after()->set_cs_key("cs/x");  // and no constraints
+  refused(h, "constraints without their transforms");
 }
 
 TEST(History, AnUpdateThatChangesNothingIsNoStep) {

@@ -182,6 +182,15 @@ void history_from_record(const st::StoredHistory& record, const HistoryContext& 
     s.snapshot = in.snapshot();
     s.before = read_side(s, in.before(), values, context, betas);
     s.after = read_side(s, in.after(), values, context, betas);
+    // A constraints side is what Undo makes the session's constraints: they and one transform
+    // per handle, or none of either (before the first constraints).
+    if (s.constraints)
+      for (const EditState* side : {&s.before, &s.after}) {
+        const std::size_t handles = side->given ? static_cast<std::size_t>(side->given->handles_size()) : 0;
+        if (side->cs_key.empty() != !side->given || side->transforms.size() != handles)
+          throw std::runtime_error("stored history: step " + std::to_string(s.info.id()) +
+                                   " has constraints without their transforms, or the reverse");
+      }
     // A constraints step replaces every transform (its `before` may have none).
     for (const EditState* side : {&s.before, &s.after})
       for (int h : s.constraints ? std::vector<int>{} : s.handles)

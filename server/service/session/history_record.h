@@ -27,9 +27,9 @@ struct HistoryContext {
   std::function<SessionBeta(const pb::Beta&)> parse_beta;
 };
 
-// Replaces `history` by the stored one. Throws std::runtime_error naming what is wrong
-// (unknown format, a reference out of range, a transform or β the session refuses); the
-// history is then left as it was.
+// Replaces `history` by the stored one. Throws (std::runtime_error, or the InvalidInput of
+// a transform or β the session refuses) naming what is wrong: an unknown format, a reference
+// out of range, constraints without their transforms; the history is then left as it was.
 void history_from_record(const hdeform::state::StoredHistory& record, const HistoryContext& context,
                          History& history);
 
