@@ -197,6 +197,44 @@ TEST(Durable, StoredSessionsAreListedAndTheirIdsStayTakenBeforeTheyAreRestored) 
   EXPECT_EQ(b.create_library("cactus", &squat, "kept").error_code(), StatusCode::ALREADY_EXISTS);
 }
 
+// ListSessions finds stored sessions through the token index: after a rotation only the new
+// tokens list it, and records stored before the index existed are indexed at start.
+TEST(Durable, StoredSessionsAreListedThroughTheTokenIndex) {
+  TempDir dir;
+  pb::Session s, other;
+  pb::Session rotated;
+  {
+    TestServer a(durable(dir.path));
+    ASSERT_TRUE(a.create_library("bar", &s, "indexed").ok());
+    ASSERT_TRUE(a.create_library("bar", &other, "someone-else").ok());
+    pb::RotateTokensRequest r;
+    r.set_name(s.name());
+    ASSERT_TRUE(a.bare_stub->RotateTokens(as(s.edit_token()).get(), r, &rotated).ok());
+  }
+  auto listed = [](TestServer& t, const std::string& token) {
+    pb::ListSessionsResponse out;
+    EXPECT_TRUE(t.bare_stub->ListSessions(as(token).get(), {}, &out).ok());
+    std::vector<std::string> names;
+    for (const auto& x : out.sessions()) names.push_back(x.name());
+    return names;
+  };
+  {
+    TestServer b(durable(dir.path));
+    EXPECT_TRUE(listed(b, s.view_token()).empty());  // the tokens before the rotation
+    EXPECT_TRUE(listed(b, s.edit_token()).empty());
+    EXPECT_EQ(listed(b, rotated.view_token()), std::vector<std::string>{"sessions/indexed"});
+    EXPECT_EQ(listed(b, other.edit_token()), std::vector<std::string>{"sessions/someone-else"});
+  }
+  // A state file from before the index: its entries are gone; the next start writes them.
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open((dir.path / "state" / "state.sqlite3").c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(db, "DELETE FROM tokens", nullptr, nullptr, nullptr), SQLITE_OK);
+  sqlite3_close(db);
+  TestServer c(durable(dir.path));
+  EXPECT_EQ(listed(c, rotated.edit_token()), std::vector<std::string>{"sessions/indexed"});
+  EXPECT_EQ(listed(c, other.view_token()), std::vector<std::string>{"sessions/someone-else"});
+}
+
 TEST(Durable, DeletedAndExpiredSessionsLeaveTheDisk) {
   TempDir dir;
   pb::Session gone, idle;

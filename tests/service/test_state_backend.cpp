@@ -256,6 +256,41 @@ TEST_P(StateBackendTest, AHistoryIsKeptOnlyBesideItsRecord) {
   EXPECT_THROW(state_->get_history("bad id!"), StateError);
 }
 
+// The token index: ListSessions finds a token's sessions without reading other records.
+TEST_P(StateBackendTest, TheTokenIndexFollowsEveryWriteAndDelete) {
+  const std::string a(32, 'a'), b(32, 'b'), c(32, '\0'), d(32, '\xff');
+  EXPECT_TRUE(state_->sessions_for({a}).empty());
+  ASSERT_TRUE(state_->create_session("one", "r1", {a, b}));
+  state_->put_session("two", "r2", {c, b});
+  EXPECT_EQ(sorted(state_->sessions_for({a})), std::vector<std::string>{"one"});
+  EXPECT_EQ(sorted(state_->sessions_for({b})), (std::vector<std::string>{"one", "two"}));
+  EXPECT_EQ(sorted(state_->sessions_for({a, c})), (std::vector<std::string>{"one", "two"}));
+  EXPECT_TRUE(state_->sessions_for({d}).empty());
+  EXPECT_TRUE(state_->sessions_for({}).empty());
+  EXPECT_FALSE(state_->create_session("one", "r1 again", {d}));  // refused: index unchanged
+  EXPECT_TRUE(state_->sessions_for({d}).empty());
+  state_->put_session("one", "r1, rotated", {d, b});  // a put replaces the entries
+  EXPECT_TRUE(state_->sessions_for({a}).empty());
+  EXPECT_EQ(state_->sessions_for({d}), std::vector<std::string>{"one"});
+  state_->delete_session("two");
+  EXPECT_EQ(state_->sessions_for({b}), std::vector<std::string>{"one"});
+  EXPECT_TRUE(state_->sessions_for({c}).empty());
+  EXPECT_FALSE(state_->delete_session_if("one", "an older record"));
+  EXPECT_EQ(state_->sessions_for({d}), std::vector<std::string>{"one"});
+  EXPECT_TRUE(state_->delete_session_if("one", "r1, rotated"));
+  EXPECT_TRUE(state_->sessions_for({d}).empty());
+  EXPECT_TRUE(state_->sessions_for({b}).empty());
+  // index_session: a record stored without entries gets them; no record, no entries.
+  state_->put_session("old", "stored before the index");
+  EXPECT_TRUE(state_->sessions_for({a}).empty());
+  state_->index_session("old", {a});
+  EXPECT_EQ(state_->sessions_for({a}), std::vector<std::string>{"old"});
+  state_->index_session("nobody", {c});
+  EXPECT_TRUE(state_->sessions_for({c}).empty());
+  EXPECT_THROW(state_->sessions_for({"short"}), StateError);
+  EXPECT_THROW(state_->put_session("x", "r", {"short"}), StateError);
+}
+
 TEST_P(StateBackendTest, BinaryRecordsKeepNulBytes) {
   const std::string binary = all_bytes() + std::string("\0\0tail\0", 7);
   state_->put_session("bin", binary);

@@ -103,7 +103,8 @@ std::shared_ptr<Session> SessionStore::create(std::shared_ptr<const MeshRef> mes
       }
       std::int64_t version = 0;
       const auto record = make_record(*s, p.mesh_key, unix_ms_now(), &version);
-      if (!persistence_.backend->create_session(id, record.SerializeAsString()))
+      if (!persistence_.backend->create_session(id, record.SerializeAsString(),
+                                                 index_hashes(record)))
         fail(grpc::StatusCode::ALREADY_EXISTS, "session sessions/" + id + " already exists");
       p.saved_version = version;
       p.saved_ms = unix_ms_now();
@@ -483,12 +484,15 @@ void SessionStore::shutdown() {
   for (auto& [id, s] : all) s->close();
 }
 
-std::vector<SessionStore::StoredEntry> SessionStore::list_stored() const {
+std::vector<SessionStore::StoredEntry> SessionStore::list_stored(
+    const std::vector<TokenHash>& presented, bool all) const {
   std::vector<StoredEntry> out;
-  if (!durable()) return out;
+  if (!durable() || (!all && presented.empty())) return out;
   std::vector<std::string> ids;
   try {
-    ids = persistence_.backend->list_sessions();
+    // A token holder's sessions from the index: no one else's record is read for them.
+    ids = all ? persistence_.backend->list_sessions()
+              : persistence_.backend->sessions_for(index_hashes(presented));
   } catch (const StateError& e) {
     fail(grpc::StatusCode::UNAVAILABLE, std::string("session state: ") + e.what());
   }
@@ -501,7 +505,10 @@ std::vector<SessionStore::StoredEntry> SessionStore::list_stored() const {
       auto bytes = persistence_.backend->get_session(id);
       if (!bytes) continue;  // deleted meanwhile
       const auto record = parse_record(id, *bytes);
-      out.push_back({record.described(), tokens_of(record)});
+      // The record decides: an index entry may be older than a rotation elsewhere.
+      const SessionTokens tokens = tokens_of(record);
+      if (!all && tokens.grant(presented) == Access::kNone) continue;
+      out.push_back({record.described(), tokens});
     } catch (const StateError& e) {
       spdlog::warn("listing stored sessions: {}", e.what());
     }
@@ -533,6 +540,13 @@ void SessionStore::purge_stored(bool meshes_too) {
         continue;
       }
       if (!record.mesh_key().empty()) mesh_keys.push_back(record.mesh_key());
+      // At start: a record stored before the token index existed gets its entries.
+      if (meshes_too) {
+        const auto hashes = index_hashes(record);
+        const auto indexed = persistence_.backend->sessions_for({hashes[0]});
+        if (std::find(indexed.begin(), indexed.end(), id) == indexed.end())
+          persistence_.backend->index_session(id, hashes);
+      }
       ++kept;
     } catch (const StateError& e) {
       spdlog::error("{} (left as it is)", e.what());
@@ -562,7 +576,7 @@ void SessionStore::save_locked(Session& s, Session::Persisted& p,
                 .count();
   const auto record = make_record(s, p.mesh_key, last_used, &version, pending);
   if (version < p.saved_version) return;  // deleted (INT64_MAX), or a newer one is stored
-  persistence_.backend->put_session(s.id(), record.SerializeAsString());
+  persistence_.backend->put_session(s.id(), record.SerializeAsString(), index_hashes(record));
   // A store that may have lost data since the mesh was written (Redis restarted empty; the
   // write above may be what found out) gets it again: a record without its mesh could never
   // be restored by another replica.

@@ -94,7 +94,9 @@ class SessionStore {
     pb::Session described;
     SessionTokens tokens;
   };
-  std::vector<StoredEntry> list_stored() const;
+  // Stored sessions not in memory that `presented` opens (every one when `all`: the
+  // operator), read through the state's token index.
+  std::vector<StoredEntry> list_stored(const std::vector<TokenHash>& presented, bool all) const;
   std::size_t size() const;
   // A mesh a live session uses, by content hash, provided `token_hashes` hold the edit
   // token of a session on it (or `any`: the operator).

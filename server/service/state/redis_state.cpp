@@ -17,6 +17,7 @@
 #include <cstring>
 #include <initializer_list>
 #include <mutex>
+#include <span>
 #include <string_view>
 #include <unordered_set>
 
@@ -30,19 +31,43 @@ constexpr std::string_view kSessionSet = "hdeform:sessions";
 constexpr std::string_view kMarker = "hdeform:marker";
 constexpr std::string_view kMeshPrefix = "hdeform:mesh:";
 constexpr std::string_view kHistoryPrefix = "hdeform:history:";
+constexpr std::string_view kTokenPrefix = "hdeform:token:";  // the scripts spell it too
+constexpr std::string_view kSessionTokensPrefix = "hdeform:session-tokens:";
 
-// SET NX and SADD in one script so the id set never disagrees with the records.
+// Each write of a record keeps the id set and the token index with it, in one script: they
+// never disagree with the records. `reindex` replaces the entries of id ARGV[2] (or [1]) by
+// the hex hashes ARGV[first..]; its keys are built here ("hdeform:token:" = kTokenPrefix).
+#define HDEFORM_REINDEX                                                                   \
+  "local function reindex(tokens_key, id, first) "                                        \
+  "for _, h in ipairs(redis.call('SMEMBERS', tokens_key)) do "                             \
+  "redis.call('SREM', 'hdeform:token:' .. h, id) end "                                     \
+  "redis.call('DEL', tokens_key) "                                                         \
+  "for i = first, #ARGV do redis.call('SADD', 'hdeform:token:' .. ARGV[i], id) "           \
+  "redis.call('SADD', tokens_key, ARGV[i]) end end "
+// KEYS: record, id set, the record's token set; ARGV: record, id, hashes….
 constexpr std::string_view kCreateScript =
+    HDEFORM_REINDEX
     "if redis.call('SET', KEYS[1], ARGV[1], 'NX') then "
-    "redis.call('SADD', KEYS[2], ARGV[2]) return 1 end return 0";
+    "redis.call('SADD', KEYS[2], ARGV[2]) reindex(KEYS[3], ARGV[2], 3) return 1 end return 0";
 constexpr std::string_view kPutScript =
-    "redis.call('SET', KEYS[1], ARGV[1]) redis.call('SADD', KEYS[2], ARGV[2]) return 1";
-// A record and its history go together (KEYS[3]: the history).
+    HDEFORM_REINDEX
+    "redis.call('SET', KEYS[1], ARGV[1]) redis.call('SADD', KEYS[2], ARGV[2]) "
+    "reindex(KEYS[3], ARGV[2], 3) return 1";
+// KEYS: record, id set, history, the record's token set; ARGV: id[, record].
 constexpr std::string_view kDeleteScript =
-    "redis.call('DEL', KEYS[1], KEYS[3]) redis.call('SREM', KEYS[2], ARGV[1]) return 1";
+    HDEFORM_REINDEX
+    "reindex(KEYS[4], ARGV[1], #ARGV + 1) redis.call('DEL', KEYS[1], KEYS[3]) "
+    "redis.call('SREM', KEYS[2], ARGV[1]) return 1";
 constexpr std::string_view kDeleteIfScript =
-    "if redis.call('GET', KEYS[1]) == ARGV[2] then redis.call('DEL', KEYS[1], KEYS[3]) "
-    "redis.call('SREM', KEYS[2], ARGV[1]) return 1 end return 0";
+    HDEFORM_REINDEX
+    "if redis.call('GET', KEYS[1]) == ARGV[2] then reindex(KEYS[4], ARGV[1], #ARGV + 1) "
+    "redis.call('DEL', KEYS[1], KEYS[3]) redis.call('SREM', KEYS[2], ARGV[1]) return 1 end "
+    "return 0";
+// KEYS: record, its token set; ARGV: id, hashes….
+constexpr std::string_view kIndexScript =
+    HDEFORM_REINDEX
+    "if redis.call('EXISTS', KEYS[1]) == 1 then reindex(KEYS[2], ARGV[1], 2) end return 1";
+#undef HDEFORM_REINDEX
 // A history only beside a record: none is left behind by a write racing a delete.
 constexpr std::string_view kPutHistoryScript =
     "if redis.call('EXISTS', KEYS[1]) == 1 then redis.call('SET', KEYS[2], ARGV[1]) "
@@ -199,7 +224,7 @@ std::string lower_first(std::string s) {
 }
 
 // Sends one command on `c` (binary-safe arguments); nullptr when the connection failed.
-Reply send(redisContext* c, std::initializer_list<std::string_view> args) {
+Reply send(redisContext* c, std::span<const std::string_view> args) {
   std::vector<const char*> argv;
   std::vector<std::size_t> lens;
   argv.reserve(args.size());
@@ -210,6 +235,9 @@ Reply send(redisContext* c, std::initializer_list<std::string_view> args) {
   }
   return Reply(static_cast<redisReply*>(
       redisCommandArgv(c, static_cast<int>(argv.size()), argv.data(), lens.data())));
+}
+Reply send(redisContext* c, std::initializer_list<std::string_view> args) {
+  return send(c, std::span<const std::string_view>(args.begin(), args.size()));
 }
 
 // Redis could not be reached (yet), as opposed to refusing us: wait_for_redis_state tries
@@ -278,22 +306,57 @@ class RedisState final : public StateBackend {
 
   std::string describe() const override { return "redis " + where_; }
 
-  bool create_session(const std::string& id, const std::string& record) override {
+  bool create_session(const std::string& id, const std::string& record,
+                      const std::vector<std::string>& token_hashes) override {
     check_session_id(id);
-    const std::string key = session_key(id);
+    const std::string key = session_key(id), tokens = session_tokens_key(id);
+    const auto hex = hex_hashes(token_hashes);
+    std::vector<std::string_view> args = {"EVAL", kCreateScript, "3", key, kSessionSet, tokens,
+                                          record, id};
+    args.insert(args.end(), hex.begin(), hex.end());
     bool retried = false;
-    Reply r = call("create session", {"EVAL", kCreateScript, "2", key, kSessionSet, record, id},
-                   &retried);
+    Reply r = call("create session", args, &retried);
     if (integer(r, "create session") == 1) return true;
     // The first attempt may have been applied before the connection broke: then the stored
     // record is ours, and the id is ours too.
     return retried && get_session(id) == record;
   }
 
-  void put_session(const std::string& id, const std::string& record) override {
+  void put_session(const std::string& id, const std::string& record,
+                   const std::vector<std::string>& token_hashes) override {
     check_session_id(id);
-    Reply r = call("put session", {"EVAL", kPutScript, "2", session_key(id), kSessionSet, record, id});
-    integer(r, "put session");
+    const std::string key = session_key(id), tokens = session_tokens_key(id);
+    const auto hex = hex_hashes(token_hashes);
+    std::vector<std::string_view> args = {"EVAL", kPutScript, "3", key, kSessionSet, tokens,
+                                          record, id};
+    args.insert(args.end(), hex.begin(), hex.end());
+    integer(call("put session", args), "put session");
+  }
+
+  std::vector<std::string> sessions_for(const std::vector<std::string>& token_hashes) override {
+    if (token_hashes.empty()) return {};
+    std::vector<std::string> keys;
+    for (const auto& h : hex_hashes(token_hashes)) keys.push_back(std::string(kTokenPrefix) + h);
+    std::vector<std::string_view> args = {"SUNION"};
+    args.insert(args.end(), keys.begin(), keys.end());
+    Reply r = call("sessions for a token", args);
+    if (r->type != REDIS_REPLY_ARRAY) throw unexpected("sessions for a token");
+    std::vector<std::string> ids;
+    for (std::size_t i = 0; i < r->elements; ++i) {
+      const redisReply* e = r->element[i];
+      if (e->type != REDIS_REPLY_STRING) throw unexpected("sessions for a token");
+      ids.emplace_back(e->str, e->len);
+    }
+    return ids;
+  }
+
+  void index_session(const std::string& id, const std::vector<std::string>& token_hashes) override {
+    check_session_id(id);
+    const std::string key = session_key(id), tokens = session_tokens_key(id);
+    const auto hex = hex_hashes(token_hashes);
+    std::vector<std::string_view> args = {"EVAL", kIndexScript, "2", key, tokens, id};
+    args.insert(args.end(), hex.begin(), hex.end());
+    integer(call("index session", args), "index session");
   }
 
   std::optional<std::string> get_session(const std::string& id) override {
@@ -303,8 +366,8 @@ class RedisState final : public StateBackend {
 
   void delete_session(const std::string& id) override {
     check_session_id(id);
-    Reply r = call("delete session", {"EVAL", kDeleteScript, "3", session_key(id), kSessionSet,
-                                      history_key(id), id});
+    Reply r = call("delete session", {"EVAL", kDeleteScript, "4", session_key(id), kSessionSet,
+                                      history_key(id), session_tokens_key(id), id});
     integer(r, "delete session");
   }
 
@@ -323,8 +386,8 @@ class RedisState final : public StateBackend {
   bool delete_session_if(const std::string& id, const std::string& record) override {
     check_session_id(id);
     Reply r = call("delete session",
-                   {"EVAL", kDeleteIfScript, "3", session_key(id), kSessionSet, history_key(id),
-                    id, record});
+                   {"EVAL", kDeleteIfScript, "4", session_key(id), kSessionSet, history_key(id),
+                    session_tokens_key(id), id, record});
     return integer(r, "delete session") == 1;
   }
 
@@ -396,6 +459,24 @@ class RedisState final : public StateBackend {
   static std::string history_key(const std::string& id) {
     return std::string(kHistoryPrefix) + id;
   }
+  static std::string session_tokens_key(const std::string& id) {
+    return std::string(kSessionTokensPrefix) + id;
+  }
+  // Hex in keys, so an operator can read them.
+  std::vector<std::string> hex_hashes(const std::vector<std::string>& token_hashes) const {
+    static constexpr char kHex[] = "0123456789abcdef";
+    std::vector<std::string> out;
+    for (const auto& h : token_hashes) {
+      if (h.size() != 32) throw StateError(describe() + ": a token hash must be 32 bytes");
+      std::string x;
+      for (unsigned char c : h) {
+        x += kHex[c >> 4];
+        x += kHex[c & 15];
+      }
+      out.push_back(std::move(x));
+    }
+    return out;
+  }
 
   void check_session_id(const std::string& id) const {
     if (!is_session_id(id))
@@ -440,6 +521,9 @@ class RedisState final : public StateBackend {
   // retried once (`retried` says so). A timeout is not retried: the server may have run it.
   Reply call(const char* what, std::initializer_list<std::string_view> args,
              bool* retried = nullptr) {
+    return call(what, std::span<const std::string_view>(args.begin(), args.size()), retried);
+  }
+  Reply call(const char* what, std::span<const std::string_view> args, bool* retried = nullptr) {
     std::lock_guard lock(mu_);
     SigpipeGuard guard;
     for (int attempt = 0;; ++attempt) {

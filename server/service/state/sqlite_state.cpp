@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <cstring>
 #include <mutex>
+#include <set>
 #include <string_view>
 #include <unordered_set>
 #include <utility>
@@ -303,21 +304,62 @@ class SqliteState final : public StateBackend {
 
   std::string describe() const override { return "sqlite " + db_path_.string(); }
 
-  bool create_session(const std::string& id, const std::string& record) override {
+  bool create_session(const std::string& id, const std::string& record,
+                      const std::vector<std::string>& token_hashes) override {
     check_session_id(id);
+    check_hashes(token_hashes);
     std::lock_guard lock(mu_);
-    StmtUse s(insert_.get());
-    bind_id_record(s.get(), id, record);
-    step_done(s.get(), "create session");
-    return sqlite3_changes(db_.get()) == 1;
+    Transaction t(*this);
+    {
+      StmtUse s(insert_.get());
+      bind_id_record(s.get(), id, record);
+      step_done(s.get(), "create session");
+    }
+    if (sqlite3_changes(db_.get()) != 1) return false;
+    index_locked(id, token_hashes);
+    t.commit();
+    return true;
   }
 
-  void put_session(const std::string& id, const std::string& record) override {
+  void put_session(const std::string& id, const std::string& record,
+                   const std::vector<std::string>& token_hashes) override {
     check_session_id(id);
+    check_hashes(token_hashes);
     std::lock_guard lock(mu_);
-    StmtUse s(upsert_.get());
-    bind_id_record(s.get(), id, record);
-    step_done(s.get(), "put session");
+    Transaction t(*this);
+    {
+      StmtUse s(upsert_.get());
+      bind_id_record(s.get(), id, record);
+      step_done(s.get(), "put session");
+    }
+    index_locked(id, token_hashes);
+    t.commit();
+  }
+
+  std::vector<std::string> sessions_for(const std::vector<std::string>& token_hashes) override {
+    check_hashes(token_hashes);
+    std::lock_guard lock(mu_);
+    std::set<std::string> ids;
+    for (const auto& h : token_hashes) {
+      StmtUse s(token_ids_.get());
+      bind_blob(s.get(), 1, h);
+      int rc;
+      while ((rc = sqlite3_step(s.get())) == SQLITE_ROW) {
+        const auto* text = reinterpret_cast<const char*>(sqlite3_column_text(s.get(), 0));
+        ids.emplace(text ? text : "");
+      }
+      if (rc != SQLITE_DONE) throw error("sessions for a token");
+    }
+    return {ids.begin(), ids.end()};
+  }
+
+  void index_session(const std::string& id, const std::vector<std::string>& token_hashes) override {
+    check_session_id(id);
+    check_hashes(token_hashes);
+    std::lock_guard lock(mu_);
+    Transaction t(*this);
+    index_locked(id, token_hashes);
+    t.commit();
   }
 
   std::optional<std::string> get_session(const std::string& id) override {
@@ -462,6 +504,14 @@ class SqliteState final : public StateBackend {
       exec(db_.get(), db_path_,
            "CREATE TABLE IF NOT EXISTS sessions(id TEXT PRIMARY KEY, record BLOB NOT NULL,"
            " updated_unix_ms INTEGER, history BLOB)");
+      // The token index: a deleted record takes its entries along (the trigger), so no
+      // delete path can leave one behind.
+      exec(db_.get(), db_path_,
+           "CREATE TABLE IF NOT EXISTS tokens(hash BLOB NOT NULL, id TEXT NOT NULL,"
+           " PRIMARY KEY(hash, id)) WITHOUT ROWID;"
+           "CREATE INDEX IF NOT EXISTS tokens_by_id ON tokens(id);"
+           "CREATE TRIGGER IF NOT EXISTS tokens_of_deleted AFTER DELETE ON sessions"
+           " BEGIN DELETE FROM tokens WHERE id = OLD.id; END;");
       if (query_int(db_.get(), "SELECT count(*) FROM pragma_table_info('sessions') WHERE name = 'history'",
                     &rc) == 0 &&
           rc == SQLITE_OK)
@@ -484,6 +534,9 @@ class SqliteState final : public StateBackend {
     delete_if_ = prepare("DELETE FROM sessions WHERE id = ?1 AND record = ?2");
     list_ = prepare("SELECT id FROM sessions");
     put_history_ = prepare("UPDATE sessions SET history = ?2 WHERE id = ?1");
+    unindex_ = prepare("DELETE FROM tokens WHERE id = ?1");
+    index_ = prepare("INSERT OR IGNORE INTO tokens(hash, id) SELECT ?2, id FROM sessions WHERE id = ?1");
+    token_ids_ = prepare("SELECT id FROM tokens WHERE hash = ?1");
     get_history_ = prepare("SELECT history FROM sessions WHERE id = ?1");
   }
 
@@ -513,6 +566,52 @@ class SqliteState final : public StateBackend {
         sqlite3_bind_int64(s, 3, now_unix_ms()) != SQLITE_OK)
       throw error("bind");
   }
+
+  void bind_blob(sqlite3_stmt* s, int index, const std::string& bytes) {
+    if (sqlite3_bind_blob64(s, index, bytes.data(), bytes.size(), SQLITE_STATIC) != SQLITE_OK)
+      throw error("bind");
+  }
+
+  // The record's entries replaced by `token_hashes` (a record must exist for any to land).
+  void index_locked(const std::string& id, const std::vector<std::string>& token_hashes) {
+    {
+      StmtUse s(unindex_.get());
+      bind_text(s.get(), 1, id);
+      step_done(s.get(), "index tokens");
+    }
+    for (const auto& h : token_hashes) {
+      StmtUse s(index_.get());
+      bind_text(s.get(), 1, id);
+      bind_blob(s.get(), 2, h);
+      step_done(s.get(), "index tokens");
+    }
+  }
+
+  void check_hashes(const std::vector<std::string>& token_hashes) const {
+    for (const auto& h : token_hashes)
+      if (h.size() != 32) throw StateError(describe() + ": a token hash must be 32 bytes");
+  }
+
+  // BEGIN IMMEDIATE … COMMIT, rolled back when left without commit() (an exception).
+  class Transaction {
+   public:
+    explicit Transaction(SqliteState& db) : db_(db) {
+      exec(db_.db_.get(), db_.db_path_, "BEGIN IMMEDIATE");
+    }
+    ~Transaction() {
+      if (!done_) sqlite3_exec(db_.db_.get(), "ROLLBACK", nullptr, nullptr, nullptr);
+    }
+    void commit() {
+      exec(db_.db_.get(), db_.db_path_, "COMMIT");
+      done_ = true;
+    }
+    Transaction(const Transaction&) = delete;
+    Transaction& operator=(const Transaction&) = delete;
+
+   private:
+    SqliteState& db_;
+    bool done_ = false;
+  };
 
   void step_done(sqlite3_stmt* s, const char* what) {
     if (sqlite3_step(s) != SQLITE_DONE) throw error(what);
@@ -556,7 +655,8 @@ class SqliteState final : public StateBackend {
   Fd lock_;
   std::mutex mu_;  // one connection; SQLite opened NOMUTEX, so we serialize here
   Db db_;
-  Stmt insert_, upsert_, select_, delete_, delete_if_, list_, put_history_, get_history_;
+  Stmt insert_, upsert_, select_, delete_, delete_if_, list_, put_history_, get_history_, unindex_,
+      index_, token_ids_;
 };
 
 }  // namespace

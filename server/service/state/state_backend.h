@@ -33,10 +33,22 @@ class StateBackend {
   virtual std::string describe() const = 0;
 
   // ---- session records, by session id ([A-Za-z0-9_-]{1,64}) ----
+  // `token_hashes` (32-byte SHA-256 each) are the tokens the record grants access to: the
+  // token index (sessions_for) is written with the record, atomically, and replaced by
+  // each put; deleting a record drops its entries.
   // Stores `record` only if `id` has none yet; false when it exists (someone owns the id).
-  virtual bool create_session(const std::string& id, const std::string& record) = 0;
+  virtual bool create_session(const std::string& id, const std::string& record,
+                              const std::vector<std::string>& token_hashes = {}) = 0;
   // Stores `record` for `id`, replacing any previous one.
-  virtual void put_session(const std::string& id, const std::string& record) = 0;
+  virtual void put_session(const std::string& id, const std::string& record,
+                           const std::vector<std::string>& token_hashes = {}) = 0;
+  // The ids whose latest record was stored with any of `token_hashes` (ListSessions: the
+  // caller's sessions without reading anyone else's record). Any order, no repeats.
+  virtual std::vector<std::string> sessions_for(const std::vector<std::string>& token_hashes) = 0;
+  // Indexes an existing record under `token_hashes` (a record stored before the index
+  // existed); nothing when `id` has no record.
+  virtual void index_session(const std::string& id,
+                             const std::vector<std::string>& token_hashes) = 0;
   virtual std::optional<std::string> get_session(const std::string& id) = 0;
   // Idempotent.
   virtual void delete_session(const std::string& id) = 0;
@@ -71,7 +83,7 @@ class StateBackend {
 };
 
 // DIR/state.sqlite3 (WAL mode, synchronous=FULL, application_id 'hdfm', schema version 2:
-// version 1, without the history column, is upgraded in place)
+// version 1, without the history column and the token index, is upgraded in place)
 // and DIR/meshes/KEY.mesh; DIR is created if missing. One server per folder: an exclusive
 // lock on DIR/lock (StateError naming the folder when another process holds it). A file that
 // is not an hdeform state database (another program's SQLite file, a corrupt one, a newer
@@ -80,7 +92,8 @@ std::unique_ptr<StateBackend> open_sqlite_state(const std::filesystem::path& dir
 
 // redis://[:PASSWORD@]HOST[:PORT][/DB]. Keys under the prefix "hdeform:" (sessions as
 // hdeform:session:ID, their histories as hdeform:history:ID, their ids in the set
-// hdeform:sessions, meshes as hdeform:mesh:KEY,
+// hdeform:sessions, the token index as sets hdeform:token:HASH (ids) and
+// hdeform:session-tokens:ID (its hashes, hex), meshes as hdeform:mesh:KEY,
 // and hdeform:marker, set once per dataset: its absence on a reconnection bumps generation()).
 // Connects at once (StateError when the server cannot be reached), reconnects once per
 // call after a broken connection; every command has a 2 s timeout.

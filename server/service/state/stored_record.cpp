@@ -31,4 +31,16 @@ SessionTokens tokens_of(const hdeform::state::StoredSession& r) {
   return t;
 }
 
+std::vector<std::string> index_hashes(const hdeform::state::StoredSession& r) {
+  return {r.edit_token_sha256(), r.view_token_sha256()};
+}
+
+std::vector<std::string> index_hashes(const std::vector<TokenHash>& presented) {
+  std::vector<std::string> out;
+  out.reserve(presented.size());
+  for (const auto& h : presented)
+    out.emplace_back(reinterpret_cast<const char*>(h.data()), h.size());
+  return out;
+}
+
 }  // namespace hdeform::service

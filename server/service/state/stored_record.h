@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace hdeform::service {
 
@@ -18,5 +19,9 @@ inline constexpr std::uint32_t kRecordFormat = 1;
 hdeform::state::StoredSession parse_record(const std::string& id, const std::string& bytes);
 
 SessionTokens tokens_of(const hdeform::state::StoredSession& record);
+// The record's token hashes as the state's token index keeps them (StateBackend).
+std::vector<std::string> index_hashes(const hdeform::state::StoredSession& record);
+// The hashes a caller presented, in the same form.
+std::vector<std::string> index_hashes(const std::vector<TokenHash>& presented);
 
 }  // namespace hdeform::service
