@@ -46,6 +46,7 @@ import { timelineChecks } from "./timeline_checks.mjs";
 import { finishedEditorChecks } from "./finished_editor_checks.mjs";
 import { repairChecks } from "./repair_checks.mjs";
 import { perfChecks, rigExportChecks, selectionChecks } from "./rig_perf_selection_checks.mjs";
+import { lassoChecks, orientationChecks, visibleOnlyChecks } from "./orientation_lasso_checks.mjs";
 
 /**
  * A flat 7×5 grid (x = 0.5 i, y = 0.5 j) as GLB in two vertex blocks that both carry the
@@ -329,9 +330,10 @@ try {
   // the weight preview's (weights_checks.mjs), `--only timeline` the timeline strip's
   // (timeline_checks.mjs), `--only finished` issue 37's (finished_editor_checks.mjs), `--only repair`
   // repair on upload (repair_checks.mjs); `--only rig`, `--only perf`, `--only selection` one
-  // group of rig_perf_selection_checks.mjs.
+  // group of rig_perf_selection_checks.mjs; `--only orientation` the view helper, keypad views,
+  // grid, lasso and visible-only selection (orientation_lasso_checks.mjs).
   const only = args.only;
-  const groups = ["editor", "history", "weights", "timeline", "finished", "repair", "rig", "perf", "selection"];
+  const groups = ["editor", "history", "weights", "timeline", "finished", "repair", "rig", "perf", "selection", "orientation"];
   if (only !== undefined && !groups.includes(only)) throw new Error(`--only ${only}: one of ${groups.join(", ")}`);
   if (only === undefined || only === "editor") {
     await editorChecks(helpers);
@@ -354,6 +356,11 @@ try {
   if (only === undefined || only === "editor" || only === "rig") await rigExportChecks(helpers);
   if (only === undefined || only === "editor" || only === "selection") await selectionChecks(helpers);
   if (only === undefined || only === "editor" || only === "perf") await perfChecks(helpers);
+  if (only === undefined || only === "editor" || only === "orientation") {
+    await orientationChecks(helpers);
+    await lassoChecks(helpers);
+    await visibleOnlyChecks(helpers);
+  }
   if (only !== undefined) throw new StopHere();
 
   // 1. Open the cactus from the library.
@@ -410,7 +417,7 @@ try {
       return L.filter((l, v) => l === 0 && R[3 * v + upAxis] > limit).length;
     },
     // The default view looks down about 30°, so the rectangle around the bottom slab also
-    // takes the front and back of the trunk above it (Box selects through the mesh).
+    // takes the front of the trunk above it (Box takes the visible vertices; X-ray is off).
     [up, bmin[up] + 0.4 * h],
   );
   check(nFixed > 10 && fixedTooHigh === 0, `box select (real mouse drag) marked ${nFixed} fixed vertices, all near the bottom`);

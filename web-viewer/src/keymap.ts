@@ -21,7 +21,23 @@ export type KeyAction =
   | "selectInvert" // I (Blender: Ctrl+I)
   | "selectGrow" // + (Blender: Ctrl+numpad +)
   | "selectShrink" // - (Blender: Ctrl+numpad -)
+  | "viewFront" // Numpad 1 (Blender's numeric keypad; Ctrl: the opposite side)
+  | "viewBack" // Ctrl+Numpad 1
+  | "viewRight" // Numpad 3
+  | "viewLeft" // Ctrl+Numpad 3
+  | "viewTop" // Numpad 7
+  | "viewBottom" // Ctrl+Numpad 7
+  | "toggleXray" // Alt+Z (Blender): Box and Lasso select through the mesh
   | "help"; // ?
+// Numpad 5 (Blender: perspective / orthographic) is not bound: the viewer has one perspective
+// camera that OrbitControls, the handle gizmo and the tools' projections all share.
+
+/** Blender's keypad views: the key's physical code → [view, view with Ctrl]. */
+const NUMPAD_VIEWS: Record<string, [KeyAction, KeyAction]> = {
+  Numpad1: ["viewFront", "viewBack"],
+  Numpad3: ["viewRight", "viewLeft"],
+  Numpad7: ["viewTop", "viewBottom"],
+};
 
 export interface KeyInput {
   key: string;
@@ -35,6 +51,11 @@ export interface KeyInput {
 
 /** The action of a key press; null for keys that are not shortcuts (or with Ctrl / Alt / ⌘). */
 export function keyAction(ev: KeyInput): KeyAction | null {
+  // The keypad by its physical key: with Num Lock off Numpad 7 types "Home" (frame all otherwise).
+  const numpad = ev.code ? NUMPAD_VIEWS[ev.code] : undefined;
+  if (numpad && !ev.altKey) return numpad[ev.ctrlKey || ev.metaKey ? 1 : 0];
+  if (ev.code === "NumpadDecimal" && !ev.altKey && !ev.ctrlKey && !ev.metaKey) return "frameSelection"; // Blender's "view selected"
+  if (ev.altKey && !ev.ctrlKey && !ev.metaKey && (ev.code === "KeyZ" || ev.key === "z" || ev.key === "Z")) return "toggleXray";
   // Alt+A: select none, as in Blender (Alt alone with A is not the browser's).
   if (ev.altKey && !ev.ctrlKey && !ev.metaKey && (ev.code === "KeyA" || ev.key === "a" || ev.key === "A")) return "selectNone";
   if (ev.ctrlKey || ev.metaKey || ev.altKey) return null; // the browser's own (copy, reload, …)
@@ -150,7 +171,9 @@ export const SHORTCUTS: [string, string][] = [
   ["Esc · right click", "cancel the drag (back to where it began)"],
   ["X / Y / Z (dragging)", "keep the drag to one axis"],
   ["Ctrl (Shift) while dragging", "snap: 15° (5°) steps, grid moves"],
-  ["F", "frame the active handle / selected region"],
+  ["F · Numpad .", "frame the active handle / selected region"],
+  ["Numpad 1 / 3 / 7", "front / right / top view (Blender's keypad; the model's up axis stays up)"],
+  ["Ctrl+Numpad 1 / 3 / 7", "back / left / bottom view"],
   ["Home", "frame everything"],
   ["Delete", "clear the region being assigned"],
   ["V", "show / hide the active handle's weights (0 = fixed, 1 = moves with it)"],
@@ -161,7 +184,8 @@ export const SHORTCUTS: [string, string][] = [
   ["A / Alt+A", "select all / none (of the region Assign to names)"],
   ["I", "invert the selection"],
   ["+ / −", "grow / shrink the selection by one ring of neighbours"],
-  ["Shift+drag · Ctrl+drag", "Brush, Box, Vertex: add to / remove from the selection"],
+  ["Shift+drag · Ctrl+drag", "Brush, Box, Lasso, Vertex: add to / remove from the selection"],
+  ["Alt+Z", "X-ray: Box and Lasso select through the mesh (off: only what the camera sees)"],
   ["P", "perf overlay (frames/s, latency, bytes, page cost per frame)"],
   ["?", "this list"],
 ];

@@ -45,6 +45,10 @@ import { HandleGizmo } from "./viewport/handle_gizmo";
 import { MeshDisplay } from "./viewport/mesh_display";
 import { Viewport } from "./viewport/viewport";
 import { contentBox } from "./viewport/content_box";
+import { ViewSnap } from "./viewport/view_snap";
+import { AxesViewHelper } from "./viewport/axes_view_helper";
+import { GroundGrid } from "./viewport/ground_grid";
+import { viewDirection } from "./viewport/view_axes";
 import { AnimationPlayer } from "./timeline/animation_player";
 import { Scrub } from "./timeline/scrub";
 import { setupTimelinePanel } from "./timeline/timeline_panel";
@@ -128,6 +132,9 @@ viewport.contentBox = () => contentBox(state);
 state.on("opened", () => viewport.resetView());
 
 const display = new MeshDisplay(viewport, state);
+const grid = new GroundGrid(viewport, state); // after the display: its "mesh" listener sets the up axis
+const viewSnap = new ViewSnap(viewport);
+const axesHelper = new AxesViewHelper(viewport, viewSnap);
 const gizmo = new HandleGizmo(viewport, state, {
   dragging: (held) => sync.setDragging(held),
   moved: () => app.edits.requestFrame(),
@@ -156,10 +163,12 @@ setupShortcuts(app, gizmo, viewport, {
   setKey: () => timeline.setKey(),
   togglePerf: () => perf.toggle(),
   select: (command) => regions.select(command),
+  lookFrom: (view) => viewSnap.lookFrom(viewDirection(view, viewport.upAxis)),
+  toggleXray: () => tools.xray.toggle(),
 });
 setupOnboarding(app);
 setupBetaPanel(app);
-setupDisplayPanel(app, display);
+setupDisplayPanel(app, display, grid);
 setupMeasuresPanel(state);
 const sweep = setupSweepPanel(app);
 setupFilesPanel(app, (s) => loader.load(s), exportUp);
@@ -211,4 +220,7 @@ if (import.meta.env.MODE === "test") installTestHook(app, {
   rig,
   perf,
   select: regions.select,
+  viewSnap,
+  axesHelper,
+  grid,
 });

@@ -23,7 +23,7 @@ export interface MeshData {
   diag: number;
 }
 
-export type Mode = "orbit" | "vertex" | "brush" | "box" | "move";
+export type Mode = "orbit" | "vertex" | "brush" | "box" | "lasso" | "move";
 
 /** A handle's harmonic weight field Φ_j as GetHandleWeights answered it (weights/). */
 export interface HandleWeightField {

@@ -37,6 +37,11 @@ import { fetchRig } from "./rig/rig_export";
 import type { PerfOverlay } from "./perf/perf_overlay";
 import { quantile } from "./perf/perf_stats";
 import type { SelectionCommand } from "./selection/commands";
+import type { ViewSnap } from "./viewport/view_snap";
+import type { AxesViewHelper } from "./viewport/axes_view_helper";
+import type { GroundGrid } from "./viewport/ground_grid";
+import type { AxisEnd } from "./viewport/view_axes";
+import { currentProjection } from "./selection/screen_projection";
 
 /** A handle transform as plain numbers (the server answers every scale as a 3×3 stretch). */
 function plainTransform(t: HandleTransform) {
@@ -88,6 +93,9 @@ export interface HookParts {
   rig: RigExport;
   perf: PerfOverlay;
   select: (command: SelectionCommand) => number;
+  viewSnap: ViewSnap;
+  axesHelper: AxesViewHelper;
+  grid: GroundGrid;
 }
 
 export function installTestHook({ state, client, banner, status }: App, parts: HookParts): void {
@@ -172,7 +180,31 @@ export function installTestHook({ state, client, banner, status }: App, parts: H
       state.assign(ids, label);
       return ids.length;
     },
+    /** Box select as the tool does it (X-ray or visible-only as the page is set). */
     selectScreenRect: (a: { x: number; y: number }, b: { x: number; y: number }, label: number) => tools.selectScreenRect(a, b, label),
+    /** The camera's turn to a keypad / view-helper view is under way. */
+    get viewAnimating() {
+      return parts.viewSnap.animating;
+    },
+    /** Client coordinates of the axes view helper's end ("posX", "negZ", …). */
+    viewHelperPoint: (end: AxisEnd) => parts.axesHelper.endPoint(end),
+    /** The axis end a click at client (x, y) would take (null: none). */
+    viewHelperEndAt: (x: number, y: number) => parts.axesHelper.endAt(x, y),
+    /** The ground grid: shown, and its plane's normal (the model's up). */
+    grid: () => ({ visible: parts.grid.visible, normal: parts.grid.normal }),
+    get xray() {
+      return tools.xray.enabled;
+    },
+    /** The last Lasso outline (viewport pixels) and the last visible-only depth pass's time (ms). */
+    lastLasso: () => tools.lastLasso.map((p) => ({ ...p })),
+    get depthPassMs() {
+      return tools.depthMs;
+    },
+    /** What the Box and Lasso tools project with: canvas size and the model → clip matrix (column-major), and the canvas's client origin. */
+    projection: () => {
+      const r = viewport.element.getBoundingClientRect();
+      return { ...currentProjection(viewport), left: r.left, top: r.top };
+    },
     applyConstraints: parts.applyConstraints,
     setMode: (mode: Mode) => state.setMode(mode),
     openLibrary: parts.openLibrary,

@@ -1,15 +1,16 @@
 // The Display panel: energy colour map (off, linear, truncated at a value) with its legend,
-// and the wireframe overlay. The energy map and the handle-weight preview (weights/) take turns:
+// the wireframe overlay and the ground grid. The energy map and the handle-weight preview (weights/) take turns:
 // turning one on turns the other off, and turning the preview off brings back the energy
 // mapping it replaced.
 import type { App } from "../app";
 import { drawLegend, fmt, scaleTop, type EnergyMapping } from "../colormap";
 import { $ } from "../dom";
 import { energyTop } from "../energy_scale";
+import type { GroundGrid } from "../viewport/ground_grid";
 import type { MeshDisplay } from "../viewport/mesh_display";
 import { autoFit } from "./number_box";
 
-export function setupDisplayPanel({ state, edits }: App, display: MeshDisplay): void {
+export function setupDisplayPanel({ state, edits }: App, display: MeshDisplay, grid: GroundGrid): void {
   const select = $<HTMLSelectElement>("energy-map");
   const trunc = $<HTMLInputElement>("energy-trunc");
   const legend = $<HTMLCanvasElement>("legend");
@@ -78,4 +79,13 @@ export function setupDisplayPanel({ state, edits }: App, display: MeshDisplay): 
   const wireframe = $<HTMLInputElement>("wireframe");
   wireframe.addEventListener("change", () => display.setWireframe(wireframe.checked));
   display.setWireframe(wireframe.checked);
+  // The Grid button in the heading (as Perf in Measures'): pressed while the grid shows.
+  const gridButton = $<HTMLButtonElement>("grid-toggle");
+  const showGrid = (on: boolean) => {
+    grid.setVisible(on);
+    gridButton.setAttribute("aria-pressed", String(on));
+    gridButton.classList.toggle("active", on);
+  };
+  gridButton.addEventListener("click", () => showGrid(!grid.visible));
+  showGrid(true);
 }

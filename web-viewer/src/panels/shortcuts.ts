@@ -7,6 +7,7 @@ import { isTyping, keyAction, SHORTCUTS } from "../keymap";
 import type { HandleGizmo } from "../viewport/handle_gizmo";
 import type { Viewport } from "../viewport/viewport";
 import type { SelectionCommand } from "../selection/commands";
+import type { ViewName } from "../viewport/view_axes";
 
 /** The box of the vertices labelled `label` (current positions), or null when there are none. */
 export function regionBox(app: App, label: number): THREE.Box3 | null {
@@ -32,9 +33,12 @@ export interface ShortcutActions {
   setKey: () => void;
   togglePerf: () => void;
   select: (command: SelectionCommand) => number;
+  /** Numpad 1 / 3 / 7 (Ctrl: the opposite side): the camera to that side of the orbit target. */
+  lookFrom: (view: ViewName) => void;
+  toggleXray: () => void;
 }
 
-export function setupShortcuts(app: App, gizmo: HandleGizmo, viewport: Viewport, { toggleWeights, setKey, togglePerf, select }: ShortcutActions): void {
+export function setupShortcuts(app: App, gizmo: HandleGizmo, viewport: Viewport, { toggleWeights, setKey, togglePerf, select, lookFrom, toggleXray }: ShortcutActions): void {
   const { state } = app;
   const overlay = $("shortcuts");
   $("shortcuts-list").innerHTML = SHORTCUTS.map(([k, what]) => `<tr><th><kbd>${k}</kbd></th><td>${what}</td></tr>`).join("");
@@ -97,6 +101,17 @@ export function setupShortcuts(app: App, gizmo: HandleGizmo, viewport: Viewport,
       case "selectShrink":
         if (!editor || !state.mesh || state.mode === "move") return;
         select(action.slice(6).toLowerCase() as SelectionCommand);
+        break;
+      case "viewFront":
+      case "viewBack":
+      case "viewRight":
+      case "viewLeft":
+      case "viewTop":
+      case "viewBottom":
+        lookFrom(action.slice(4).toLowerCase() as ViewName);
+        break;
+      case "toggleXray":
+        toggleXray();
         break;
       case "help":
         toggleHelp();

@@ -1,22 +1,39 @@
 // The region tools on the canvas: Vertex (click), Brush (drag with a radius), Box (screen
-// rectangle). In selection modes the left button selects; the right orbits, the middle pans.
-// As in Blender: a drag (or Shift+drag) adds to the region "Assign to" names, Ctrl+drag (⌘ on
-// macOS) removes from it — only that region's vertices, the other regions are left alone.
+// rectangle), Lasso (a drawn outline). In selection modes the left button selects; the right
+// orbits, the middle pans. As in Blender: a drag (or Shift+drag) adds to the region "Assign to"
+// names, Ctrl+drag (⌘ on macOS) removes from it — only that region's vertices, the other
+// regions are left alone. Box and Lasso take only the vertices the camera sees unless X-ray is
+// on (visibility.ts: one depth pass per gesture).
 import * as THREE from "three";
 import { $ } from "../dom";
 import type { Mode, SessionState } from "../state";
 import type { MeshDisplay } from "../viewport/mesh_display";
 import type { Viewport } from "../viewport/viewport";
+import { drawBox, drawLasso, hideGesture } from "./gesture_overlay";
+import { LASSO_STEP_PX, verticesInPolygon } from "./lasso";
 import { nearestCorner, pick, verticesWithin, withTwins } from "./pick";
-import { verticesInScreenRect, type Point } from "./screen_rect";
+import { verticesInScreenRect, type Point, type VertexFilter } from "./screen_rect";
+import { DepthProbe, visibleFilter } from "./visibility";
+import { XrayToggle } from "./xray";
+
+/** Visible-only: how far (× the model's diagonal) behind the surface a vertex still counts as on it. */
+const VISIBLE_TOLERANCE = 0.005;
+
+export const SELECTING_MODES: readonly Mode[] = ["vertex", "brush", "box", "lasso"];
 
 export class SelectionTools {
   private brushing = false;
   private boxStart: Point | null = null;
+  private lasso: Point[] | null = null;
   /** The gesture removes from the region (Ctrl / ⌘ held when it began) rather than adding. */
   private subtract = false;
+  readonly xray = new XrayToggle();
+  private readonly depth: DepthProbe;
+  /** The last Lasso gesture's outline (viewport pixels), for the browser tests. */
+  lastLasso: Point[] = [];
 
   constructor(private readonly viewport: Viewport, private readonly display: MeshDisplay, private readonly state: SessionState) {
+    this.depth = new DepthProbe(viewport, display);
     state.on("mode", (mode) => this.modeChanged(mode));
     const canvas = viewport.canvas;
     canvas.addEventListener("pointerdown", (ev) => this.down(ev));
@@ -24,10 +41,39 @@ export class SelectionTools {
     canvas.addEventListener("pointerup", (ev) => this.up(ev));
   }
 
+  /** The depth pass's time (ms) of the last visible-only gesture. */
+  get depthMs(): number {
+    return this.depth.lastMs;
+  }
+
+  /**
+   * Which projected vertices a Box or Lasso gesture may take: all (X-ray) or the visible ones.
+   * The depth pass runs at the first candidate vertex, so a click or an empty outline costs none.
+   */
+  private filter(): VertexFilter | undefined {
+    const mesh = this.state.mesh;
+    if (this.xray.enabled || !mesh) return undefined;
+    let visible: VertexFilter | null = null;
+    return (x, y, depth) => {
+      if (!visible) {
+        const img = this.depth.capture();
+        visible = img ? visibleFilter(img, VISIBLE_TOLERANCE * mesh.diag) : () => true;
+      }
+      return visible(x, y, depth);
+    };
+  }
+
   /** Assigns the vertices in the screen rectangle a–b (viewport pixels) to `label` (subtract: takes them out of it). */
   selectScreenRect(a: Point, b: Point, label: number, subtract = false): number {
     const mesh = this.state.mesh;
-    return mesh ? this.apply(verticesInScreenRect(this.viewport, mesh, a, b), label, subtract) : 0;
+    return mesh ? this.apply(verticesInScreenRect(this.viewport, mesh, a, b, this.filter()), label, subtract) : 0;
+  }
+
+  /** The same for the closed polygon `poly` (viewport pixels). */
+  selectPolygon(poly: Point[], label: number, subtract = false): number {
+    const mesh = this.state.mesh;
+    this.lastLasso = poly.map((p) => ({ ...p }));
+    return mesh ? this.apply(verticesInPolygon(this.viewport, mesh, poly, this.filter()), label, subtract) : 0;
   }
 
   /** `ids` into region `label`, or (subtract) those of them in it out of it; how many changed. */
@@ -41,7 +87,7 @@ export class SelectionTools {
   }
 
   private modeChanged(mode: Mode): void {
-    const selecting = mode === "vertex" || mode === "brush" || mode === "box";
+    const selecting = SELECTING_MODES.includes(mode);
     this.viewport.orbit.mouseButtons = selecting
       ? { LEFT: null as unknown as THREE.MOUSE, MIDDLE: THREE.MOUSE.PAN, RIGHT: THREE.MOUSE.ROTATE }
       : { LEFT: THREE.MOUSE.ROTATE, MIDDLE: THREE.MOUSE.DOLLY, RIGHT: THREE.MOUSE.PAN };
@@ -81,13 +127,24 @@ export class SelectionTools {
     } else if (state.mode === "box") {
       this.boxStart = this.local(ev);
       canvas.setPointerCapture(ev.pointerId);
-      this.drawBox(this.boxStart);
+      drawBox(this.boxStart, this.boxStart);
+    } else if (state.mode === "lasso") {
+      this.lasso = [this.local(ev)];
+      canvas.setPointerCapture(ev.pointerId);
+      drawLasso(this.lasso);
     }
   }
 
   private move(ev: PointerEvent): void {
     if (this.brushing && this.state.mode === "brush") this.brush(ev);
-    else if (this.boxStart) this.drawBox(this.local(ev));
+    else if (this.boxStart) drawBox(this.boxStart, this.local(ev));
+    else if (this.lasso) {
+      const p = this.local(ev);
+      const last = this.lasso[this.lasso.length - 1];
+      if (Math.hypot(p.x - last.x, p.y - last.y) < LASSO_STEP_PX) return;
+      this.lasso.push(p);
+      drawLasso(this.lasso);
+    }
   }
 
   private up(ev: PointerEvent): void {
@@ -95,18 +152,14 @@ export class SelectionTools {
     if (this.boxStart) {
       this.selectScreenRect(this.boxStart, this.local(ev), this.state.currentLabel, this.subtract);
       this.boxStart = null;
-      $("boxsel").classList.add("hidden");
+    } else if (this.lasso) {
+      const poly = this.lasso;
+      this.lasso = null;
+      const p = this.local(ev);
+      const last = poly[poly.length - 1];
+      if (p.x !== last.x || p.y !== last.y) poly.push(p);
+      this.selectPolygon(poly, this.state.currentLabel, this.subtract);
     }
-  }
-
-  private drawBox(to: Point): void {
-    const from = this.boxStart;
-    if (!from) return;
-    const el = $("boxsel");
-    el.classList.remove("hidden");
-    el.style.left = `${Math.min(from.x, to.x)}px`;
-    el.style.top = `${Math.min(from.y, to.y)}px`;
-    el.style.width = `${Math.abs(to.x - from.x)}px`;
-    el.style.height = `${Math.abs(to.y - from.y)}px`;
+    hideGesture();
   }
 }

@@ -20,6 +20,8 @@ export class Viewport {
   readonly gizmo: TransformControls;
   readonly orbit: OrbitControls;
   private needsRender = true;
+  /** Drawn over the scene after each render (the axes view helper). */
+  readonly overlays: ((renderer: THREE.WebGLRenderer) => void)[] = [];
 
   /** Throws when WebGL is not available. */
   constructor(readonly element: HTMLElement) {
@@ -61,6 +63,7 @@ export class Viewport {
     if (!this.needsRender) return;
     this.needsRender = false;
     this.renderer.render(this.scene, this.camera);
+    for (const draw of this.overlays) draw(this.renderer);
   }
 
   private resize(): void {
