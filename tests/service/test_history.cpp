@@ -63,6 +63,48 @@ grpc::Status save(TwoHandles& e, const std::string& name) {
   return e.t.bare_stub->SaveSnapshot(as(e.s.edit_token()).get(), r, &out);
 }
 
+// `keys` keys at 0, 1, … s, each moving both handles up by 0.1 per second (alice's).
+grpc::Status set_timeline(TwoHandles& e, int keys) {
+  pb::SetTimelineRequest r;
+  r.set_name(e.s.name());
+  r.set_client_id("alice");
+  for (int k = 0; k < keys; ++k) {
+    auto* key = r.mutable_timeline()->add_keys();
+    key->set_time_s(k);
+    for (int h = 0; h < 2; ++h) *key->add_transforms() = translation(0, 0, 0.1 * k);
+  }
+  pb::Timeline out;
+  return e.t.bare_stub->SetTimeline(as(e.s.edit_token()).get(), r, &out);
+}
+
+int timeline_keys(TwoHandles& e) {
+  pb::GetTimelineRequest r;
+  r.set_name(e.s.name());
+  pb::Timeline out;
+  EXPECT_TRUE(e.t.bare_stub->GetTimeline(as(e.s.view_token()).get(), r, &out).ok());
+  return out.keys_size();
+}
+
+grpc::Status delete_snapshot(TwoHandles& e, const std::string& name) {
+  pb::DeleteSnapshotRequest d;
+  d.set_name(e.s.name());
+  d.set_snapshot(name);
+  d.set_client_id("alice");
+  pb::DeleteSnapshotResponse out;
+  return e.t.bare_stub->DeleteSnapshot(as(e.s.edit_token()).get(), d, &out);
+}
+
+// "NAME@VERSION" of each named snapshot.
+std::vector<std::string> snapshot_names(TwoHandles& e) {
+  pb::ListSnapshotsRequest r;
+  r.set_name(e.s.name());
+  pb::ListSnapshotsResponse out;
+  EXPECT_TRUE(e.t.bare_stub->ListSnapshots(as(e.s.view_token()).get(), r, &out).ok());
+  std::vector<std::string> names;
+  for (const auto& x : out.snapshots()) names.push_back(x.name() + "@" + std::to_string(x.version()));
+  return names;
+}
+
 grpc::Status restore(TwoHandles& e, const std::string& name) {
   pb::RestoreSnapshotRequest r;
   r.set_name(e.s.name());
@@ -358,33 +400,13 @@ TEST(History, SurvivesARestartAndUndoRedoWorkOnIt) {
     pb::Session out;
     return e.t.bare_stub->SetBeta(as(e.s.edit_token()).get(), r, &out);
   };
-  auto set_timeline = [](TwoHandles& e) {
-    pb::SetTimelineRequest r;
-    r.set_name(e.s.name());
-    r.set_client_id("alice");
-    for (int k = 0; k < 2; ++k) {
-      auto* key = r.mutable_timeline()->add_keys();
-      key->set_time_s(k);
-      for (int h = 0; h < 2; ++h) *key->add_transforms() = translation(0, 0, 0.2 * k);
-    }
-    pb::Timeline out;
-    return e.t.bare_stub->SetTimeline(as(e.s.edit_token()).get(), r, &out);
-  };
-  auto delete_snapshot = [](TwoHandles& e, const std::string& name) {
-    pb::DeleteSnapshotRequest d;
-    d.set_name(e.s.name());
-    d.set_snapshot(name);
-    d.set_client_id("alice");
-    pb::DeleteSnapshotResponse out;
-    return e.t.bare_stub->DeleteSnapshot(as(e.s.edit_token()).get(), d, &out);
-  };
   {
     TwoHandles e(o);
     session = e.s;
     Editor alice{e, "alice"};
     alice.drag(1, 0.7);
     ASSERT_TRUE(set_beta(e, 0.3).ok());
-    ASSERT_TRUE(set_timeline(e).ok());
+    ASSERT_TRUE(set_timeline(e, 2).ok());
     ASSERT_TRUE(save(e, "A").ok());
     ASSERT_TRUE(delete_snapshot(e, "A").ok());
     ASSERT_TRUE(alice.undo().ok());  // the delete: "A" is back, and Redo may delete it again
@@ -394,34 +416,20 @@ TEST(History, SurvivesARestartAndUndoRedoWorkOnIt) {
   TwoHandles e(o, session);  // a new server on the same state
   Editor alice{e, "alice"};
   EXPECT_EQ(history(e, 500).SerializeAsString(), before_restart);
-  auto snapshot_names = [&] {
-    pb::ListSnapshotsRequest r;
-    r.set_name(e.s.name());
-    pb::ListSnapshotsResponse out;
-    EXPECT_TRUE(e.t.bare_stub->ListSnapshots(as(e.s.view_token()).get(), r, &out).ok());
-    return out.snapshots_size();
-  };
-  auto keys = [&] {
-    pb::GetTimelineRequest r;
-    r.set_name(e.s.name());
-    pb::Timeline out;
-    EXPECT_TRUE(e.t.bare_stub->GetTimeline(as(e.s.view_token()).get(), r, &out).ok());
-    return out.keys_size();
-  };
-  ASSERT_EQ(snapshot_names(), 1);
+  ASSERT_EQ(snapshot_names(e).size(), 1u);
   auto st = alice.redo();  // the delete again
   ASSERT_TRUE(st.ok()) << st.error_message();
-  EXPECT_EQ(snapshot_names(), 0);
+  EXPECT_TRUE(snapshot_names(e).empty());
   EXPECT_EQ(history(e).steps(0).id(), 8);  // ids go on where they were
   ASSERT_TRUE(alice.undo().ok());  // the delete
-  EXPECT_EQ(snapshot_names(), 1);
+  EXPECT_EQ(snapshot_names(e).size(), 1u);
   st = alice.undo();  // the save
   ASSERT_TRUE(st.ok()) << st.error_message();
-  EXPECT_EQ(snapshot_names(), 0);
-  ASSERT_EQ(keys(), 2);
+  EXPECT_TRUE(snapshot_names(e).empty());
+  ASSERT_EQ(timeline_keys(e), 2);
   st = alice.undo();  // the timeline
   ASSERT_TRUE(st.ok()) << st.error_message();
-  EXPECT_EQ(keys(), 0);
+  EXPECT_EQ(timeline_keys(e), 0);
   pb::Session now;
   st = alice.undo(&now);  // β
   ASSERT_TRUE(st.ok()) << st.error_message();
@@ -561,64 +569,31 @@ TEST(History, AnUpdateThatChangesNothingIsNoStep) {
 TEST(History, TimelineEditsAndSnapshotSavesAndDeletesAreUndoable) {
   TwoHandles e;
   Editor alice{e, "alice"};
-  auto set_timeline = [&](int keys) {
-    pb::SetTimelineRequest r;
-    r.set_name(e.s.name());
-    r.set_client_id("alice");
-    for (int k = 0; k < keys; ++k) {
-      auto* key = r.mutable_timeline()->add_keys();
-      key->set_time_s(k);
-      for (int h = 0; h < 2; ++h) *key->add_transforms() = translation(0, 0, 0.1 * k);
-    }
-    pb::Timeline out;
-    return e.t.bare_stub->SetTimeline(as(e.s.edit_token()).get(), r, &out);
-  };
-  auto keys = [&] {
-    pb::GetTimelineRequest r;
-    r.set_name(e.s.name());
-    pb::Timeline out;
-    EXPECT_TRUE(e.t.bare_stub->GetTimeline(as(e.s.view_token()).get(), r, &out).ok());
-    return out.keys_size();
-  };
-  auto snapshots = [&] {
-    pb::ListSnapshotsRequest r;
-    r.set_name(e.s.name());
-    pb::ListSnapshotsResponse out;
-    EXPECT_TRUE(e.t.bare_stub->ListSnapshots(as(e.s.view_token()).get(), r, &out).ok());
-    std::vector<std::string> names;
-    for (const auto& s : out.snapshots()) names.push_back(s.name() + "@" + std::to_string(s.version()));
-    return names;
-  };
   const auto version = e.state().version();
-  ASSERT_TRUE(set_timeline(2).ok());
-  ASSERT_TRUE(set_timeline(3).ok());
+  ASSERT_TRUE(set_timeline(e, 2).ok());
+  ASSERT_TRUE(set_timeline(e, 3).ok());
   const auto steps = history(e).total();
-  ASSERT_TRUE(set_timeline(3).ok());  // the same keys: no step
+  ASSERT_TRUE(set_timeline(e, 3).ok());  // the same keys: no step
   EXPECT_EQ(history(e).total(), steps);
   EXPECT_EQ(history(e).steps(0).kind(), pb::STEP_KIND_TIMELINE);
   EXPECT_TRUE(history(e).steps(0).timeline_changed());
   EXPECT_EQ(e.state().version(), version);  // the pose did not change
   ASSERT_TRUE(alice.undo().ok());
-  EXPECT_EQ(keys(), 2);
+  EXPECT_EQ(timeline_keys(e), 2);
   ASSERT_TRUE(alice.undo().ok());
-  EXPECT_EQ(keys(), 0);
+  EXPECT_EQ(timeline_keys(e), 0);
   ASSERT_TRUE(alice.redo().ok());
-  EXPECT_EQ(keys(), 2);
+  EXPECT_EQ(timeline_keys(e), 2);
 
   ASSERT_TRUE(save(e, "pose A").ok());
-  const auto saved = snapshots();
+  const auto saved = snapshot_names(e);
   ASSERT_EQ(saved.size(), 1u);
-  pb::DeleteSnapshotRequest d;
-  d.set_name(e.s.name());
-  d.set_snapshot("pose A");
-  d.set_client_id("alice");
-  pb::DeleteSnapshotResponse dr;
-  ASSERT_TRUE(e.t.bare_stub->DeleteSnapshot(as(e.s.edit_token()).get(), d, &dr).ok());
-  EXPECT_TRUE(snapshots().empty());
+  ASSERT_TRUE(delete_snapshot(e, "pose A").ok());
+  EXPECT_TRUE(snapshot_names(e).empty());
   EXPECT_EQ(history(e).steps(0).kind(), pb::STEP_KIND_SNAPSHOT_DELETE);
   EXPECT_EQ(history(e).steps(0).snapshot(), "pose A");
   ASSERT_TRUE(alice.undo().ok());
-  EXPECT_EQ(snapshots(), saved);  // the very snapshot, back
+  EXPECT_EQ(snapshot_names(e), saved);  // the very snapshot, back
   ASSERT_TRUE(restore(e, "pose A").ok());
   // Undo of the save by id: gone again; a save under the name since refuses it.
   const auto h = history(e, 500);
@@ -631,9 +606,9 @@ TEST(History, TimelineEditsAndSnapshotSavesAndDeletesAreUndoable) {
   EXPECT_EQ(st.error_code(), grpc::StatusCode::ABORTED);
   EXPECT_NE(st.error_message().find("snapshot 'pose A'"), std::string::npos) << st.error_message();
   ASSERT_TRUE(alice.undo().ok());  // the replacing save: the first one is back
-  EXPECT_EQ(snapshots(), saved);
+  EXPECT_EQ(snapshot_names(e), saved);
   ASSERT_TRUE(alice.undo(nullptr, save_step).ok());
-  EXPECT_TRUE(snapshots().empty());
+  EXPECT_TRUE(snapshot_names(e).empty());
 }
 
 // Retries are safe: a change repeated with the same request_id answers as the first did and
