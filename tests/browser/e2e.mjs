@@ -727,7 +727,7 @@ try {
   // page stay open while the server is killed and started again on the same ports and state.
   await page2.bringToFront();
   await waitIdle(page2);
-  await sleep(500); // moves are saved within 100 ms
+  await sleep(1200); // moves are saved within 100 ms, history steps within a second
   const vKill = await page2.evaluate(() => window.hdeform.version);
   const pKill = await positions(page2);
   const stepsOf = (page) => page.evaluate(() => JSON.stringify(window.hdeform.history().map((s) => [s.id, s.kind, s.summary, s.undone])));

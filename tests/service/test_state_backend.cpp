@@ -869,7 +869,8 @@ TEST(RedisState, AfterRedisRestartsEmptyTheNextChangeRewritesRecordAndMesh) {
   redis.start();  // no persistence: empty
   auto st = a.set_beta(s.name(), 0.2, &out);
   ASSERT_TRUE(st.ok()) << st.error_message();
-  std::this_thread::sleep_for(std::chrono::milliseconds(400));
+  // Histories are written at most once a second (SessionStore::kHistoryPeriod).
+  std::this_thread::sleep_for(std::chrono::milliseconds(1300));
   hdeform::testing::TestServer b(o);  // another replica restores it from Redis alone
   grpc::ClientContext ctx;
   pb::GetSessionRequest g;

@@ -247,6 +247,7 @@ class Session : public std::enable_shared_from_this<Session> {
     std::atomic<bool> dirty{false};     // changed since (coalesced handle moves)
     std::string mesh_key;               // blob key of an uploaded mesh ("" for library)
     std::uint64_t saved_history = 0;    // History::revision() last written (flusher only)
+    std::int64_t saved_history_ms = 0;  // when (unix ms)
     std::uint64_t store_generation = 0;  // StateBackend::generation() at the last write
     std::atomic<std::int64_t> checked_ms{0};  // last compared with the store (revalidate)
   };

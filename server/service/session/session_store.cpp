@@ -475,7 +475,7 @@ void SessionStore::shutdown() {
   sweeper_cv_.notify_all();
   if (sweeper_.joinable()) sweeper_.join();
   if (flusher_.joinable()) flusher_.join();
-  if (durable()) flush();  // the last moves of a drag survive a clean stop
+  if (durable()) flush(true);  // the last moves of a drag (and steps) survive a clean stop
   std::map<std::string, std::shared_ptr<Session>> all;
   {
     std::lock_guard lock(mutex_);
@@ -639,7 +639,7 @@ void SessionStore::gate(Session& session) const {
   });
 }
 
-void SessionStore::flush() {
+void SessionStore::flush(bool final) {
   if (!durable()) return;
   const std::int64_t now = unix_ms_now();
   for (auto& s : list()) {
@@ -650,11 +650,12 @@ void SessionStore::flush() {
     const bool refresh =
         now - p.saved_ms > persistence_.refresh_period.count() &&
         std::chrono::steady_clock::now() - s->last_used() < persistence_.refresh_period;
-    const bool history = s->history_revision() != p.saved_history;
+    const bool history = s->history_revision() != p.saved_history &&
+                         (final || now - p.saved_history_ms >= kHistoryPeriod.count());
     if (!p.dirty && !refresh && !history) continue;
     try {
       if (p.dirty || refresh) save_locked(*s, p);
-      if (s->history_revision() != p.saved_history) save_history_locked(*s, p);
+      if (history) save_history_locked(*s, p);
     } catch (const StateError& e) {
       p.dirty = true;
       spdlog::error("{}: saving its state: {}", s->name(), e.what());
@@ -668,7 +669,10 @@ void SessionStore::save_history_locked(Session& s, Session::Persisted& p) const 
   const std::string bytes = s.history_bytes(&revision);
   // Written after its record (the store keeps a history only beside one): false means the
   // record is not there yet, and the next flush tries again.
-  if (persistence_.backend->put_history(s.id(), bytes)) p.saved_history = revision;
+  if (persistence_.backend->put_history(s.id(), bytes)) {
+    p.saved_history = revision;
+    p.saved_history_ms = unix_ms_now();
+  }
 }
 
 }  // namespace hdeform::service

@@ -119,8 +119,11 @@ class SessionStore {
   // was applied (StoreGate: a move the store does not acknowledge is refused and changes
   // nothing), so this has nothing left to do.
   void moved(Session& session) const;
-  // Writes every dirty session's record (the flusher's job; also at shutdown).
-  void flush();
+  // Writes every dirty session's record (the flusher's job; also at shutdown), and each
+  // changed history at most once per kHistoryPeriod (a history is rewritten whole: a β
+  // slider drag would otherwise rewrite it every period); `final`: every changed one now.
+  void flush(bool final = false);
+  static constexpr std::chrono::milliseconds kHistoryPeriod{1000};
 
   // Removes sessions idle for longer than the TTL (observed or streaming sessions are
   // never idle). Returns how many expired.
