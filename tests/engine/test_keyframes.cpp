@@ -70,6 +70,22 @@ TEST(Keyframes, SmoothstepEasesTheParameter) {
   EXPECT_NEAR(pose_at(keys, 1.5, Easing::smoothstep, kPivots)[1].translation.y(), 2, 1e-15);
 }
 
+// A key's own easing rules its segment (to the next key); the others keep the timeline's.
+TEST(Keyframes, AKeysEasingRulesItsSegmentOnly) {
+  auto keys = two_keys();
+  keys.push_back({4.5, {moved({2, 0, 0}), moved({1, 8, 0})}});
+  keys[0].easing = Easing::smoothstep;
+  // First segment (0.5 → 2.5) eased although the timeline is linear: u = 0.25 → 0.15625.
+  EXPECT_NEAR(pose_at(keys, 1.0, Easing::linear, kPivots)[1].translation.y(), 4 * 0.15625, 1e-15);
+  // Second segment (2.5 → 4.5, y 4 → 8): the timeline's linear, u = 0.25.
+  EXPECT_NEAR(pose_at(keys, 3.0, Easing::linear, kPivots)[1].translation.y(), 5, 1e-15);
+  // A key that says linear in a smoothstep timeline.
+  keys[0].easing.reset();
+  keys[1].easing = Easing::linear;
+  EXPECT_NEAR(pose_at(keys, 1.0, Easing::smoothstep, kPivots)[1].translation.y(), 4 * 0.15625, 1e-15);
+  EXPECT_NEAR(pose_at(keys, 3.0, Easing::smoothstep, kPivots)[1].translation.y(), 5, 1e-15);
+}
+
 TEST(Keyframes, SlerpTakesTheShortArc) {
   // q and −q are the same rotation: the midpoint must be the identity's neighbourhood,
   // not a half-turn.

@@ -150,6 +150,33 @@ TEST(Timeline, SetGetAndPoseAtInterpolate) {
   EXPECT_EQ(after.transforms(0).translation().z(), 1);  // the last key holds
 }
 
+// A key's easing rules its segment: PoseAt eases 0 → 1 s, not 1 → 2 s; an unknown value
+// is refused naming the key; a change of a key's easing alone is a new timeline (a step).
+TEST(Timeline, AKeysEasingRulesItsSegment) {
+  Timeline f;
+  pb::Timeline t = three_keys();
+  t.mutable_keys(0)->set_easing(pb::EASING_SMOOTHSTEP);
+  auto st = f.set(t);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  EXPECT_EQ(f.get().keys(0).easing(), pb::EASING_SMOOTHSTEP);
+  EXPECT_FALSE(f.get().keys(1).has_easing());
+  pb::Keyframe pose;
+  ASSERT_TRUE(f.pose(0.25, &pose).ok());  // u = 0.25 eased: 0.15625 of 0.5
+  EXPECT_NEAR(pose.transforms(0).translation().z(), 0.5 * 0.15625, 1e-15);
+  ASSERT_TRUE(f.pose(1.25, &pose).ok());  // the timeline's linear: 0.5 + 0.25 · 0.5
+  EXPECT_NEAR(pose.transforms(0).translation().z(), 0.625, 1e-15);
+  t.mutable_keys(1)->set_easing(static_cast<pb::Easing>(7));
+  st = f.set(t);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("keys[1].easing: unknown value 7"), std::string::npos)
+      << st.error_message();
+  const auto version = f.get().version();
+  t.mutable_keys(1)->set_easing(pb::EASING_LINEAR);  // the same as unset, but said: a change
+  ASSERT_TRUE(f.set(t).ok());
+  EXPECT_TRUE(f.get().keys(1).has_easing());
+  EXPECT_EQ(f.get().version(), version);  // the pose did not change
+}
+
 TEST(Timeline, EverySampleIsTheServersExactFrameOfThatPose) {
   Timeline f;
   ASSERT_TRUE(f.set(three_keys()).ok());

@@ -71,7 +71,7 @@ std::vector<HandleTransform> pose_at(std::span<const Keyframe> keys, double t, E
   const Keyframe& a = keys[next - 1];
   const Keyframe& b = keys[next];
   double u = (t - a.time) / (b.time - a.time);
-  if (easing == Easing::smoothstep) u = u * u * (3 - 2 * u);
+  if (a.easing.value_or(easing) == Easing::smoothstep) u = u * u * (3 - 2 * u);
   for (std::size_t j = 0; j < handles; ++j)
     out[j] = blend(with_pivot(a.transforms[j], rest_pivots[j]),
                    with_pivot(b.transforms[j], rest_pivots[j]), u);

@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 
 #include <cstddef>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -22,6 +23,8 @@ enum class Easing {
 struct Keyframe {
   double time = 0;                          // seconds
   std::vector<HandleTransform> transforms;  // one per handle
+  // The easing from this key to the next; unset: the timeline's (pose_at's `easing`).
+  std::optional<Easing> easing;
 };
 
 // Limits of a timeline (each breach is an InvalidInput naming it).
@@ -31,7 +34,8 @@ inline constexpr std::size_t kMaxKeyframes = 256;
 // times finite, ≥ 0 and strictly increasing, `handles` transforms per key, each valid.
 void check_keyframes(std::span<const Keyframe> keys, int handles);
 
-// Every handle's transform at time t. Between keys a and b, with u eased: rotation
+// Every handle's transform at time t. Between keys a and b, with u eased (a.easing, else
+// `easing`): rotation
 // slerp(R_a, R_b, u) (shortest arc), S, t and the pivot p linear in u (an unset pivot is
 // `rest_pivots[j]`, the handle's rest centroid); the result's pivot is always set. Before the
 // first key the first holds, after the last the last; at a key's time, that key exactly.

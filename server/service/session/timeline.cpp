@@ -14,15 +14,22 @@ std::optional<Beta> ParsedTimeline::beta_at(double t) const {
   return out;
 }
 
+namespace {
+
+Easing easing_from(pb::Easing e, const std::string& where) {
+  switch (e) {
+    case pb::EASING_LINEAR: return Easing::linear;
+    case pb::EASING_SMOOTHSTEP: return Easing::smoothstep;
+    default: throw InvalidInput(where + "easing: unknown value " + std::to_string(e));
+  }
+}
+
+}  // namespace
+
 ParsedTimeline parse_timeline(const pb::Timeline& timeline, const ConstraintSet& cs) {
   const std::string op = "SetTimeline ";
   ParsedTimeline out;
-  switch (timeline.easing()) {
-    case pb::EASING_LINEAR: out.easing = Easing::linear; break;
-    case pb::EASING_SMOOTHSTEP: out.easing = Easing::smoothstep; break;
-    default:
-      throw InvalidInput(op + "easing: unknown value " + std::to_string(timeline.easing()));
-  }
+  out.easing = easing_from(timeline.easing(), op);
   if (static_cast<std::size_t>(timeline.keys_size()) > kMaxKeyframes)
     throw InvalidInput(op + "timeline: " + std::to_string(timeline.keys_size()) +
                        " keys exceed the limit of " + std::to_string(kMaxKeyframes));
@@ -33,6 +40,7 @@ ParsedTimeline parse_timeline(const pb::Timeline& timeline, const ConstraintSet&
     const std::string where = op + "keys[" + std::to_string(i) + "]";
     Keyframe key;
     key.time = k.time_s();
+    if (k.has_easing()) key.easing = easing_from(k.easing(), where + ".");
     if (k.transforms_size() != cs.num_handles())
       throw InvalidInput(where + ": " + std::to_string(k.transforms_size()) +
                          " transforms for " + std::to_string(cs.num_handles()) + " handles");
