@@ -13,7 +13,11 @@
 //   play — Play shows the animation (two canvas shots differ), Stop returns to the live mesh;
 //   clear — a second editor's new constraints ask before dropping the keys, then empty the strip on
 //     both pages, with a note; his Ctrl+Z brings the keys back, Ctrl+Shift+Z drops them again;
-//   bad input — fps 500 and 721 frames (> --max-animation-frames 600) show the server's message.
+//   bad input — fps 500 and 721 frames (> --max-animation-frames 600) show the server's message;
+//   key edits (issue 37) — the selected key's marker dragged with the mouse to a new time (one
+//     SetTimeline, one TIMELINE step, the other keys untouched), Esc mid-drag (nothing changes), a
+//     drop onto another key (refused, with the message), Ctrl+C / Ctrl+V (the copied pose keyed
+//     at the playhead, also over a key there), Backspace, and a watch page refusing them.
 // Screenshots `timeline-*.png`. Against a server without GetTimeline: SKIP, nothing checked.
 import { readFileSync } from "node:fs";
 
@@ -383,6 +387,193 @@ export async function timelineChecks({ context, base, log, check, sleep, shot, w
   const framesNote = (await tl()).note;
   check(/ResourceExhausted/.test(framesNote) && /max-animation-frames/.test(framesNote) && !(await tl()).playing, `${(await tl()).keys.at(-1)} s at 120 fps (> 600 frames): Play shows the server's message ("${framesNote}")`);
   await shot(page, "timeline-07-too-many-frames");
+  await page.fill("#tl-fps", "24");
+  await keyEditChecks({ page, context, log, check, sleep, shot, watchPage, waitLoaded, settle, rulerClick, tfDiff });
   await page.close();
   return true;
+}
+
+// Issue 37: keys moved by dragging their marker, copied and pasted, on the timeline the checks
+// above leave (3 keys). Every gesture is the real mouse and keyboard; the server's GetTimeline
+// and the History panel are the judges.
+async function keyEditChecks({ page, context, log, check, sleep, shot, watchPage, waitLoaded, settle, rulerClick, tfDiff }) {
+  const hook = (fn, arg) => page.evaluate(fn, arg);
+  const tl = () => hook(() => window.hdeform.timeline());
+  const state = await tl();
+  // The hooks these checks read: missing ones are a failure, not a reason to skip.
+  const missing = ["keyDragTime", "copiedFrom"].filter((k) => !(k in state));
+  check(missing.length === 0, `the test hook has timeline().keyDragTime and .copiedFrom${missing.length ? ` (missing: ${missing.join(", ")})` : ""}`);
+  if (missing.length) return;
+  const server = () => hook(() => window.hdeform.serverTimeline());
+  const steps = async () => (await hook(() => window.hdeform.history())).length;
+  const newSteps = async (before) => {
+    await sleep(400); // the step event
+    const all = await hook(() => window.hdeform.history());
+    return all.slice(0, all.length - before);
+  };
+  const sameKeys = (a, b) => a.keys.length === b.keys.length && a.keys.every((k, i) => k.time === b.keys[i].time && tfDiff(k.transforms, b.keys[i].transforms) === 0 && k.beta === b.keys[i].beta);
+  const clickMarker = async (index, p = page) => {
+    const m = await keyMarkerBox(p, index);
+    await p.mouse.click(m.x + m.width / 2, m.y + m.height / 2);
+    await settle(p);
+  };
+  // Press the marker's centre and move in steps to x (the callback runs before the release).
+  const dragMarker = async (index, x, { steps: n = 10, before } = {}) => {
+    const m = await keyMarkerBox(page, index);
+    const [mx, my] = [m.x + m.width / 2, m.y + m.height / 2];
+    await page.mouse.move(mx, my);
+    await page.mouse.down();
+    for (let i = 1; i <= n; i++) {
+      await page.mouse.move(mx + ((x - mx) * i) / n, my);
+      await sleep(30);
+    }
+    const during = before ? await before() : undefined;
+    await page.mouse.up();
+    return during;
+  };
+  const secondsPerPx = await hook(() => 1 / (window.hdeform.rulerPoint(1).x - window.hdeform.rulerPoint(0).x));
+
+  // ---- drag key 2 to 3 s: one SetTimeline, one step ----------------------------------------------------
+  const start = await server();
+  check(start.keys.length === 3, `key edits start from 3 keys (${JSON.stringify(start.keys.map((k) => k.time))} s)`);
+  await clickMarker(1); // a click selects (and scrubs to it); dragging the selected key moves it
+  const from = start.keys[1].time;
+  const target = 3;
+  const to = await hook((t) => window.hdeform.rulerPoint(t), target);
+  let stepsBefore = await steps();
+  const during = await dragMarker(1, to.x, {
+    before: async () => {
+      await shot(page, "timeline-08-key-drag");
+      return { tl: await tl(), time: await page.textContent("#tl-time") };
+    },
+  });
+  await page.waitForFunction((f) => !window.hdeform.timeline().keys.includes(f), from, { timeout: 10_000 }).catch(() => {});
+  await page.waitForFunction(() => /moved/.test(window.hdeform.timeline().note), null, { timeout: 10_000 }).catch(() => {});
+  const moved = await server();
+  const added = await newSteps(stepsBefore);
+  const mk = moved.keys[1];
+  check(
+    (await tl()).selected === 1 && during.tl.keyDragTime !== null && Math.abs(during.tl.keyDragTime - target) <= secondsPerPx && /→/.test(during.time) && during.tl.keys[1] === from,
+    `dragging the selected key's marker shows its new time ("${during.time}") while the list is unchanged`,
+  );
+  check(
+    moved.keys.length === 3 && Math.abs(mk.time - target) <= secondsPerPx && tfDiff(mk.transforms, start.keys[1].transforms) === 0 && mk.beta === start.keys[1].beta,
+    `…on release GetTimeline has key 2 at ${mk?.time} s (wanted ${target} ± ${secondsPerPx.toFixed(4)} s, one pixel), its pose unchanged`,
+  );
+  check(
+    [0, 2].every((i) => moved.keys[i].time === start.keys[i].time && tfDiff(moved.keys[i].transforms, start.keys[i].transforms) === 0),
+    "…the other keys are unchanged (times and transforms)",
+  );
+  const movedNote = (await tl()).note;
+  check(
+    added.length === 1 && added[0].kind === "TIMELINE" && /Key moved from/.test(movedNote),
+    `…as one history step (${added.map((s) => `${s.kind} "${s.summary}"`).join(", ")}); the strip says "${movedNote}"`,
+  );
+
+  // ---- Esc mid-drag: nothing changes --------------------------------------------------------------------
+  const markerX = (await keyMarkerBox(page, 1)).x;
+  const towards = await hook(() => window.hdeform.rulerPoint(1.5));
+  stepsBefore = await steps();
+  const escaped = await dragMarker(1, towards.x, {
+    before: async () => {
+      const mid = (await tl()).keyDragTime;
+      await page.keyboard.press("Escape");
+      await sleep(50);
+      return { mid, after: (await tl()).keyDragTime };
+    },
+  });
+  await sleep(300);
+  const afterEsc = await server();
+  const escSteps = await newSteps(stepsBefore);
+  check(
+    escaped.mid !== null && escaped.after === null && sameKeys(afterEsc, moved) && escSteps.length === 0 && Math.abs((await keyMarkerBox(page, 1)).x - markerX) < 0.5,
+    `Esc during a key drag (at ${escaped.mid} s) cancels it: the marker back at ${mk.time} s, GetTimeline unchanged, no history step`,
+  );
+
+  // ---- a drop onto another key: refused, the key back where it was -------------------------------------------
+  const onto = await keyMarkerBox(page, 2);
+  stepsBefore = await steps();
+  await dragMarker(1, onto.x + onto.width / 2);
+  await page.waitForFunction(() => /not moved/.test(window.hdeform.timeline().note), null, { timeout: 5_000 }).catch(() => {});
+  const refusedNote = (await tl()).note;
+  await shot(page, "timeline-09-drop-refused");
+  const afterRefusal = await server();
+  check(
+    /not moved/.test(refusedNote) && refusedNote.includes(moved.keys[2].time.toFixed(3)) && (await page.getAttribute("#tl-note", "class")).includes("err") && sameKeys(afterRefusal, moved) && (await newSteps(stepsBefore)).length === 0 && JSON.stringify((await tl()).keys) === JSON.stringify(moved.keys.map((k) => k.time)),
+    `a drop onto key 3 is refused ("${refusedNote}"): GetTimeline unchanged, no step, the marker back`,
+  );
+
+  // ---- Ctrl+C / Ctrl+V -------------------------------------------------------------------------------------------
+  await clickMarker(2);
+  await page.keyboard.press("Control+c");
+  const copiedFrom = (await tl()).copiedFrom;
+  await rulerClick(2);
+  await settle();
+  const pasteAt = (await tl()).playhead;
+  stepsBefore = await steps();
+  await page.keyboard.press("Control+v");
+  await page.waitForFunction(() => window.hdeform.timeline().keys.length === 4, null, { timeout: 10_000 }).catch(() => {});
+  const pasted = await server();
+  const pk = pasted.keys.find((k) => k.time === pasteAt);
+  const pasteSteps = await newSteps(stepsBefore);
+  check(
+    copiedFrom === moved.keys[2].time && pasted.keys.length === 4 && pk && tfDiff(pk.transforms, moved.keys[2].transforms) === 0 && pk.beta === moved.keys[2].beta && pasteSteps.length === 1,
+    `Ctrl+C on key 3 (${copiedFrom} s), Ctrl+V at the playhead (${pasteAt} s): a 4th key there with the same pose (${pasteSteps.length} step)`,
+  );
+  check(
+    moved.keys.every((k) => pasted.keys.some((p) => p.time === k.time && tfDiff(p.transforms, k.transforms) === 0)),
+    "…the other keys are unchanged",
+  );
+  await shot(page, "timeline-10-pasted");
+  // Pasting over a key replaces it, as setting a key does: key 1's pose onto the pasted key.
+  await clickMarker(0);
+  await page.keyboard.press("Control+c");
+  await clickMarker(1); // the pasted key (the playhead goes to its exact time)
+  await page.keyboard.press("Control+v");
+  await page.waitForFunction(() => /Pasted the key from 0/.test(window.hdeform.timeline().note), null, { timeout: 10_000 }).catch(() => {});
+  const replaced = await server();
+  const rk = replaced.keys.find((k) => k.time === pasteAt);
+  check(
+    replaced.keys.length === 4 && rk && tfDiff(rk.transforms, pasted.keys[0].transforms) === 0,
+    `Ctrl+V onto a key's time replaces it (still 4 keys; the key at ${pasteAt} s now holds key 1's pose)`,
+  );
+  // Backspace (the strip focused) deletes the selected key.
+  await page.keyboard.press("Backspace");
+  await page.waitForFunction(() => window.hdeform.timeline().keys.length === 3, null, { timeout: 10_000 }).catch(() => {});
+  const afterDelete = await server();
+  check(afterDelete.keys.length === 3 && !afterDelete.keys.some((k) => k.time === pasteAt), `Backspace deletes the selected key (${afterDelete.keys.length} keys left)`);
+
+  // ---- a watch page refuses them --------------------------------------------------------------------------------
+  const watcher = await context.newPage();
+  watchPage(watcher, "timeline-watch");
+  await watcher.setViewportSize({ width: 1100, height: 760 });
+  await watcher.goto(await hook(() => window.hdeform.shareLink(true)));
+  await waitLoaded(watcher, "timeline-watch");
+  await watcher.waitForFunction(() => window.hdeform.timeline().keys.length === 3, null, { timeout: 10_000 }).catch(() => {});
+  await clickMarker(1, watcher);
+  const wSel = (await watcher.evaluate(() => window.hdeform.timeline())).selected;
+  await watcher.keyboard.press("Control+c");
+  const wCopy = await watcher.evaluate(() => window.hdeform.timeline());
+  await watcher.keyboard.press("Control+v");
+  await sleep(200);
+  const wPaste = (await watcher.evaluate(() => window.hdeform.timeline())).note;
+  // Dragging the selected marker scrubs there (a local playhead), it moves no key.
+  const wm = await keyMarkerBox(watcher, 1);
+  const wTo = await watcher.evaluate(() => window.hdeform.rulerPoint(0.5));
+  await watcher.mouse.move(wm.x + wm.width / 2, wm.y + wm.height / 2);
+  await watcher.mouse.down();
+  for (let i = 1; i <= 8; i++) {
+    await watcher.mouse.move(wm.x + wm.width / 2 + ((wTo.x - wm.x - wm.width / 2) * i) / 8, wm.y + wm.height / 2);
+    await sleep(30);
+  }
+  await watcher.mouse.up();
+  await sleep(300);
+  const wAfter = await watcher.evaluate(() => window.hdeform.timeline());
+  check(
+    wSel === 1 && wCopy.copiedFrom === null && /Watch-only/.test(wCopy.note) && /Watch-only/.test(wPaste) && sameKeys(await server(), afterDelete) && wAfter.keyDragTime === null && Math.abs(wAfter.playhead - 0.5) < 0.05,
+    `a watch page refuses Ctrl+C / Ctrl+V ("${wPaste}"), and a drag of its selected marker only moves its playhead (${wAfter.playhead} s): the timeline unchanged`,
+  );
+  await shot(watcher, "timeline-11-watch-refuses");
+  await watcher.close();
+  log(`key edits: one pixel is ${secondsPerPx.toFixed(4)} s on this ruler`);
 }

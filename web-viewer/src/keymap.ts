@@ -145,6 +145,27 @@ export function historyKey(ev: KeyInput, mac: boolean): HistoryKey | null {
   }
 }
 
+export type ClipboardKey = "copy" | "paste";
+
+/**
+ * Ctrl+C / Ctrl+V (⌘C / ⌘V on macOS, as historyKey): the timeline's copy and paste of a key.
+ * Shift or Alt with them is something else (the browser's paste-as-plain-text, …).
+ */
+export function clipboardKey(ev: KeyInput, mac: boolean): ClipboardKey | null {
+  const command = mac ? ev.metaKey && !ev.ctrlKey : ev.ctrlKey && !ev.metaKey;
+  if (!command || ev.altKey || ev.shiftKey) return null;
+  switch (ev.key) {
+    case "c":
+    case "C":
+      return "copy";
+    case "v":
+    case "V":
+      return "paste";
+    default:
+      return null;
+  }
+}
+
 /** What an element is, as far as typing goes (a DOM element or a plain description in tests). */
 export interface TargetInfo {
   tagName?: string;
@@ -179,6 +200,8 @@ export const SHORTCUTS: [string, string][] = [
   ["V", "show / hide the active handle's weights (0 = fixed, 1 = moves with it)"],
   ["K", "timeline: set a key (every handle's pose) at the playhead"],
   ["Delete (timeline focused)", "delete the selected key"],
+  ["Ctrl+C / Ctrl+V (⌘C / ⌘V)", "timeline: copy the selected key's pose / paste it as a key at the playhead"],
+  ["drag the selected key", "timeline: move it to another time (Esc: cancel)"],
   ["Ctrl+Z (⌘Z)", "undo your last change"],
   ["Ctrl+Shift+Z · Ctrl+Y", "redo it"],
   ["A / Alt+A", "select all / none (of the region Assign to names)"],

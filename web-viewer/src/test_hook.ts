@@ -373,6 +373,9 @@ export function installTestHook({ state, client, banner, status }: App, parts: H
       scrubbing: parts.scrub.active,
       posesApplied: parts.scrub.applied,
       glbBytes: parts.timeline.lastGlbBytes,
+      /** The time a key is being dragged to (null: no key drag), and Ctrl+C's key time. */
+      keyDragTime: parts.timeline.view.keyDragTime,
+      copiedFrom: parts.timeline.copiedFrom,
     }),
     /** Client x of timeline time t on the ruler, and the ruler's vertical middle. */
     rulerPoint: (t: number) => {

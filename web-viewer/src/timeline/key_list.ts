@@ -25,3 +25,21 @@ export function deleteKey<K extends Timed>(keys: readonly K[], index: number): K
 export function keyAt(keys: readonly Timed[], timeS: number): number {
   return keys.findIndex((k) => Math.abs(k.timeS - timeS) < SAME_TIME_S);
 }
+
+/** What moving a key gives: the new sorted list, or which other key's time it was dropped on. */
+export type MoveResult<K> = { keys: K[]; index: number } | { onto: number };
+
+/**
+ * `keys` with the key at `index` moved to `timeS` (sorted again), or, when another key sits at
+ * that time (within SAME_TIME_S), which one: a move never silently replaces a key — that would
+ * lose a pose on a slip of the mouse (setting a key, by contrast, means "this pose here").
+ */
+export function moveKey<K extends Timed>(keys: readonly K[], index: number, timeS: number): MoveResult<K> {
+  const onto = keys.findIndex((k, i) => i !== index && Math.abs(k.timeS - timeS) < SAME_TIME_S);
+  if (onto >= 0) return { onto };
+  const moved = { ...keys[index], timeS };
+  const out = keys.filter((_, i) => i !== index);
+  out.push(moved);
+  out.sort((a, b) => a.timeS - b.timeS);
+  return { keys: out, index: out.indexOf(moved) };
+}

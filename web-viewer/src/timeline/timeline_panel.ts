@@ -1,6 +1,7 @@
 // The timeline strip along the bottom of the viewport: the session's keys (GetTimeline, then
 // live from SessionEvent.timeline), the playhead and its time; for editors Set key (K), Delete
-// key, easing, scrubbing (scrub.ts), Play (the exported GLB in the viewport) and Export (the same
+// key, easing, scrubbing (scrub.ts), moving the selected key (a drag of its marker), copy / paste
+// of a key's pose (Ctrl+C / Ctrl+V), Play (the exported GLB in the viewport) and Export (the same
 // GLB as a download). Every change sends the whole edited key list (SetTimeline). Watch pages
 // see the keys and move their own playhead; they change nothing (the calls need the edit token).
 import { newRequestId } from "../request_id";
@@ -18,7 +19,8 @@ import type { Sync } from "../sync/sync";
 import { toProtoTransforms } from "../transforms";
 import { fetchAnimation } from "./animation_glb";
 import type { AnimationPlayer } from "./animation_player";
-import { deleteKey, keyAt, setKey } from "./key_list";
+import { deleteKey, keyAt, moveKey, SAME_TIME_S, setKey } from "./key_list";
+import { setupKeyClipboardKeys } from "./key_clipboard_keys";
 import type { Scrub } from "./scrub";
 import { StripView } from "./strip_view";
 
@@ -30,6 +32,8 @@ export interface TimelinePanel {
   readonly author: string;
   readonly selected: number;
   readonly playhead: number;
+  /** The time of the key whose pose Ctrl+C copied (null: nothing copied). */
+  readonly copiedFrom: number | null;
   readonly note: string;
   readonly view: StripView;
   /** The last GLB Play or Export fetched (tests compare it with the download). */
@@ -65,10 +69,12 @@ export function setupTimelinePanel(app: App, sync: Sync, editors: Editors, scrub
   let lastGlbBytes = 0;
   let shownFor = "";
   // The newest history step seen: a clear that new constraints caused comes right after their
-  // step, at its version (SetTimeline itself makes no step).
+  // step, at its version (a SetTimeline is a TIMELINE step of its own).
   let lastStep: { version: bigint; author: string } | null = null;
   let beforePlay = 0; // the playhead where Play started (Stop puts it back)
   let busy = false; // an export or SetTimeline in flight
+  // Ctrl+C's pose (transforms, β), kept in the page: a pose fits only this session's handles.
+  let copied: { fromS: number; transforms: Key["transforms"]; beta: Key["beta"] } | null = null;
 
   const say = (message: string, error = false) => {
     note = message;
@@ -97,6 +103,8 @@ export function setupTimelinePanel(app: App, sync: Sync, editors: Editors, scrub
       render();
       void scrub.end(t);
     },
+    canMoveKey: () => editable() && !player.playing,
+    keyMoved: (fromS, toS) => doMoveKey(fromS, toS),
   });
 
   const editable = () => !state.watchOnly && !!state.sessionName && state.constraintsApplied && !state.labelsDirty;
@@ -120,7 +128,8 @@ export function setupTimelinePanel(app: App, sync: Sync, editors: Editors, scrub
           ? `Timeline cleared: ${lastStep.author || "someone"} changed the constraints (keys hold one pose per handle).`
           : `Timeline cleared by ${timeline.author || "another editor"}.`,
       );
-    } else if (from === "watch" && timeline.keys.length > 0) say("");
+    } else if (from === "watch" && timeline.keys.length > 0 && timeline.clientId !== editors.identity.clientId) say("");
+    // (Our own change comes back as a watch event too: its note, "Key moved …", stays.)
     const selectedTime = keys[selected]?.timeS;
     keys = timeline.keys.map((k) => k as Key);
     easing = timeline.easing;
@@ -141,7 +150,9 @@ export function setupTimelinePanel(app: App, sync: Sync, editors: Editors, scrub
     }
   };
 
-  const save = async (next: Key[], nextEasing: Easing, what: string) => {
+  // `select`: the time of the key to select once the server's list is in (the index into `next`
+  // would not do: adopt() maps the selection through the list it replaces).
+  const save = async (next: Key[], nextEasing: Easing, what: string, select?: number) => {
     const name = state.sessionName;
     busy = true;
     render();
@@ -155,6 +166,10 @@ export function setupTimelinePanel(app: App, sync: Sync, editors: Editors, scrub
       });
       if (name !== state.sessionName) return;
       adopt(t, "set");
+      if (select !== undefined) {
+        selected = keyAt(keys, select);
+        render();
+      }
       say(what);
     } catch (err) {
       if (err instanceof ConnectError && err.code === Code.Aborted) {
@@ -175,17 +190,56 @@ export function setupTimelinePanel(app: App, sync: Sync, editors: Editors, scrub
     const t = view.playhead;
     const key: Key = { timeS: t, transforms: toProtoTransforms(state.handles, state.pivots) };
     if (keyBeta.checked) key.beta = { value: state.beta.value, units: state.beta.units };
-    const next = setKey(keys, key);
-    selected = keyAt(next, t);
-    void save(next, easing, `Key at ${t.toFixed(3)} s set.`);
+    void save(setKey(keys, key), easing, `Key at ${t.toFixed(3)} s set.`, t);
   };
 
   const doDeleteKey = () => {
-    if (selected < 0 || !editable()) return;
+    if (selected < 0) return;
+    if (!editable()) return refuse("delete a key");
     const t = keys[selected].timeS;
     const next = deleteKey(keys, selected);
     selected = -1;
     void save(next, easing, `Key at ${t.toFixed(3)} s deleted.`);
+  };
+
+  // One SetTimeline with the key at its new time (one TIMELINE step: one Undo).
+  const doMoveKey = (fromS: number, toS: number) => {
+    if (!editable()) return refuse("move a key");
+    const index = keyAt(keys, fromS);
+    if (index < 0) return say(`Key not moved: the key at ${fromS.toFixed(3)} s is gone (another editor changed the timeline).`, true);
+    if (Math.abs(toS - fromS) < SAME_TIME_S) return;
+    const moved = moveKey(keys, index, toS);
+    if ("onto" in moved) {
+      render(); // the marker back where it was
+      return say(`Key not moved: there is a key at ${keys[moved.onto].timeS.toFixed(3)} s already (keys need ${SAME_TIME_S * 1000} ms between them; delete that one first).`, true);
+    }
+    void save(moved.keys, easing, `Key moved from ${fromS.toFixed(3)} s to ${toS.toFixed(3)} s.`, toS);
+  };
+
+  // Watch pages (and editors before Apply) change no key: say why rather than ignore the key.
+  function refuse(what: string): void {
+    if (state.watchOnly) say(`Watch-only: this page cannot ${what} (the edit link can).`, true);
+    else if (state.sessionName) say(`Cannot ${what} yet: apply constraints first (a key holds every handle's pose).`, true);
+  }
+
+  const doCopyKey = () => {
+    if (!editable()) return refuse("copy a key");
+    if (selected < 0) return say("Copy: select a key first (click its marker).", true);
+    const key = keys[selected];
+    copied = { fromS: key.timeS, transforms: key.transforms, beta: key.beta };
+    say(`Copied the key at ${key.timeS.toFixed(3)} s (${key.transforms?.length ?? 0} handles${key.beta ? ", β" : ""}); Ctrl+V keys it at the playhead.`);
+  };
+
+  const doPasteKey = () => {
+    if (!editable()) return refuse("paste a key");
+    if (!copied) return say("Paste: copy a key first (select it, Ctrl+C).", true);
+    if ((copied.transforms?.length ?? 0) !== state.handles.length) {
+      return say("Paste: the copied key was for other constraints (it holds a pose per handle of those).", true);
+    }
+    const t = view.playhead;
+    const key: Key = { timeS: t, transforms: copied.transforms };
+    if (copied.beta) key.beta = copied.beta;
+    void save(setKey(keys, key), easing, `Pasted the key from ${copied.fromS.toFixed(3)} s at ${t.toFixed(3)} s.`, t);
   };
 
   const exportGlb = async (label: string): Promise<Uint8Array | null> => {
@@ -260,6 +314,7 @@ export function setupTimelinePanel(app: App, sync: Sync, editors: Editors, scrub
       }
     }
   });
+  setupKeyClipboardKeys(strip, (what) => (what === "copy" ? doCopyKey() : doPasteKey()));
   // A press on the ruler gives the strip the focus (so Delete means the key).
   view.ruler.addEventListener("pointerdown", () => strip.focus({ preventScroll: true }));
 
@@ -273,9 +328,11 @@ export function setupTimelinePanel(app: App, sync: Sync, editors: Editors, scrub
     if (state.sessionName === shownFor) return;
     shownFor = state.sessionName;
     scrub.cancel();
+    view.cancelKeyDrag();
     if (player.playing) stopPlaying();
     keys = [];
     selected = -1;
+    copied = null;
     say("");
     view.setPlayhead(0);
     render();
@@ -305,6 +362,9 @@ export function setupTimelinePanel(app: App, sync: Sync, editors: Editors, scrub
     },
     get playhead() {
       return view.playhead;
+    },
+    get copiedFrom() {
+      return copied?.fromS ?? null;
     },
     get note() {
       return note;
