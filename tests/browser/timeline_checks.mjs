@@ -575,5 +575,41 @@ async function keyEditChecks({ page, context, log, check, sleep, shot, watchPage
   );
   await shot(watcher, "timeline-11-watch-refuses");
   await watcher.close();
+  // ---- a key's own easing: the selected key's segment eases, the timeline's others stay --------------------
+  // Smoothstep maps u = 0.25 to 0.15625, and every part of a transform is interpolated in u:
+  // eased PoseAt(t₀ + 0.25 Δ) must be linear PoseAt(t₀ + 0.15625 Δ).
+  // Three keys that move every handle up (the edits above left equal poses), set through the API.
+  const handles = (await server()).keys[0].transforms.length;
+  const rise = (z) => Array.from({ length: handles }, () => ({ translation: { x: 0, y: 0, z } }));
+  const setUp = await hook(
+    ([n, h]) => window.hdeform.call("setTimeline", { name: n, clientId: "timeline-check", timeline: { keys: h.map((z, i) => ({ timeS: i, transforms: z })) } }),
+    [await hook(() => window.hdeform.sessionName), [rise(0), rise(0.3), rise(0.6)]],
+  );
+  await page.waitForFunction(() => window.hdeform.timeline().keys.length === 3 && window.hdeform.timeline().keys[2] === 2, null, { timeout: 10_000 }).catch(() => {});
+  const before = await server();
+  check(setUp.code === "OK" && before.keys.length === 3, `a timeline of three rising keys is set for the easing check (${setUp.code} ${setUp.message})`);
+  const seg = 1;
+  const at = (u) => before.keys[seg].time + u * (before.keys[seg + 1].time - before.keys[seg].time);
+  const linearAt = await hook((t) => window.hdeform.poseAt(t), at(0.15625));
+  const linearQuarter = await hook((t) => window.hdeform.poseAt(t), at(0.25));
+  await clickMarker(seg);
+  const easeBefore = await steps();
+  const keyEasingEnabled = await page.isEnabled("#tl-key-easing");
+  await page.selectOption("#tl-key-easing", "1"); // smoothstep
+  await page.waitForFunction((i) => window.hdeform.timeline().keyEasings?.[i] === 1, seg, { timeout: 10_000 }).catch(() => {});
+  const eased = await server();
+  const easedQuarter = await hook((t) => window.hdeform.poseAt(t), at(0.25));
+  const easeSteps = await newSteps(easeBefore);
+  const others = eased.keys.every((k, i) => i === seg || k.easing === before.keys[i].easing);
+  const off = tfDiff(easedQuarter, linearAt);
+  const apart = tfDiff(linearQuarter, linearAt);
+  check(
+    keyEasingEnabled && apart > 1e-3 && off < 1e-9 && eased.keys[seg].easing === 1 && others && easeSteps.length === 1 && easeSteps[0].kind === "TIMELINE",
+    `"key: smoothstep" on key ${seg} eases its segment only: PoseAt at u = 0.25 is ${off.toExponential(1)} from the linear pose at u = 0.15625 (the linear quarter is ${apart.toFixed(3)} away), key easings ${JSON.stringify(eased.keys.map((k) => k.easing))}, ${easeSteps.length} step`,
+  );
+  await clickMarker(eased.keys.length - 1);
+  check(await page.isDisabled("#tl-key-easing"), "the last key's easing is disabled (it starts no segment)");
+  await shot(page, "timeline-10b-key-easing");
+
   log(`key edits: one pixel is ${secondsPerPx.toFixed(4)} s on this ruler`);
 }

@@ -362,6 +362,8 @@ export function installTestHook({ state, client, banner, status }: App, parts: H
     /** The timeline strip: keys (times), selection, playhead, its note, Play. */
     timeline: () => ({
       keys: parts.timeline.keys.map((k) => k.timeS),
+      /** Each key's own easing to the next key (null: the timeline's). */
+      keyEasings: parts.timeline.keys.map((k) => (k.easing === undefined ? null : k.easing)),
       selected: parts.timeline.selected,
       playhead: parts.timeline.playhead,
       note: parts.timeline.note,
@@ -388,7 +390,7 @@ export function installTestHook({ state, client, banner, status }: App, parts: H
       return {
         easing: t.easing,
         author: t.author,
-        keys: t.keys.map((k) => ({ time: k.timeS, transforms: k.transforms.map(plainTransform), beta: k.beta ? k.beta.value : null })),
+        keys: t.keys.map((k) => ({ time: k.timeS, transforms: k.transforms.map(plainTransform), beta: k.beta ? k.beta.value : null, easing: k.easing ?? null })),
       };
     },
     /** PoseAt(t): the interpolated transforms. */

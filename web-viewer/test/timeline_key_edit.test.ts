@@ -1,9 +1,9 @@
 // Issue 37's timeline edits without the DOM: moving a key (kept sorted, never onto another key's
 // time), the Ctrl+C / Ctrl+V keys (⌘ on macOS), and their rows in the shortcuts list.
 import assert from "node:assert/strict";
-import { describe, it } from "node:test";
+import { describe, it, test } from "node:test";
 import { clipboardKey, keyAction, SHORTCUTS } from "../src/keymap";
-import { moveKey, SAME_TIME_S } from "../src/timeline/key_list";
+import { moveKey, SAME_TIME_S, withKeyEasing } from "../src/timeline/key_list";
 
 const keys = [
   { timeS: 0, tag: "a" },
@@ -76,4 +76,20 @@ describe("copy / paste keys", () => {
     assert.ok(SHORTCUTS.some(([k, what]) => /Ctrl\+C/.test(k) && /paste/.test(what)));
     assert.ok(SHORTCUTS.some(([k, what]) => /drag/.test(k) && /Esc/.test(what)));
   });
+});
+
+test("withKeyEasing sets and clears one key's easing, the others the same objects", () => {
+  const keys: { timeS: number; easing?: number }[] = [
+    { timeS: 0, easing: 1 },
+    { timeS: 1 },
+    { timeS: 2, easing: 0 },
+  ];
+  const set = withKeyEasing(keys, 1, 1);
+  assert.deepEqual(set.map((k) => k.easing), [1, 1, 0]);
+  assert.equal(set[0], keys[0]);
+  assert.equal(set[2], keys[2]);
+  const cleared = withKeyEasing(set, 0, undefined);
+  assert.equal("easing" in cleared[0], false);
+  assert.equal(cleared[0].timeS, 0);
+  assert.deepEqual(keys.map((k) => k.easing), [1, undefined, 0]); // the input is not changed
 });

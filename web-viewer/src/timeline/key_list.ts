@@ -43,3 +43,15 @@ export function moveKey<K extends Timed>(keys: readonly K[], index: number, time
   out.sort((a, b) => a.timeS - b.timeS);
   return { keys: out, index: out.indexOf(moved) };
 }
+
+/**
+ * `keys` with the key at `index` easing its segment to the next key by `easing` (undefined: the
+ * timeline's). The other keys are the same objects.
+ */
+export function withKeyEasing<K extends Timed & { easing?: unknown }>(keys: readonly K[], index: number, easing: K["easing"] | undefined): K[] {
+  return keys.map((k, i) => {
+    if (i !== index) return k;
+    const { easing: _old, ...rest } = k;
+    return (easing === undefined ? rest : { ...rest, easing }) as K;
+  });
+}

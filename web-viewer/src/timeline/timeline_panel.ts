@@ -19,7 +19,7 @@ import type { Sync } from "../sync/sync";
 import { toProtoTransforms } from "../transforms";
 import { fetchAnimation } from "./animation_glb";
 import type { AnimationPlayer } from "./animation_player";
-import { deleteKey, keyAt, moveKey, SAME_TIME_S, setKey } from "./key_list";
+import { deleteKey, keyAt, moveKey, SAME_TIME_S, setKey, withKeyEasing } from "./key_list";
 import { setupKeyClipboardKeys } from "./key_clipboard_keys";
 import type { Scrub } from "./scrub";
 import { StripView } from "./strip_view";
@@ -58,6 +58,7 @@ export function setupTimelinePanel(app: App, sync: Sync, editors: Editors, scrub
   const delKey = $<HTMLButtonElement>("tl-delkey");
   const keyBeta = $<HTMLInputElement>("tl-keybeta");
   const easingSelect = $<HTMLSelectElement>("tl-easing");
+  const keyEasingSelect = $<HTMLSelectElement>("tl-key-easing");
   const fps = $<HTMLInputElement>("tl-fps");
   const exportButton = $<HTMLButtonElement>("tl-export");
   const noteEl = $("tl-note");
@@ -115,6 +116,10 @@ export function setupTimelinePanel(app: App, sync: Sync, editors: Editors, scrub
     delKey.disabled = selected < 0 || !editable();
     easingSelect.value = String(easing);
     easingSelect.disabled = state.watchOnly;
+    // The last key starts no segment: its easing would change nothing.
+    const own = keys[selected]?.easing;
+    keyEasingSelect.value = own === undefined ? "" : String(own);
+    keyEasingSelect.disabled = selected < 0 || selected === keys.length - 1 || !editable() || busy;
     const noKeys = keys.length === 0;
     play.disabled = !player.playing && (noKeys || busy || state.watchOnly);
     exportButton.disabled = noKeys || busy;
@@ -302,6 +307,14 @@ export function setupTimelinePanel(app: App, sync: Sync, editors: Editors, scrub
       return;
     }
     void save(keys, next, `Easing: ${Easing[next].toLowerCase()}.`);
+  });
+  keyEasingSelect.addEventListener("change", () => {
+    if (selected < 0 || !editable()) return;
+    const v = keyEasingSelect.value;
+    const t = keys[selected].timeS;
+    const own = v === "" ? undefined : (Number(v) as Easing);
+    const what = own === undefined ? "the timeline's easing" : Easing[own].toLowerCase();
+    void save(withKeyEasing(keys, selected, own), easing, `Key at ${t.toFixed(3)} s to the next: ${what}.`, t);
   });
   // Delete / Backspace while the strip has the focus: the selected key (not the region, which
   // the same keys clear elsewhere: panels/shortcuts.ts never sees them).
