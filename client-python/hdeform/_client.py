@@ -835,8 +835,9 @@ class Session:
     def set_timeline(self, keys: Sequence[Any], easing: str = "linear",
                      timeout: Timeout = None) -> Timeline:
         """Replace the session's timeline. `keys`: (time_s, transforms) or (time_s, transforms,
-        beta) tuples, or dicts time=/transforms=/beta=; transforms one per handle as in
-        update(); beta a number in area units or (value, "raw"|"area"), from that key on.
+        beta) tuples, or dicts time=/transforms=/beta=/easing=; transforms one per handle as in
+        update(); beta a number in area units or (value, "raw"|"area"), from that key on;
+        easing ("linear" | "smoothstep") the key's own to the next key (default: `easing`).
         An empty list clears it. Returns the hdeform.Timeline as stored."""
         t = pb.Timeline(easing=_EASINGS[_checks.choice(easing, _EASINGS, "easing")])
         for i, key in enumerate(keys):
@@ -844,9 +845,14 @@ class Session:
                 if "time" not in key or "transforms" not in key:
                     raise TypeError(f"keys[{i}]: a dict needs 'time' and 'transforms', got "
                                     f"{sorted(key)}")
+                unknown = sorted(set(key) - {"time", "transforms", "beta", "easing"})
+                if unknown:
+                    raise TypeError(f"keys[{i}]: unknown key(s) {unknown}")
                 time_s, transforms, beta = key["time"], key["transforms"], key.get("beta")
+                key_easing = key.get("easing")
             elif isinstance(key, (list, tuple)) and len(key) in (2, 3):
                 time_s, transforms, beta = (tuple(key) + (None,))[:3]
+                key_easing = None
             else:
                 raise TypeError(f"keys[{i}]: expected (time_s, transforms[, beta]) or a dict, "
                                 f"got {key!r:.80}")
@@ -856,6 +862,8 @@ class Session:
                 value, units = beta if isinstance(beta, tuple) else (beta, "area")
                 k.beta.CopyFrom(pb.Beta(value=_checks.beta(value, f"keys[{i}] beta"),
                                         units=_units(units, f"keys[{i}] beta units")))
+            if key_easing is not None:
+                k.easing = _EASINGS[_checks.choice(key_easing, _EASINGS, f"keys[{i}] easing")]
         return Timeline.from_proto(self._call("SetTimeline", pb.SetTimelineRequest(
             name=self.name, timeline=t, client_id=self.client_id), timeout))
 

@@ -88,16 +88,20 @@ class HistoryStep:
 class Keyframe:
     """A timeline key, or the pose pose_at() interpolates. time_s: seconds; transforms: one
     hdeform.Transform per handle (update(transforms=list(k.transforms)) shows the pose);
-    beta: the β from this key on, or None when the key sets none."""
+    beta: the β from this key on, or None when the key sets none; easing: the key's own
+    easing to the next key ("linear" | "smoothstep"), or None for the timeline's."""
     time_s: float
     transforms: Tuple[Transform, ...]
     beta: Optional[Beta] = None
+    easing: Optional[str] = None
 
     @classmethod
     def from_proto(cls, k: Any) -> "Keyframe":
         return cls(time_s=float(k.time_s),
                    transforms=tuple(Transform.from_proto(t) for t in k.transforms),
-                   beta=Beta.from_proto(k.beta) if k.HasField("beta") else None)
+                   beta=Beta.from_proto(k.beta) if k.HasField("beta") else None,
+                   easing=(_EASING_NAMES.get(k.easing, f"easing_{int(k.easing)}")
+                           if k.HasField("easing") else None))
 
 
 @dataclass(frozen=True)

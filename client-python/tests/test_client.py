@@ -330,6 +330,14 @@ def test_timeline_pose_and_animated_glb(cactus, tmp_path):
     assert isinstance(mid, hdeform.Keyframe) and mid.time_s == 0.5
     assert abs(mid.transforms[0].translate[2] - 0.1) < 1e-12
     assert mid.beta is None and cactus.pose_at(1.5).beta.value == 0.25
+    # A key's own easing: the first segment linear in a smoothstep timeline.
+    t2 = cactus.set_timeline([dict(time=0, transforms=[None], easing="linear"),
+                              (1, [dict(translate=(0, 0, 0.2))])], easing="smoothstep")
+    assert t2.keys[0].easing == "linear" and t2.keys[1].easing is None
+    assert abs(cactus.pose_at(0.25).transforms[0].translate[2] - 0.05) < 1e-12  # not 0.03125
+    t = cactus.set_timeline([(0, [None]), (1, [dict(translate=(0, 0, 0.2))], 0.25),
+                             (2, [dict(translate=(0, 0, 0.4), rotate=(0.9659258262890683, 0.25881904510252074, 0, 0))])],
+                            easing="smoothstep")
     shown = cactus.update(transforms=list(mid.transforms))  # a Keyframe's pose, shown
     assert shown.measures.e > 0
     with pytest.raises(dataclasses.FrozenInstanceError):

@@ -24,7 +24,7 @@ struct Keyframe {
   double time = 0;                          // seconds
   std::vector<HandleTransform> transforms;  // one per handle
   // The easing from this key to the next; unset: the timeline's (pose_at's `easing`).
-  std::optional<Easing> easing;
+  std::optional<Easing> easing = std::nullopt;
 };
 
 // Limits of a timeline (each breach is an InvalidInput naming it).
