@@ -893,9 +893,15 @@ void Session::adopt_history(const std::optional<std::string>& stored) {
 }
 
 std::string Session::history_bytes(std::uint64_t* revision) const {
-  std::lock_guard lock(mutex_);
-  *revision = history_.revision();
-  return history_to_record(history_).SerializeAsString();
+  // A copy under the lock (steps share their values): the conversion and serialization, up to
+  // the history's byte limit, run without holding up the session's edits.
+  std::optional<History> copy;
+  {
+    std::lock_guard lock(mutex_);
+    *revision = history_.revision();
+    copy.emplace(history_);
+  }
+  return history_to_record(*copy).SerializeAsString();
 }
 
 std::uint64_t Session::history_revision() const {

@@ -370,9 +370,7 @@ class SqliteState final : public StateBackend {
     const int rc = sqlite3_step(s.get());
     if (rc == SQLITE_DONE) return std::nullopt;
     if (rc != SQLITE_ROW) throw error("get session");
-    const auto* data = static_cast<const char*>(sqlite3_column_blob(s.get(), 0));
-    const int size = sqlite3_column_bytes(s.get(), 0);
-    return data ? std::string(data, static_cast<std::size_t>(size)) : std::string();
+    return column_bytes(s.get());
   }
 
   bool put_history(const std::string& id, const std::string& history) override {
@@ -380,8 +378,7 @@ class SqliteState final : public StateBackend {
     std::lock_guard lock(mu_);
     StmtUse s(put_history_.get());
     bind_text(s.get(), 1, id);
-    if (sqlite3_bind_blob64(s.get(), 2, history.data(), history.size(), SQLITE_STATIC) != SQLITE_OK)
-      throw error("bind");
+    bind_blob(s.get(), 2, history);
     step_done(s.get(), "put history");
     return sqlite3_changes(db_.get()) == 1;
   }
@@ -395,9 +392,7 @@ class SqliteState final : public StateBackend {
     if (rc == SQLITE_DONE) return std::nullopt;
     if (rc != SQLITE_ROW) throw error("get history");
     if (sqlite3_column_type(s.get(), 0) == SQLITE_NULL) return std::nullopt;
-    const auto* data = static_cast<const char*>(sqlite3_column_blob(s.get(), 0));
-    const int size = sqlite3_column_bytes(s.get(), 0);
-    return data ? std::string(data, static_cast<std::size_t>(size)) : std::string();
+    return column_bytes(s.get());
   }
 
   void delete_session(const std::string& id) override {
@@ -565,6 +560,13 @@ class SqliteState final : public StateBackend {
     if (sqlite3_bind_blob64(s, 2, record.data(), record.size(), SQLITE_STATIC) != SQLITE_OK ||
         sqlite3_bind_int64(s, 3, now_unix_ms()) != SQLITE_OK)
       throw error("bind");
+  }
+
+  // Column 0 of the current row as bytes (an empty blob is data() null: "").
+  static std::string column_bytes(sqlite3_stmt* s) {
+    const auto* data = static_cast<const char*>(sqlite3_column_blob(s, 0));
+    const int size = sqlite3_column_bytes(s, 0);
+    return data ? std::string(data, static_cast<std::size_t>(size)) : std::string();
   }
 
   void bind_blob(sqlite3_stmt* s, int index, const std::string& bytes) {
