@@ -179,8 +179,13 @@ drag() { PYTHONPATH=$PYPATH "$PY" "$ROOT/tests/containers/drag_session.py" "$@";
 drag start "127.0.0.1:$LBG" "$CA" "$WORK/drag.json" "$ROOT/data" || fail "Python drag (start)"
 ID=$("$PY" -c 'import json,sys; print(json.load(open(sys.argv[1]))["name"].split("/")[1])' "$WORK/drag.json")
 holder=""
-for i in 1 2 3; do
-  podman logs "${PROJECT}_hdeform-${i}_1" 2>&1 | grep -q "sessions/$ID: created" && holder=$i
+# podman's log of a container lags its output: look again for up to 10 s.
+for _ in $(seq 1 20); do
+  for i in 1 2 3; do
+    podman logs "${PROJECT}_hdeform-${i}_1" 2>&1 | grep -q "sessions/$ID: created" && holder=$i
+  done
+  [ -n "$holder" ] && break
+  sleep 0.5
 done
 [ -n "$holder" ] || fail "no replica logged the creation of sessions/$ID"
 podman kill "${PROJECT}_hdeform-${holder}_1" >/dev/null || fail "podman kill"
