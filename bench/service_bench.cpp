@@ -34,7 +34,9 @@
 // Percentiles are nearest-rank over the iterations of one run (Google Benchmark's own
 // time column is the mean).
 //
-// Extra flag (ours): --hdeform_smoke  a handful of iterations everywhere (ctest bench-smoke).
+// Extra flags (ours): --hdeform_smoke  a handful of iterations everywhere (ctest bench-smoke);
+//   --hdeform_state_dir=DIR  the latency server keeps its sessions in a SQLite store in DIR
+//   (as hdeform-server --state-dir), so moves and changes pass the store step.
 #include "bench_common.h"
 #include "engine/runtime/process_environment.h"
 #include "fixtures/procedural.h"
@@ -60,6 +62,7 @@
 #include <memory>
 #include <sstream>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -124,6 +127,11 @@ void authorize(grpc::ClientContext& ctx) {
   ctx.AddMetadata("authorization", "Bearer " + kBenchToken);
 }
 
+// --hdeform_state_dir=DIR: the bench server keeps its sessions in a SQLite store there, so
+// every move and change also passes the store step (docs/architecture.md "One path for a
+// change"); empty: in memory only, as hdeform-server without --state-dir.
+std::string g_state_dir;
+
 // A server on 127.0.0.1:0 and a TCP channel to it.
 struct Loopback {
   std::unique_ptr<service::Server> server;
@@ -134,6 +142,7 @@ struct Loopback {
     service::ServerOptions o;  // defaults of hdeform-server: 2 workers, 4 GiB cache
     o.listen_address = "127.0.0.1:0";
     o.admin_token = kBenchToken;
+    o.state_dir = g_state_dir;
     server = std::make_unique<service::Server>(o);
     grpc::ChannelArguments args;
     args.SetMaxReceiveMessageSize(-1);
@@ -641,10 +650,21 @@ std::string loadavg() {
 
 int main(int argc, char** argv) {
   hdeform::ensure_process_environment(argv);  // as hdeform-server does
-  if (!bench::initialize(argc, argv, g_smoke)) return 1;
+  std::vector<char*> args;
+  constexpr std::string_view kStateFlag = "--hdeform_state_dir=";
+  for (int i = 0; i < argc; ++i) {
+    const std::string_view a = argv[i];
+    if (a.starts_with(kStateFlag))
+      g_state_dir = std::string(a.substr(kStateFlag.size()));
+    else
+      args.push_back(argv[i]);
+  }
+  int nargs = static_cast<int>(args.size());
+  if (!bench::initialize(nargs, args.data(), g_smoke)) return 1;
   spdlog::set_level(spdlog::level::warn);
   register_all();
   benchmark::AddCustomContext("loadavg_start", loadavg());
+  benchmark::AddCustomContext("state", g_state_dir.empty() ? "memory" : "sqlite:" + g_state_dir);
   g_main = std::make_unique<Loopback>();
   benchmark::RunSpecifiedBenchmarks();
   g_cases.clear();
