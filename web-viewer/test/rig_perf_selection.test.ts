@@ -83,6 +83,28 @@ describe("selection commands", () => {
     assert.deepEqual(run([0, 0, 0, 0, 0, -1], "shrink"), [0, 0, 0, -1, -1, -1]); // 3 and 4 touch vertex 5
     assert.deepEqual(run([0, 0, 0, 0, 0, 0], "shrink"), [0, 0, 0, 0, 0, 0]); // no boundary: nothing to take
   });
+  it("grows and shrinks across a glTF seam (coincident copies count as one vertex)", () => {
+    // Two triangles sharing the edge (1,2), split along it as a UV seam splits a glTF: 3 and 4
+    // are copies of 1 and 2 (same positions), 5 is the far corner.
+    const seamIndex = new Uint32Array([0, 1, 2, 3, 5, 4]);
+    const rest = new Float32Array([0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0]);
+    const split = adjacency(6, seamIndex);
+    const welded = adjacency(6, seamIndex, rest);
+    const grow = (a: typeof split, labels: number[], command: "grow" | "shrink" = "grow") => {
+      const l = Int16Array.from(labels);
+      const { add, remove } = selectionChange(command, l, 0, () => a);
+      for (const v of add) l[v] = 0;
+      for (const v of remove) l[v] = -1;
+      return [...l];
+    };
+    assert.deepEqual(grow(split, [0, -1, -1, -1, -1, -1]), [0, 0, 0, -1, -1, -1]); // stops at the seam
+    assert.deepEqual(grow(welded, [0, -1, -1, -1, -1, -1]), [0, 0, 0, 0, 0, -1]); // the copies come along
+    assert.deepEqual(grow(welded, [0, 0, 0, 0, 0, -1]), [0, 0, 0, 0, 0, 0]); // and the far side next
+    assert.deepEqual(grow(welded, [-1, -1, -1, -1, -1, 0]), [-1, 0, 0, 0, 0, 0]); // from the other side too
+    // Shrink with the far corner unselected: the seam's copies on both sides touch it.
+    assert.deepEqual(grow(split, [0, 0, 0, 0, 0, -1], "shrink"), [0, 0, 0, -1, -1, -1]);
+    assert.deepEqual(grow(welded, [0, 0, 0, 0, 0, -1], "shrink"), [0, -1, -1, -1, -1, -1]);
+  });
   it("has keys, listed in the shortcuts", () => {
     assert.equal(keyAction({ key: "a" }), "selectAll");
     assert.equal(keyAction({ key: "a", altKey: true, code: "KeyA" }), "selectNone");

@@ -146,7 +146,7 @@ export function setupRegionsPanel(app: App): RegionsPanel {
     }
     const adj = () => {
       let a = neighbours.get(mesh);
-      if (!a) neighbours.set(mesh, (a = adjacency(mesh.n, mesh.index)));
+      if (!a) neighbours.set(mesh, (a = adjacency(mesh.n, mesh.index, mesh.rest)));
       return a;
     };
     const { add, remove } = selectionChange(command, mesh.labels, label, adj);
