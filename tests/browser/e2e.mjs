@@ -696,6 +696,25 @@ try {
     if (seamLabels[v] !== want) labelsOk = false;
   }
   check(labelsOk, "seam glTF: the regions adopted from the server (base_constraints) sit on the selected base vertices");
+  // Grow crosses the seam (selection/commands.ts welds coincident copies): handle 2's region
+  // emptied, then the left block's (1, 1) alone grown once takes its 6 neighbours on the welded
+  // grid, among them (1.5, 1) and (1.5, 1.5) with both copies each: 4 vertices at x = 1.5, 9 in
+  // all (a grow by triangle edges alone stops at the left copies: 2 and 7).
+  await page1.selectOption("#label-select", "2");
+  const grown = await page1.evaluate(() => {
+    window.hdeform.select("none");
+    const seed = window.hdeform.selectBox([0.9, 0.9, -1], [1.1, 1.1, 1], 2);
+    window.hdeform.select("grow");
+    const l = window.hdeform.labels(), r = window.hdeform.restPositions();
+    let all = 0, atSeam = 0;
+    l.forEach((x, v) => {
+      if (x !== 2) return;
+      all++;
+      if (r[3 * v] === 1.5) atSeam++;
+    });
+    return { seed, all, atSeam };
+  });
+  check(grown.seed === 1 && grown.all === 9 && grown.atSeam === 4, `seam glTF: Grow crosses the seam (from ${grown.seed} vertex: ${grown.all} in the region, ${grown.atSeam} at the seam; want 9 and 4)`);
   await shot(page1, "08c-seam-gltf");
 
   // 9. Links that cannot open the session: a plain error, not a blank page.
