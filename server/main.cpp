@@ -44,7 +44,7 @@ std::string host_port(const std::string& host, int port) {
   return (v6 ? "[" + host + "]" : host) + ":" + std::to_string(port);
 }
 
-// Debian's soft limit of 1024 descriptors is below the gateway's 1024 waiting + 256 active
+// Debian's soft limit of 1024 descriptors is below the gateway's 1024 waiting + 4096 active
 // connections plus gRPC's own: take the hard limit (no privilege needed).
 void raise_open_file_limit() {
   rlimit lim{};
@@ -423,6 +423,7 @@ int main(int argc, char** argv) {
     g.tls_key_file = tls_key;
     g.tls_client_ca_file = tls_client_ca;
     g.max_body_bytes = options.max_upload_bytes + (16u << 20);
+    g.max_inflight_body_bytes = options.max_upload_inflight_bytes;
     try {
       gateway = std::make_unique<hdeform::gateway::HttpGateway>(g, server->in_process_channel());
     } catch (const std::exception& e) {

@@ -17,14 +17,18 @@ struct GatewayOptions {
   int port = 8080;                        // 0 = any free port
   std::string web_root;                   // built viewer (web-viewer/dist); empty = API only
   std::size_t max_body_bytes = 256u << 20;
+  // Request bodies the door holds in memory, all requests together: a gRPC-Web body is read
+  // whole (its Content-Length is charged up front; a chunked one is capped at 4 MiB), an
+  // upload holds one 1 MiB chunk. Above it a request is answered 503 before its body is read.
+  std::size_t max_inflight_body_bytes = 1u << 30;
   // Host names answered besides localhost names and IP addresses (request_checks.h
   // HostPolicy): "name", ".name" for subdomains, "*" for any. Others get 421 (DNS rebinding).
   std::vector<std::string> allowed_hosts;
-  int threads = 2;                        // I/O threads (accepting, reading request headers)
+  int threads = 2;                        // I/O threads: every request's work runs on them
 
-  // Requests in progress, each on its own worker thread (a WatchSession stream holds one for
-  // its whole life). Above it a new request is answered 503.
-  std::size_t max_connections = 256;
+  // Requests in progress (a WatchSession stream counts for its whole life; it costs a socket,
+  // a gRPC call and a few KiB, no thread). Above it a new request is answered 503.
+  std::size_t max_connections = 4096;
   // Connections waiting for a request header (new or idle keep-alive ones). They cost a
   // socket and a few KiB but no thread; above the cap the oldest is closed.
   std::size_t max_idle_connections = 1024;
@@ -49,8 +53,9 @@ class HttpGateway {
   int port() const;
   void stop();
 
+  struct Impl;  // door.h: the connections and their handlers (internal)
+
  private:
-  struct Impl;
   std::unique_ptr<Impl> impl_;
 };
 
