@@ -41,9 +41,6 @@ struct HttpGateway::Impl {
     // Guarded by Impl::mu: which list holds the connection, and where.
     enum class Phase { none, waiting, active } phase = Phase::none;
     std::list<std::shared_ptr<Connection>>::iterator slot;
-    // Guarded by call_mu: the gRPC call in progress, which stop() cancels.
-    std::mutex call_mu;
-    std::weak_ptr<GrpcCall> call;
   };
   using ConnectionPtr = std::shared_ptr<Connection>;
   using Phase = Connection::Phase;
@@ -57,7 +54,7 @@ struct HttpGateway::Impl {
   grpc::GenericStub stub;
   std::unique_ptr<asio::ssl::context> tls;  // null: plain HTTP
   // Before ioc: handlers it still holds when destroyed may release charges or calls.
-  std::atomic<int> live_calls{0};          // GrpcCalls whose OnDone has not run
+  LiveCalls live_calls;                    // GrpcCalls whose OnDone has not run
   std::atomic<std::size_t> body_bytes{0};  // charged to max_inflight_body_bytes
   asio::io_context ioc;
   asio::executor_work_guard<asio::io_context::executor_type> work{ioc.get_executor()};
@@ -104,7 +101,6 @@ struct HttpGateway::Impl {
   void after_response(const ConnectionPtr& c, After after);
   void send_text(const ConnectionPtr& c, http::status status, std::string text, unsigned version,
                  After after);
-  void set_call(Connection& c, const std::shared_ptr<GrpcCall>& call);
   // Cancels `call` when the peer closes its side while the call runs (a browser tab closed).
   void watch_peer(const ConnectionPtr& c, std::weak_ptr<GrpcCall> call);
 

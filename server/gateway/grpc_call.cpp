@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <utility>
+#include <vector>
 
 namespace hdeform::gateway {
 
@@ -32,12 +33,12 @@ void forward_authorization(const http::request_header<>& req, grpc::ClientContex
 std::shared_ptr<GrpcCall> GrpcCall::prepare(
     grpc::GenericStub& stub, const std::string& method, const http::request_header<>& request,
     std::optional<std::chrono::system_clock::time_point> deadline,
-    boost::asio::any_io_executor strand, Events events, std::atomic<int>& live) {
+    boost::asio::any_io_executor strand, Events events, LiveCalls& live) {
   std::shared_ptr<GrpcCall> call(new GrpcCall(std::move(strand), std::move(events), live));
   forward_authorization(request, call->context_);
   if (deadline) call->context_.set_deadline(*deadline);
   call->self_ = call;
-  ++live;
+  live.add(call);
   stub.PrepareBidiStreamingCall(&call->context_, method, grpc::StubOptions(), call.get());
   return call;
 }
@@ -71,14 +72,51 @@ void GrpcCall::OnReadDone(bool ok) {
 }
 
 void GrpcCall::OnDone(const grpc::Status& status) {
-  std::atomic<int>& live = live_;  // the posted event may delete this call before the end
+  LiveCalls& live = live_;  // the posted event may delete this call before the end
   auto self = std::move(self_);
   boost::asio::post(strand_, [self, status] {
     // Moved out: the handlers may hold what holds this call; dropping them ends the cycle.
     auto events = std::move(self->events_);
     events.done(status);
   });
-  --live;  // last: once 0, the door may destroy the channel
+  live.remove(this);  // last (a key only): once none is left, the door may destroy the channel
+}
+
+void LiveCalls::add(const std::shared_ptr<GrpcCall>& call) {
+  {
+    std::lock_guard lock(mu_);
+    calls_.emplace(call.get(), call);
+    if (!closed_) return;
+  }
+  call->cancel();
+}
+
+void LiveCalls::remove(const GrpcCall* call) {
+  std::lock_guard lock(mu_);
+  calls_.erase(call);
+  if (calls_.empty()) emptied_.notify_all();
+}
+
+void LiveCalls::close_and_cancel() {
+  std::vector<std::shared_ptr<GrpcCall>> calls;
+  {
+    std::lock_guard lock(mu_);
+    closed_ = true;
+    calls.reserve(calls_.size());
+    for (const auto& [key, weak] : calls_)
+      if (auto call = weak.lock()) calls.push_back(std::move(call));
+  }
+  for (const auto& call : calls) call->cancel();
+}
+
+bool LiveCalls::wait_empty(std::chrono::milliseconds limit) {
+  std::unique_lock lock(mu_);
+  return emptied_.wait_for(lock, limit, [&] { return calls_.empty(); });
+}
+
+std::size_t LiveCalls::size() {
+  std::lock_guard lock(mu_);
+  return calls_.size();
 }
 
 }  // namespace hdeform::gateway

@@ -4,12 +4,13 @@
 // (gRPC forbids starting one once OnDone may run).
 #pragma once
 
+#include "gateway/live_calls.h"
+
 #include <boost/asio/any_io_executor.hpp>
 #include <boost/beast/http/message.hpp>
 #include <grpcpp/generic/generic_stub.h>
 #include <grpcpp/grpcpp.h>
 
-#include <atomic>
 #include <chrono>
 #include <functional>
 #include <memory>
@@ -29,12 +30,12 @@ class GrpcCall final : public grpc::ClientBidiReactor<grpc::ByteBuffer, grpc::By
 
   // Prepares generic call `method` ("/pkg.Service/Method") with the request's Authorization
   // values as `authorization` metadata and an optional deadline; nothing is sent before
-  // begin(). `live` counts calls whose OnDone has not run (the door waits for 0 to stop).
+  // begin(). `live` lists it until its OnDone runs (stop() cancels and awaits them).
   static std::shared_ptr<GrpcCall> prepare(
       grpc::GenericStub& stub, const std::string& method,
       const boost::beast::http::request_header<>& request,
       std::optional<std::chrono::system_clock::time_point> deadline,
-      boost::asio::any_io_executor strand, Events events, std::atomic<int>& live);
+      boost::asio::any_io_executor strand, Events events, LiveCalls& live);
 
   void begin();                            // StartCall, holding OnDone back until release()
   void release();                          // the door issues no more operations (once)
@@ -49,12 +50,12 @@ class GrpcCall final : public grpc::ClientBidiReactor<grpc::ByteBuffer, grpc::By
   void OnDone(const grpc::Status& status) override;
 
  private:
-  GrpcCall(boost::asio::any_io_executor strand, Events events, std::atomic<int>& live)
+  GrpcCall(boost::asio::any_io_executor strand, Events events, LiveCalls& live)
       : strand_(std::move(strand)), events_(std::move(events)), live_(live) {}
 
   boost::asio::any_io_executor strand_;
   Events events_;
-  std::atomic<int>& live_;
+  LiveCalls& live_;
   grpc::ClientContext context_;
   grpc::ByteBuffer in_, out_;
   bool released_ = false;

@@ -11,10 +11,11 @@
 //
 // Every gRPC-Web call — unary, server-streaming, or a one-message client stream — is forwarded
 // as raw bytes through grpc::GenericStub as one generic streaming call (relay.cpp): write the
-// request messages, WritesDone, relay every response message as one HTTP chunk (gRPC-Web data
-// frame) once the previous chunk is written, then the trailers frame. No per-method code. A
-// browser that goes away is noticed when its socket turns readable with nothing to read
-// (watch_peer) and its call is cancelled.
+// request messages (WritesDone only for a client-streaming method), relay every response
+// message as one HTTP chunk (gRPC-Web data frame) with the next read already outstanding,
+// then the trailers frame. No per-method code. A browser that goes away is noticed when its
+// socket turns readable with nothing to read (watch_peer) and its call is cancelled. stop()
+// cancels every call the door has open (live_calls.h) and waits for their ends.
 //
 // TLS (GatewayOptions::tls_cert_file/tls_key_file): the same model over HTTPS (stream.h). A
 // new TLS connection's handshake and its first request header share one header_timeout; TLS 1.2

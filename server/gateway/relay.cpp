@@ -1,8 +1,14 @@
 // gRPC-Web calls: the request body's frames go to the service as one generic streaming call
 // (unary, server-streaming and one-message client streams alike), each response message comes
 // back as one HTTP chunk (a gRPC-Web data frame) as soon as it arrives, then the trailers.
-// Back-pressure is one message: the next is read from the call only once the previous chunk
-// is written, so a slow browser holds at most one message, never a thread.
+//
+// Two rules keep gRPC 1.51's in-process transport from stranding a server stream (its write
+// pending, the stream off the transport's list, Server::Shutdown waiting for it forever):
+// a read is always outstanding on the call while no message waits (read-ahead), so a server
+// write never sits unread while the browser is slow; and a call whose method takes one
+// request message is never half-closed (the server has its message; WritesDone only matters
+// to client-streaming methods). Back-pressure is still bounded: one message being written to
+// the browser and at most one more held; only then does the door stop reading the call.
 #include "gateway/door.h"
 
 #include <spdlog/spdlog.h>
@@ -20,6 +26,12 @@ namespace {
 // A call the backend would never answer, refused at once: a malformed body, an unknown
 // method, or a unary method given other than one message (the server would wait for the
 // client to half-close a stream it does not expect, holding the request slot meanwhile).
+const google::protobuf::MethodDescriptor* find_method(std::string_view path) {
+  const auto* service =
+      hdeform::v1::CreateSessionRequest::descriptor()->file()->FindServiceByName("Deformation");
+  return service->FindMethodByName(std::string(path.substr(kServicePrefix.size())));
+}
+
 std::optional<grpc::Status> body_refusal(std::string_view path, const grpc_web::ParsedBody& body) {
   if (!body.error.empty()) {
     return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "gateway: " + body.error);
@@ -27,7 +39,7 @@ std::optional<grpc::Status> body_refusal(std::string_view path, const grpc_web::
   const auto name = path.substr(kServicePrefix.size());
   const auto* service =
       hdeform::v1::CreateSessionRequest::descriptor()->file()->FindServiceByName("Deformation");
-  const auto* method = service->FindMethodByName(std::string(name));
+  const auto* method = find_method(path);
   if (!method) {
     return grpc::Status(grpc::StatusCode::UNIMPLEMENTED,
                         "gateway: " + std::string(service->full_name()) + " has no method '" +
@@ -52,12 +64,15 @@ struct Relay {
   std::shared_ptr<Parser> parser;  // owns the body the messages point into
   grpc_web::ParsedBody body;
   std::string path;
+  bool half_close = false;     // a client-streaming method: WritesDone after the messages
   HttpGateway::Impl::After next = HttpGateway::Impl::After::close;
   std::shared_ptr<GrpcCall> call;
   std::size_t written = 0;     // request messages written to the call
+  bool reading = false;        // a read is outstanding on the call
   bool reads_over = false;     // the call has no more messages
-  bool writes_over = false;    // WritesDone issued, or a write failed
+  bool writes_over = false;    // every message written (and WritesDone issued), or a write failed
   bool writing = false;        // an HTTP chunk is being written
+  std::optional<std::vector<grpc::Slice>> held;  // the message read while `writing`
   bool http_ok = true;         // false: the browser is gone; drain the call
   std::optional<grpc::Status> ended;
   std::size_t count = 0;
@@ -67,39 +82,31 @@ struct Relay {
   void release_if_idle() {
     if (reads_over && writes_over) call->release();
   }
+  void read() {
+    reading = true;
+    call->read();
+  }
   void write_next() {
     if (written < body.messages.size()) {
       call->write(body.messages[written++]);
       return;
     }
-    call->writes_done();
+    if (half_close) call->writes_done();
     writes_over = true;
     release_if_idle();
   }
 };
 
-
 void finish_relay(const std::shared_ptr<Relay>& r);
 
-// A response message arrived (ok) or the call has no more (not ok).
-void on_read(const std::shared_ptr<Relay>& r, bool ok) {
-  if (!ok) {
-    r->reads_over = true;
-    r->release_if_idle();
-    return;
-  }
-  if (!r->http_ok) {  // the browser is gone: drain until the cancelled call ends
-    r->call->read();
-    return;
-  }
-  auto& message = r->call->message();
-  auto slices = std::make_shared<std::vector<grpc::Slice>>();
-  if (!message.Dump(slices.get()).ok()) {
-    r->call->read();
-    return;
-  }
-  auto prefix = std::make_shared<std::array<char, 5>>(grpc_web::frame_prefix(
-      grpc_web::kDataFlag, static_cast<std::uint32_t>(message.Length())));
+// Writes one message to the browser as an HTTP chunk; once it is written, the held message
+// (if any) follows and reading resumes, or the relay finishes if the call has ended.
+void send_message(const std::shared_ptr<Relay>& r, std::vector<grpc::Slice> message) {
+  auto slices = std::make_shared<std::vector<grpc::Slice>>(std::move(message));
+  std::size_t length = 0;
+  for (const auto& slice : *slices) length += slice.size();
+  auto prefix = std::make_shared<std::array<char, 5>>(
+      grpc_web::frame_prefix(grpc_web::kDataFlag, static_cast<std::uint32_t>(length)));
   std::vector<asio::const_buffer> buffers;
   buffers.reserve(slices->size() + 1);
   buffers.emplace_back(prefix->data(), prefix->size());
@@ -111,11 +118,36 @@ void on_read(const std::shared_ptr<Relay>& r, bool ok) {
                            r->writing = false;
                            if (!written) {
                              r->http_ok = false;
+                             r->held.reset();
                              r->call->cancel();
                            }
-                           if (r->ended) return finish_relay(r);
-                           r->call->read();
+                           if (r->held) {
+                             auto next = std::move(*r->held);
+                             r->held.reset();
+                             send_message(r, std::move(next));
+                           } else if (r->ended) {
+                             return finish_relay(r);
+                           }
+                           if (!r->reading && !r->reads_over) r->read();
                          });
+}
+
+// A response message arrived (ok) or the call has no more (not ok).
+void on_read(const std::shared_ptr<Relay>& r, bool ok) {
+  r->reading = false;
+  if (!ok) {
+    r->reads_over = true;
+    r->release_if_idle();
+    return;
+  }
+  std::vector<grpc::Slice> slices;  // references to the message: the buffer can be reused
+  if (!r->http_ok || !r->call->message().Dump(&slices).ok()) return r->read();  // drain
+  if (r->writing) {
+    r->held = std::move(slices);  // the one message held; reading waits for the write
+    return;
+  }
+  send_message(r, std::move(slices));
+  r->read();  // read-ahead while the chunk is written
 }
 
 void start_relay(const std::shared_ptr<Relay>& r) {
@@ -142,8 +174,7 @@ void start_relay(const std::shared_ptr<Relay>& r) {
   };
   r->call = GrpcCall::prepare(door->stub, r->path, req, deadline, r->c->stream.get_executor(),
                               std::move(events), door->live_calls);
-  door->set_call(*r->c, r->call);
-  r->call->read();
+  r->read();
   r->write_next();
   r->call->begin();
   door->watch_peer(r->c, r->call);
@@ -152,7 +183,6 @@ void start_relay(const std::shared_ptr<Relay>& r) {
 // The call ended and no chunk is being written: the trailers, then the next request.
 void finish_relay(const std::shared_ptr<Relay>& r) {
   auto* door = r->door;
-  door->set_call(*r->c, nullptr);
   beast::error_code ignored;
   r->c->stream.socket().cancel(ignored);  // the peer watch
   grpc::Status status = *r->ended;
@@ -213,6 +243,7 @@ void HttpGateway::Impl::grpc_web_call(const ConnectionPtr& c, std::string path) 
     relay->parser = parser;
     relay->body = grpc_web::parse_frames(req.body());
     relay->path = std::move(path);
+    if (const auto* method = find_method(relay->path)) relay->half_close = method->client_streaming();
     relay->next = next;
     relay->charge = std::move(charge);
 

@@ -51,7 +51,6 @@ void maybe_respond(const std::shared_ptr<Upload>& u) {
   if (u->responded || !u->ended || !(u->body_over || u->body_error)) return;
   u->responded = true;
   auto* door = u->door;
-  door->set_call(*u->c, nullptr);
   if (u->body_error) {
     if (u->body_error != http::error::body_limit) return door->after_response(u->c, After::close);
     return door->reply_and_close(u->c, http::status::payload_too_large,
@@ -201,7 +200,6 @@ void HttpGateway::Impl::upload(const ConnectionPtr& c, const std::string& query)
                               live_calls);
   u->parser = std::make_shared<Parser>(std::move(*c->header));  // `head` ends here
   u->parser->body_limit(options.max_body_bytes);
-  set_call(*c, u->call);
   u->call->read();
   u->serialized = first.SerializeAsString();
   u->call->write(u->serialized);  // wrote → read_more
