@@ -42,12 +42,16 @@ done
 
 WORK=$(mktemp -d "${TMPDIR:-/tmp}/hdeform-containers.XXXXXX")
 # podman's own settings for this run: runc (crun cannot use this kernel's hybrid cgroups) and
-# ulimits the kernel grants (podman's defaults are refused).
+# ulimits the kernel grants (podman's defaults are refused); netavark, whose aardvark-dns
+# resolves the compose services' names (a podman that first ran without netavark would
+# otherwise stay on CNI, which resolves none).
 cat >"$WORK/containers.conf" <<'CONF'
 [containers]
 default_ulimits = ["nofile=1024:1024", "nproc=1024:1024"]
 [engine]
 runtime = "runc"
+[network]
+network_backend = "netavark"
 CONF
 export CONTAINERS_CONF=$WORK/containers.conf
 

@@ -43,8 +43,10 @@ tests=(
   # exercise: SweepResult.plot / Frame.plot_measures (matplotlib), from_meshio / to_meshio
   mypy python3-matplotlib python3-meshio
   # the container suite (scripts/container-test.sh): podman with runc, a base image made by
-  # debootstrap, the compose file run by podman-compose
-  podman buildah runc debootstrap podman-compose
+  # debootstrap, the compose file run by podman-compose; netavark and aardvark-dns so the
+  # containers find each other by name (podman's CNI fallback has no DNS: "redis" and
+  # "hdeform-1" did not resolve on a machine without them)
+  podman buildah runc debootstrap podman-compose netavark aardvark-dns
 )
 
 case "${1:-all}" in
