@@ -105,7 +105,7 @@ class AnimationWriter final : public ChunkWriter {
   // Without a session, the first step finds it with `lookup` (it may restore it) and plans
   // the export from `request`.
   AnimationWriter(DeformService* svc, grpc::CallbackServerContext* ctx,
-                  std::shared_ptr<Session> session, Session::AnimationPlan plan,
+                  std::shared_ptr<Session> session, AnimationPlan plan,
                   SessionLookup lookup, const v1::ExportAnimationRequest& request)
       : svc_(svc), ctx_(ctx), session_(std::move(session)), plan_(std::move(plan)),
         lookup_(std::move(lookup)), request_(request) {
@@ -120,7 +120,7 @@ class AnimationWriter final : public ChunkWriter {
         [&] {
           if (!session_) {
             session_ = lookup_();
-            plan_ = session_->animation_plan(request_);
+            plan_ = plan_animation(session_->pose(), session_->limits(), request_);
           }
           if (ctx_->IsCancelled()) throw Cancelled("ExportAnimation cancelled by the client");
           if (std::chrono::system_clock::now() > ctx_->deadline())
@@ -129,9 +129,9 @@ class AnimationWriter final : public ChunkWriter {
                      " of " + std::to_string(plan_.times.size()) + " frames");
           if (svc_->stopping()) fail(grpc::StatusCode::UNAVAILABLE, "the server is stopping");
           if (session_->closed()) fail(grpc::StatusCode::NOT_FOUND, session_->name() + " was deleted");
-          session_->animation_frame(plan_);
+          animation_frame(plan_);
           if (plan_.next == plan_.times.size()) {
-            data = session_->animation_finish(plan_);
+            data = animation_finish(plan_);
             done = true;
           }
         },
@@ -149,7 +149,7 @@ class AnimationWriter final : public ChunkWriter {
   DeformService* svc_;
   grpc::CallbackServerContext* ctx_;
   std::shared_ptr<Session> session_;
-  Session::AnimationPlan plan_;
+  AnimationPlan plan_;
   SessionLookup lookup_;
   v1::ExportAnimationRequest request_;
 };
@@ -167,11 +167,11 @@ class RigWriter final : public ChunkWriter {
 
  private:
   void run() {
-    Session::RigExport rig;
+    RigExport rig;
     const auto status = guarded(
         [&] {
           session_ = lookup_();  // here, on the pool: it may restore the session
-          rig = session_->export_rig(request_, [this] {
+          rig = export_rig(session_->pose(), session_->limits(), request_, [this] {
             if (ctx_->IsCancelled()) throw Cancelled("ExportRig cancelled by the client");
             if (std::chrono::system_clock::now() > ctx_->deadline())
               fail(grpc::StatusCode::DEADLINE_EXCEEDED, "ExportRig deadline exceeded");
@@ -211,7 +211,7 @@ grpc::ServerWriteReactor<v1::MeshChunk>* new_mesh_writer(DeformService* svc,
 
 grpc::ServerWriteReactor<v1::MeshChunk>* new_animation_writer(
     DeformService* svc, grpc::CallbackServerContext* ctx, std::shared_ptr<Session> session,
-    Session::AnimationPlan plan, SessionLookup lookup, const v1::ExportAnimationRequest& request) {
+    AnimationPlan plan, SessionLookup lookup, const v1::ExportAnimationRequest& request) {
   return new AnimationWriter(svc, ctx, std::move(session), std::move(plan), std::move(lookup),
                              request);
 }

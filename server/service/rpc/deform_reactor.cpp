@@ -101,7 +101,8 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
     std::unique_lock lock(mutex_);
     done_ = true;
     if (session_) {
-      session_->stream_closed();
+      session_->observers().stream_closed();
+      session_->touch();
       spdlog::debug("{}: Deform stream ended: {} updates, {} solves, {} frames skipped",
                     session_->name(), received_, solves_, skipped_frames_);
     }
@@ -115,10 +116,11 @@ class DeformReactor final : public grpc::ServerBidiReactor<v1::DeformRequest, v1
   // The stream's session, found and authorized: registered for revocation and counted.
   void opened_locked(std::shared_ptr<Session> session) {
     session_ = std::move(session);
-    session_->stream_opened();
+    session_->observers().stream_opened();
+    session_->touch();
     auth_ = std::make_shared<Revocation>(this);
     svc_->bind_stream(*ctx_, *auth_, Access::kEdit);
-    session_->add_stream(auth_);
+    session_->observers().add_stream(auth_);
   }
 
   // The message in in_ (the session is open): coalesced into the pending update, a solve

@@ -4,6 +4,8 @@
 #pragma once
 
 #include "hdeform/v1/deform.grpc.pb.h"
+#include "service/session/animation_plan.h"
+#include "service/session/rig_export.h"
 #include "service/session/session.h"
 
 #include <grpcpp/grpcpp.h>
@@ -52,7 +54,7 @@ grpc::ServerWriteReactor<v1::MeshChunk>* new_mesh_writer(DeformService* svc,
 // task finds it with `lookup` and plans `request` (admission to --max-sweeps came first).
 grpc::ServerWriteReactor<v1::MeshChunk>* new_animation_writer(
     DeformService* svc, grpc::CallbackServerContext* ctx, std::shared_ptr<Session> session,
-    Session::AnimationPlan plan, SessionLookup lookup, const v1::ExportAnimationRequest& request);
+    AnimationPlan plan, SessionLookup lookup, const v1::ExportAnimationRequest& request);
 // ExportRig: the session found and the rig built on the pool (its report on the first
 // chunk), then streamed.
 grpc::ServerWriteReactor<v1::MeshChunk>* new_rig_writer(DeformService* svc,

@@ -80,13 +80,13 @@ grpc::ServerUnaryReactor* DeformService::PoseAt(grpc::CallbackServerContext* ctx
 grpc::ServerWriteReactor<v1::MeshChunk>* DeformService::ExportAnimation(
     grpc::CallbackServerContext* ctx, const v1::ExportAnimationRequest* request) {
   std::shared_ptr<Session> session;
-  Session::AnimationPlan plan;
+  AnimationPlan plan;
   const auto status = guarded(
       [&] {
         // Not resident: the writer's first pool task finds (restores) it and plans.
         if (store_.resident(request->name())) {
           session = session_for(*ctx, request->name(), Access::kEdit, "ExportAnimation");
-          plan = session->animation_plan(*request);
+          plan = plan_animation(session->pose(), session->limits(), *request);
         }
         if (++running_sweeps_ > options_.request.max_concurrent_sweeps) {
           --running_sweeps_;

@@ -21,22 +21,22 @@ WatchStart DeformService::start_watch(grpc::CallbackServerContext* ctx,
   if (request.has_client()) Roster::check_participant(request.client(), "WatchSession");
   Session& session = *w.session;
   // Each watcher's memory is bounded (one pending frame, one state); their number is too.
-  if (static_cast<std::size_t>(session.observers()) >= options_.request.max_watchers)
+  if (static_cast<std::size_t>(session.observers().watchers()) >= options_.request.max_watchers)
     fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
-         session.name() + " has " + std::to_string(session.observers()) +
+         session.name() + " has " + std::to_string(session.observers().watchers()) +
              " watchers, the limit (--max-watchers)");
   // MESHOPT_DELTA costs an encode per frame and 8 bytes per vertex per watcher: fewer of them.
   const bool delta = request.format().encoding() == v1::FRAME_ENCODING_MESHOPT_DELTA;
-  if (delta && !session.acquire_delta_watcher(options_.request.max_delta_watchers))
+  if (delta && !session.observers().acquire_delta_watcher(options_.request.max_delta_watchers))
     fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
-         session.name() + " has " + std::to_string(session.delta_watchers()) +
+         session.name() + " has " + std::to_string(session.observers().delta_watchers()) +
              " MESHOPT_DELTA watchers, the limit (--max-delta-watchers); ask MESHOPT, whose "
              "encode all watchers share");
   if (request.has_client()) {
     try {
       w.claim = session.join(request.client(), can_edit(*ctx, session));
     } catch (...) {
-      if (delta) session.release_delta_watcher();
+      if (delta) session.observers().release_delta_watcher();
       throw;
     }
     w.client_id = request.client().client_id();

@@ -3,6 +3,7 @@
 #include "service/infra/release_memory.h"
 #include "service/infra/service_error.h"
 #include "service/session/convert.h"
+#include "service/session/sweep_plan.h"
 
 #include <spdlog/spdlog.h>
 
@@ -19,7 +20,7 @@ struct SweepJob {
   grpc::ServerUnaryReactor* reactor;
   v1::SweepResponse* response;
   std::shared_ptr<Session> session;
-  Session::SweepPlan plan;
+  SweepPlan plan;
   std::size_t next = 0;
 };
 
@@ -39,8 +40,7 @@ void sweep_step(const std::shared_ptr<SweepJob>& job) {
         if (job->svc->stopping()) fail(grpc::StatusCode::UNAVAILABLE, "the server is stopping");
         if (job->session->closed())
           fail(grpc::StatusCode::NOT_FOUND, job->session->name() + " was deleted");
-        job->session->sweep_row(job->plan, job->plan.betas[job->next],
-                                job->response->add_rows());
+        sweep_row(job->plan, job->plan.betas[job->next], job->response->add_rows());
         ++job->next;
       },
       "Sweep");
@@ -65,7 +65,7 @@ grpc::ServerUnaryReactor* DeformService::Sweep(grpc::CallbackServerContext* ctx,
     const auto status = guarded(
         [&] {
           job->session = session_for(*ctx, request->name(), Access::kEdit, "Sweep");
-          job->plan = job->session->sweep_plan(*request);
+          job->plan = plan_sweep(job->session->pose(), job->session->limits(), *request);
           if (++running_sweeps_ > options_.request.max_concurrent_sweeps) {
             --running_sweeps_;
             fail(grpc::StatusCode::RESOURCE_EXHAUSTED,

@@ -105,7 +105,8 @@ class WatchReactor final : public grpc::ServerWriteReactor<v1::SessionEvent> {
     }
     session_->remove_watcher(sink_.get());
     if (!client_id_.empty()) session_->leave(client_id_, claim_);
-    if (format_.encoding() == v1::FRAME_ENCODING_MESHOPT_DELTA) session_->release_delta_watcher();
+    if (format_.encoding() == v1::FRAME_ENCODING_MESHOPT_DELTA)
+      session_->observers().release_delta_watcher();
   }
 
   struct Sink final : EventSink {

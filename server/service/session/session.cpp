@@ -216,11 +216,18 @@ std::shared_ptr<hdeform::Frame> Session::solve_move(const ConstraintSet& cs,
   return frame;
 }
 
-hdeform::Frame Session::solve(const ConstraintSet& cs,
-                              const std::vector<HandleTransform>& transforms,
-                              const SessionBeta& beta, const UpdateOptions& options) const {
-  if (beta.field) return cs.update_local(transforms, *beta.field, options);
-  return cs.update(transforms, beta.uniform, options);
+SessionPose Session::pose() const {
+  if (closed_) fail(grpc::StatusCode::NOT_FOUND, name_ + " was deleted");
+  SessionPose out;
+  out.name = name_;
+  out.mesh = mesh_;
+  std::lock_guard lock(mutex_);
+  out.cs = cs_;
+  out.beta = beta_;
+  out.transforms = transforms_;
+  out.timeline = timeline_;
+  out.version = version_;
+  return out;
 }
 
 std::shared_ptr<const ConstraintSet> Session::constraint_set_of(const pb::Constraints& given,
@@ -274,7 +281,7 @@ void Session::describe_locked(pb::Session* out) const {
   }
   beta_to_proto(beta_, out->mutable_beta());
   for (const auto& t : transforms_) to_proto(t, out->add_transforms());
-  out->set_observers(static_cast<int>(watchers_.size()));
+  out->set_observers(observers_.watchers());
   out->set_create_time_unix_ms(create_ms_);
   out->set_update_time_unix_ms(update_ms_);
   to_proto(mesh_->bbox_min, out->mutable_bbox_min());
@@ -290,7 +297,7 @@ pb::Session Session::describe() const {
 
 void Session::close() {
   if (closed_.exchange(true)) return;
-  const OpenStreams open = take_streams();
+  const Observers::Open open = observers_.close();
   auto event = std::make_shared<pb::SessionEvent>();
   event->set_deleted(name_);
   for (const auto& s : open.watchers) {  // watchers hear why, then end normally

@@ -5,7 +5,6 @@
 #pragma once
 
 #include "engine/deform/deformer.h"
-#include "engine/io/animation_glb.h"
 #include "hdeform/v1/deform.pb.h"
 #include "service/access/access.h"
 #include "service/frames/encoded_frames.h"
@@ -15,8 +14,10 @@
 #include "service/session/client_sequences.h"
 #include "service/session/history.h"
 #include "service/session/mesh_library.h"
+#include "service/session/observers.h"
 #include "service/session/request_log.h"
 #include "service/session/roster.h"
+#include "service/session/session_pose.h"
 #include "service/session/timeline.h"
 
 #include <google/protobuf/repeated_field.h>
@@ -39,24 +40,6 @@ namespace pb = ::hdeform::v1;
 
 // While a drag goes on, a frame carries measures only if the last measured one is this old.
 inline constexpr std::chrono::milliseconds kDragMeasuresPeriod{100};
-
-// An open stream as its session sees it, with the tokens it was authorized with: it ends
-// (revoke) as soon as they stop granting what it needs — RotateTokens, or the session's
-// deletion for a Deform stream. Empty token_hashes: the operator's token (never revoked).
-class AuthorizedStream {
- public:
-  virtual ~AuthorizedStream() = default;
-  virtual void revoke(const grpc::Status& why) = 0;  // never blocks
-  std::vector<TokenHash> token_hashes;
-  Access needed = Access::kView;
-};
-
-// A WatchSession stream as the session sees it. push() never blocks.
-class EventSink : public AuthorizedStream {
- public:
-  virtual void push(std::shared_ptr<const pb::SessionEvent> event) = 0;
-  virtual void close() = 0;  // the session is gone (after a `deleted` event)
-};
 
 class Session : public std::enable_shared_from_this<Session> {
  public:
@@ -117,30 +100,10 @@ class Session : public std::enable_shared_from_this<Session> {
   pb::Timeline set_timeline(const pb::SetTimelineRequest& request);
   pb::Timeline timeline() const;
   pb::Keyframe pose_at(double time_s) const;
-  // ExportAnimation in steps, like a Sweep: plan() checks the request and its limits and
-  // captures the state; frame() solves the next sample (any thread, never the strand);
-  // finish() writes the GLB.
-  struct AnimationPlan {
-    std::shared_ptr<const ConstraintSet> cs;
-    ParsedTimeline timeline;
-    SessionBeta beta;  // the session's, where no key sets β
-    std::vector<double> times;
-    bool energies = false;
-    std::shared_ptr<AnimationGlb> glb;
-    std::vector<Eigen::VectorXf> vertex_energies;  // per frame (energies only)
-    std::size_t next = 0;
-  };
-  AnimationPlan animation_plan(const pb::ExportAnimationRequest& request) const;
-  // ExportRig (session_rig.cpp): the skinned GLB and its report. Solves the current pose and
-  // each key once (at their β); `keep_going` is called before each solve and may throw to stop.
-  struct RigExport {
-    std::string glb;
-    pb::RigReport report;
-  };
-  RigExport export_rig(const pb::ExportRigRequest& request,
-                       const std::function<void()>& keep_going) const;
-  void animation_frame(AnimationPlan& plan) const;
-  std::string animation_finish(AnimationPlan& plan) const;
+  // What sweeps and exports read (session_pose.h; their planners: sweep_plan.h,
+  // animation_plan.h, rig_export.h). NOT_FOUND once the session is closed.
+  SessionPose pose() const;
+  const RequestLimits& limits() const { return limits_; }
 
   struct Update {
     std::int64_t sequence = 0;
@@ -188,17 +151,6 @@ class Session : public std::enable_shared_from_this<Session> {
   // of this session's record comes between. Set before the session is shared.
   using StoreGate = std::function<std::unique_lock<std::mutex>(Session&, const PendingPose* pose)>;
   void set_store_gate(StoreGate gate) { store_gate_ = std::move(gate); }
-  // A Sweep in steps, so it never holds the strand (edits go on between its βs): plan()
-  // checks the request and captures the session's state; row() solves one β transiently
-  // (no factorization enters the shared cache). Both may run on any thread.
-  struct SweepPlan {
-    std::shared_ptr<const ConstraintSet> cs;
-    std::vector<HandleTransform> transforms;
-    std::vector<Beta> betas;
-    Eigen::VectorXd local_max;  // the session's local entries in the sweep's units; empty: none
-  };
-  SweepPlan sweep_plan(const pb::SweepRequest& request) const;
-  void sweep_row(const SweepPlan& plan, const Beta& beta, pb::SweepRow* row) const;
   // GetMesh's file (its `name` is not read). Throws InvalidInput for an unknown enum value and
   // for a compression the format or the session's upload cannot take.
   std::string mesh_file(const pb::GetMeshRequest& request);
@@ -252,26 +204,17 @@ class Session : public std::enable_shared_from_this<Session> {
     std::atomic<std::int64_t> checked_ms{0};  // last compared with the store (revalidate)
   };
   Persisted& persisted() { return persisted_; }
-  void add_watcher(std::shared_ptr<EventSink> sink);  // also sends the current state
+  // A WatchSession's sink: it gets the current state, presence and timeline, and everyone
+  // else the new observer count; a closed session's sink gets `deleted` and is closed.
+  void add_watcher(std::shared_ptr<EventSink> sink);
+  void remove_watcher(const EventSink* sink);
+  // Who watches and which streams end on revocation (observers.h).
+  Observers& observers() { return observers_; }
+  const Observers& observers() const { return observers_; }
   // Answers of recent changes by request id (the strand only: every change runs there).
   RequestLog& requests() { return requests_; }
   // Frames as the watchers asked for them, one encode per encoding (encoded_frames.h).
   EncodedFrameCache& encoded_frames() { return encoded_frames_; }
-  void remove_watcher(const EventSink* sink);
-  // A Deform stream: revoked when its tokens are rotated away or the session is deleted.
-  // Held weakly (the stream unregisters by going away).
-  void add_stream(std::weak_ptr<AuthorizedStream> stream);
-  // Ends every open stream with `why` (the server is stopping); the session stays usable.
-  void end_streams(const grpc::Status& why);
-  int observers() const;
-  // MESHOPT_DELTA watchers (each encodes every frame for itself): false, and nothing taken,
-  // when `limit` are already watching so.
-  bool acquire_delta_watcher(std::size_t limit);
-  void release_delta_watcher() { delta_watchers_.fetch_sub(1); }
-  int delta_watchers() const { return delta_watchers_.load(); }
-  void stream_opened() { ++streams_; touch(); }
-  void stream_closed() { --streams_; touch(); }
-  bool busy() const { return streams_.load() > 0 || observers() > 0; }
   void touch();
   std::chrono::steady_clock::time_point last_used() const;
   // Pipelined UpdateHandles (UpdateHandlesRequest.coalesce): each such update holds a
@@ -300,12 +243,6 @@ class Session : public std::enable_shared_from_this<Session> {
 
  private:
   void check_queue_locked(std::size_t limit) const;
-  // Every open stream, taken out of the session (close, end_streams).
-  struct OpenStreams {
-    std::vector<std::shared_ptr<EventSink>> watchers;
-    std::vector<std::shared_ptr<AuthorizedStream>> deform;
-  };
-  OpenStreams take_streams();
   void check_version_locked(std::int64_t expected) const;
   void check_config_version_locked(std::int64_t expected) const;
   // The transforms an update leads to, checked (version, grabs); `moved` gets its handles.
@@ -371,9 +308,6 @@ class Session : public std::enable_shared_from_this<Session> {
   void describe_locked(pb::Session* out) const;
   // A state change under the lock: new version, stale frame dropped, `out` describes it.
   void changed_locked(pb::Session* out);
-  // To every watcher but `except` (one that was just told the same thing).
-  void broadcast(std::shared_ptr<const pb::SessionEvent> event,
-                 const EventSink* except = nullptr);
   void broadcast_state(const EventSink* except = nullptr);
   std::shared_ptr<const ConstraintSet> constraint_set_for(const Constraints& c,
                                                           const std::string& key);
@@ -385,8 +319,6 @@ class Session : public std::enable_shared_from_this<Session> {
                  const std::vector<HandleTransform>& transforms);
   // Builds the factorization `beta` needs (for a local field: by one cheap solve).
   void prepare_beta(const ConstraintSet& cs, const SessionBeta& beta);
-  hdeform::Frame solve(const ConstraintSet& cs, const std::vector<HandleTransform>& transforms,
-                       const SessionBeta& beta, const UpdateOptions& options) const;
   // A move's frame, into a frame and buffers the session reuses (no allocation per move).
   std::shared_ptr<hdeform::Frame> solve_move(const ConstraintSet& cs,
                                              const std::vector<HandleTransform>& transforms,
@@ -432,8 +364,6 @@ class Session : public std::enable_shared_from_this<Session> {
   std::shared_ptr<hdeform::Frame> spare_frame_;
   std::chrono::steady_clock::time_point last_measured_{};
   std::int64_t create_ms_ = 0, update_ms_ = 0;
-  std::vector<std::shared_ptr<EventSink>> watchers_;
-  std::vector<std::weak_ptr<AuthorizedStream>> streams_auth_;  // Deform streams
   SessionTokens tokens_;
   Persisted persisted_;
   StoreGate store_gate_;  // empty: not durable
@@ -441,9 +371,8 @@ class Session : public std::enable_shared_from_this<Session> {
   ClientSequences sequences_;  // guarded by mutex_
   EncodedFrameCache encoded_frames_;
   RequestLog requests_;  // the strand only
+  Observers observers_;
 
-  std::atomic<int> streams_{0};
-  std::atomic<int> delta_watchers_{0};
   std::atomic<std::size_t> coalesce_waiting_{0};
   std::atomic<std::uint64_t> coalesce_newest_{0};
   std::atomic<bool> closed_{false};

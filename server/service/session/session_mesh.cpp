@@ -30,50 +30,6 @@ MeshFileFormat file_format(pb::MeshFormat f) {
 }
 }  // namespace
 
-Session::SweepPlan Session::sweep_plan(const pb::SweepRequest& request) const {
-  if (closed_) fail(grpc::StatusCode::NOT_FOUND, name_ + " was deleted");
-  if (request.betas_size() == 0) throw InvalidInput("Sweep: betas is empty");
-  check_limit(static_cast<std::size_t>(request.betas_size()), limits_.max_sweep_betas,
-              "Sweep betas", "--max-sweep-betas");
-  SweepPlan plan;
-  SessionBeta session_beta;
-  {
-    std::lock_guard lock(mutex_);
-    if (!cs_) fail(grpc::StatusCode::FAILED_PRECONDITION, kNoConstraints);
-    plan.cs = cs_;
-    plan.transforms = transforms_;
-    session_beta = beta_;
-  }
-  if (request.transforms_size() > 0) plan.transforms = from_proto(request.transforms(), *plan.cs);
-  for (int i = 0; i < request.betas_size(); ++i) {
-    try {
-      plan.betas.push_back(beta_from(request.betas(i), request.units()));
-    } catch (const InvalidInput& e) {
-      throw InvalidInput("Sweep betas[" + std::to_string(i) + "]: " + e.what());
-    }
-  }
-  // The session's local entries apply at every β (value = that β), in the sweep's units.
-  if (session_beta.has_local()) {
-    const BetaUnits from = session_beta.uniform.units, to = units_from(request.units());
-    const PreparedMesh& pm = *mesh_->prepared;
-    plan.local_max = session_beta.local_max->unaryExpr(
-        [&](double v) { return convert_beta(pm, v, from, to); });
-  }
-  return plan;
-}
-
-void Session::sweep_row(const SweepPlan& plan, const Beta& b, pb::SweepRow* row) const {
-  const UpdateOptions options{.energies = false, .normals = false};
-  // Transient: a sweep's factorizations are freed after each β and never enter the cache
-  // other sessions share (at most one extra factorization per running sweep).
-  const hdeform::Frame f =
-      plan.local_max.size() > 0
-          ? plan.cs->update_local(plan.transforms, *make_field(plan.local_max, b), options)
-          : plan.cs->update_transient(plan.transforms, b, options);
-  row->set_beta(b.value);
-  to_proto(f.measures, row->mutable_measures());
-}
-
 Vertices Session::deformed_positions() {
   std::shared_ptr<const ConstraintSet> cs;
   std::vector<HandleTransform> transforms;
@@ -93,7 +49,7 @@ Vertices Session::deformed_positions() {
   UpdateOptions options;
   options.energies = false;
   options.normals = false;
-  auto frame = std::make_shared<const hdeform::Frame>(solve(*cs, transforms, beta, options));
+  auto frame = std::make_shared<const hdeform::Frame>(solve_at(*cs, transforms, beta, options));
   std::lock_guard lock(mutex_);
   if (version == version_) {
     last_frame_ = frame;

@@ -189,10 +189,10 @@ std::shared_ptr<pb::Frame> Session::update(const Update& given) {
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
   if (beta_changed) broadcast_state();
   if (recorded.id() != 0) broadcast_step(recorded);
-  if (observers() > 0) {
+  if (observers_.watchers() > 0) {
     auto event = std::make_shared<pb::SessionEvent>();
     *event->mutable_frame() = *out;
-    broadcast(std::move(event));
+    observers_.broadcast(std::move(event));
   }
   if (u.float64) {
     auto out64 = std::make_shared<pb::Frame>();

@@ -1,5 +1,5 @@
-// Who is connected to a session: its streams and the tokens they hold, watchers and the
-// events broadcast to them, presence and handle grabs.
+// Session: who is connected (observers.h) and what they are told — tokens and the streams
+// they authorized, the events broadcast to watchers, presence and handle grabs.
 #include "service/session/session.h"
 
 #include "service/frames/frame_encoding.h"
@@ -22,26 +22,10 @@ IssuedTokens Session::rotate_tokens() {
     std::lock_guard lock(mutex_);
     issued = tokens_.issue();
     // Every stream opened with a token that no longer grants what it needs ends now.
-    auto lost = [&](const AuthorizedStream& a) {
+    revoked = observers_.take_if([&](const AuthorizedStream& a) {
       return !a.token_hashes.empty() &&
              static_cast<int>(tokens_.grant(a.token_hashes)) < static_cast<int>(a.needed);
-    };
-    for (auto it = watchers_.begin(); it != watchers_.end();)
-      if (lost(**it)) {
-        revoked.push_back(std::move(*it));
-        it = watchers_.erase(it);
-      } else {
-        ++it;
-      }
-    for (auto it = streams_auth_.begin(); it != streams_auth_.end();) {
-      auto live = it->lock();
-      if (!live || lost(*live)) {
-        if (live) revoked.push_back(std::move(live));
-        it = streams_auth_.erase(it);
-      } else {
-        ++it;
-      }
-    }
+    });
   }
   const grpc::Status why(grpc::StatusCode::UNAUTHENTICATED,
                          "the tokens of " + name_ +
@@ -52,56 +36,23 @@ IssuedTokens Session::rotate_tokens() {
   return issued;
 }
 
-Session::OpenStreams Session::take_streams() {
-  OpenStreams out;
-  std::lock_guard lock(mutex_);
-  out.watchers.swap(watchers_);
-  for (auto& w : streams_auth_)
-    if (auto s = w.lock()) out.deform.push_back(std::move(s));
-  streams_auth_.clear();
-  return out;
-}
-
-void Session::end_streams(const grpc::Status& why) {
-  const OpenStreams open = take_streams();
-  for (const auto& s : open.watchers) s->revoke(why);
-  for (const auto& s : open.deform) s->revoke(why);
-}
-
-void Session::add_stream(std::weak_ptr<AuthorizedStream> stream) {
-  std::lock_guard lock(mutex_);
-  std::erase_if(streams_auth_, [](const auto& w) { return w.expired(); });
-  streams_auth_.push_back(std::move(stream));
-}
-
 SessionTokens Session::tokens() const {
   std::lock_guard lock(mutex_);
   return tokens_;
 }
 
-void Session::broadcast(std::shared_ptr<const pb::SessionEvent> event,
-                        const EventSink* except) {
-  std::vector<std::shared_ptr<EventSink>> sinks;
-  {
-    std::lock_guard lock(mutex_);
-    sinks = watchers_;
-  }
-  for (auto& s : sinks)
-    if (s.get() != except) s->push(event);
-}
-
 void Session::broadcast_state(const EventSink* except) {
-  if (observers() == 0) return;
+  if (observers_.watchers() == 0) return;
   auto event = std::make_shared<pb::SessionEvent>();
   *event->mutable_state() = describe();
-  broadcast(std::move(event), except);
+  observers_.broadcast(std::move(event), except);
 }
 
 void Session::broadcast_step(const pb::HistoryStep& step) {
-  if (observers() == 0) return;
+  if (observers_.watchers() == 0) return;
   auto event = std::make_shared<pb::SessionEvent>();
   *event->mutable_step() = step;
-  broadcast(std::move(event));
+  observers_.broadcast(std::move(event));
 }
 
 void Session::broadcast_frame(const std::string& client_id) {
@@ -137,10 +88,10 @@ void Session::broadcast_frame(const std::string& client_id) {
       last_frame_version_ = version;
     }
   }
-  if (observers() == 0) return;
+  if (observers_.watchers() == 0) return;
   auto event = std::make_shared<pb::SessionEvent>();
   *event->mutable_frame() = *out;
-  broadcast(std::move(event));
+  observers_.broadcast(std::move(event));
 }
 
 pb::Presence Session::presence() const {
@@ -151,10 +102,10 @@ pb::Presence Session::presence() const {
 }
 
 void Session::broadcast_presence() {
-  if (observers() == 0) return;
+  if (observers_.watchers() == 0) return;
   auto event = std::make_shared<pb::SessionEvent>();
   *event->mutable_presence() = presence();
-  broadcast(std::move(event));
+  observers_.broadcast(std::move(event));
 }
 
 Roster::Claim Session::join(const pb::Participant& who, bool editor) {
@@ -204,25 +155,15 @@ void Session::expire_leases() {
   if (roster_.expire(Roster::Clock::now())) broadcast_presence();
 }
 
-bool Session::acquire_delta_watcher(std::size_t limit) {
-  int n = delta_watchers_.load();
-  do {
-    if (static_cast<std::size_t>(n) >= limit) return false;
-  } while (!delta_watchers_.compare_exchange_weak(n, n + 1));
-  return true;
-}
-
 void Session::add_watcher(std::shared_ptr<EventSink> sink) {
   touch();
   auto event = std::make_shared<pb::SessionEvent>();
   {
-    std::lock_guard lock(mutex_);
-    if (closed_) {
-      event->set_deleted(name_);
-    } else {
-      watchers_.push_back(sink);
+    std::lock_guard lock(mutex_);  // the state the sink gets is the one it joined
+    if (observers_.add_watcher(sink))
       describe_locked(event->mutable_state());
-    }
+    else
+      event->set_deleted(name_);
   }
   sink->push(event);
   if (event->has_deleted()) {
@@ -242,23 +183,9 @@ void Session::add_watcher(std::shared_ptr<EventSink> sink) {
 }
 
 void Session::remove_watcher(const EventSink* sink) {
-  bool removed = false;
-  {
-    std::lock_guard lock(mutex_);
-    for (auto it = watchers_.begin(); it != watchers_.end(); ++it)
-      if (it->get() == sink) {
-        watchers_.erase(it);
-        removed = true;
-        break;
-      }
-  }
+  const bool removed = observers_.remove_watcher(sink);
   touch();
   if (removed && !closed_) broadcast_state();
-}
-
-int Session::observers() const {
-  std::lock_guard lock(mutex_);
-  return static_cast<int>(watchers_.size());
 }
 
 }  // namespace hdeform::service

@@ -406,7 +406,7 @@ std::size_t SessionStore::expire_idle() {
     std::lock_guard lock(mutex_);
     for (auto it = sessions_.begin(); it != sessions_.end();) {
       auto& s = it->second;
-      if (s->busy()) {
+      if (s->observers().busy()) {
         s->touch();
         ++it;
       } else if (now - s->last_used() > limits_.session_ttl) {
@@ -464,7 +464,7 @@ void SessionStore::start_sweeper() {
 void SessionStore::end_streams() {
   const grpc::Status stopping(grpc::StatusCode::UNAVAILABLE,
                               "hdeform-server is shutting down; reconnect to resume the session");
-  for (auto& s : list()) s->end_streams(stopping);
+  for (auto& s : list()) s->observers().end_all(stopping);
 }
 
 void SessionStore::shutdown() {

@@ -1,6 +1,4 @@
-// Session: the rig export (docs/api.md "Rig export"): Φ as skin weights, the handles as
-// joints, the timeline's keys as a skeletal animation, and how far LBS is from the method.
-#include "service/session/session.h"
+#include "service/session/rig_export.h"
 
 #include "engine/deform/skin_weights.h"
 #include "engine/io/rig_glb.h"
@@ -12,40 +10,26 @@
 
 namespace hdeform::service {
 
-namespace {
-
-Vertices base_rows(const FrameLayout& layout, const Vertices& engine_rows) {
-  return layout.to_base(engine_rows);
-}
-
-}  // namespace
-
-Session::RigExport Session::export_rig(const pb::ExportRigRequest& request,
-                                       const std::function<void()>& keep_going) const {
+RigExport export_rig(const SessionPose& pose, const RequestLimits& limits,
+                     const pb::ExportRigRequest& request,
+                     const std::function<void()>& keep_going) {
   const char* op = "ExportRig";
-  if (closed_) fail(grpc::StatusCode::NOT_FOUND, name_ + " was deleted");
   const int influences = request.influences() == 0 ? 4 : request.influences();
   if (influences != 4 && influences != 8)
     throw InvalidInput(std::string(op) + " influences: " + std::to_string(request.influences()) +
                        " is not 4 or 8 (joints per vertex; 0 means 4)");
   if (request.up() != pb::UP_AXIS_Y && request.up() != pb::UP_AXIS_Z)
     throw InvalidInput(std::string(op) + " up: unknown up axis " + std::to_string(request.up()));
-  std::shared_ptr<const ConstraintSet> cs;
-  SessionBeta beta;
-  std::vector<HandleTransform> transforms;
+  if (!pose.cs)
+    fail(grpc::StatusCode::FAILED_PRECONDITION,
+         std::string(op) + ": the session has no constraints yet: call SetConstraints first");
+  const std::shared_ptr<const ConstraintSet>& cs = pose.cs;
+  const SessionBeta& beta = pose.beta;
+  const std::vector<HandleTransform>& transforms = pose.transforms;
   pb::Timeline timeline;
+  if (!request.skip_animation()) timeline = *pose.timeline;
   RigExport out;
-  {
-    std::lock_guard lock(mutex_);
-    if (!cs_)
-      fail(grpc::StatusCode::FAILED_PRECONDITION,
-           std::string(op) + ": the session has no constraints yet: call SetConstraints first");
-    cs = cs_;
-    beta = beta_;
-    transforms = transforms_;
-    if (!request.skip_animation()) timeline = *timeline_;
-    out.report.set_version(version_);
-  }
+  out.report.set_version(pose.version);
   const int handles = cs->num_handles();
   if (1 + handles > kMaxRigJoints)
     fail(grpc::StatusCode::FAILED_PRECONDITION,
@@ -53,17 +37,17 @@ Session::RigExport Session::export_rig(const pb::ExportRigRequest& request,
              std::to_string(kMaxRigJoints - 1) + " (unsigned byte joints)");
   ParsedTimeline keys;
   if (timeline.keys_size() > 0) keys = parse_timeline(timeline, *cs);
-  const FrameLayout& layout = *mesh_->layout;
+  const FrameLayout& layout = *pose.mesh->layout;
   check_limit(rig_glb_bytes(static_cast<std::size_t>(layout.vertex_count()),
                             static_cast<std::size_t>(layout.triangle_count()), influences,
                             static_cast<std::size_t>(handles), keys.keys.size()),
-              limits_.max_animation_bytes, std::string(op) + " GLB bytes",
+              limits.max_animation_bytes, std::string(op) + " GLB bytes",
               "--max-animation-bytes");
 
   const PreparedMesh& pm = cs->mesh();
   RigGlbInput in;
-  in.V = base_rows(layout, pm.mesh().V);
-  in.N = base_rows(layout, vertex_normals(pm.mesh().V, pm.mesh().F));
+  in.V = layout.to_base(pm.mesh().V);
+  in.N = layout.to_base(vertex_normals(pm.mesh().V, pm.mesh().F));
   in.F = layout.base_triangles();
   in.influences = influences;
   const SkinWeights w = skin_weights(layout.to_base(cs->harmonic_basis()), influences);
@@ -109,9 +93,9 @@ Session::RigExport Session::export_rig(const pb::ExportRigRequest& request,
                      pb::RigPoseError* row) {
     keep_going();
     const hdeform::Frame f =
-        solve(*cs, ts, b, {.energies = false, .normals = false, .measures = false});
+        solve_at(*cs, ts, b, {.energies = false, .normals = false, .measures = false});
     const SkinError e = skin_error(skin_positions(in.V, w, played, in.bind),
-                                   base_rows(layout, f.positions));
+                                   layout.to_base(f.positions));
     row->set_max(diagonal > 0 ? e.max / diagonal : e.max);
     row->set_rms(diagonal > 0 ? e.rms / diagonal : e.rms);
   };
