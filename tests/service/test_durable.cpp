@@ -174,6 +174,41 @@ TEST(Durable, UploadedMeshesAndRotatedTokensSurvive) {
   (void)edit;
 }
 
+// A restore re-applies the stored constraints; that must not write a record of its own (one
+// without the upload's mesh key, at the restore's version), or the next restart cannot
+// restore the session. Two restarts, and an import, on an uploaded mesh with constraints.
+TEST(Durable, AnUploadedSessionSurvivesTwoRestartsAtItsVersion) {
+  TempDir dir;
+  pb::Session up, imported;
+  pb::Frame moved;
+  {
+    TestServer a(durable(dir.path));
+    ASSERT_TRUE(a.upload(grid_off(20), "wavy.off", &up).ok());
+    pb::Session constrained;
+    ASSERT_TRUE(a.set_constraints(up.name(), grid_strips(), &constrained).ok());
+    pb::HandleTransform t;
+    t.mutable_translation()->set_y(0.5);
+    ASSERT_TRUE(a.update(up.name(), 1, {t}, &moved).ok());
+    pb::Snapshot snap;
+    ASSERT_TRUE(a.export_session(up.name(), &snap, true).ok());
+    const grpc::Status st = a.import_session(snap, &imported);
+    ASSERT_TRUE(st.ok()) << st.error_message();
+  }
+  for (int restart = 1; restart <= 2; ++restart) {
+    SCOPED_TRACE("restart " + std::to_string(restart));
+    TestServer b(durable(dir.path));
+    grpc::Status st;
+    const pb::Session s = get(b, up.name(), up.view_token(), &st);
+    ASSERT_TRUE(st.ok()) << st.error_message();
+    EXPECT_EQ(s.version(), moved.version());
+    ASSERT_EQ(s.transforms_size(), 1);
+    EXPECT_DOUBLE_EQ(s.transforms(0).translation().y(), 0.5);
+    const pb::Session i = get(b, imported.name(), imported.view_token(), &st);
+    ASSERT_TRUE(st.ok()) << st.error_message();
+    EXPECT_EQ(i.version(), imported.version());
+  }
+}
+
 TEST(Durable, StoredSessionsAreListedAndTheirIdsStayTakenBeforeTheyAreRestored) {
   TempDir dir;
   pb::Session s;

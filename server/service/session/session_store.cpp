@@ -85,10 +85,11 @@ std::shared_ptr<Session> SessionStore::create(std::shared_ptr<const MeshRef> mes
     while (id.empty() || sessions_.count(id)) id = random_hex64();
   }
   auto s = std::make_shared<Session>(id, std::move(mesh), pool_, cache_, limits_.request);
-  gate(*s);
   // Initialised before anyone can reach it (ImportSession's restore): no strand needed,
-  // and a failed restore leaves nothing behind.
+  // and a failed restore leaves nothing behind. The store step is installed after it: the
+  // record below is the session's first, and the restore's own changes must not write one.
   if (init) init(*s);
+  gate(*s);
   const IssuedTokens issued = s->rotate_tokens();
   if (tokens) *tokens = issued;
   if (durable()) {
@@ -297,9 +298,12 @@ std::shared_ptr<Session> SessionStore::restore(const std::string& id) const {
   try {
     auto mesh = persistence_.load_mesh(record.snapshot(), record.mesh_key());
     s = std::make_shared<Session>(id, std::move(mesh), pool_, cache_, limits_.request);
-    gate(*s);
+    // Re-applying the stored state is not a change to store: the gate comes after it (with
+    // it, the restore's SetConstraints would write a record without the mesh key, at the
+    // wrong version, over the one it restores).
     s->restore(record.snapshot());
     s->adopt_snapshots(record.snapshots());
+    gate(*s);
   } catch (const StateError& e) {
     spdlog::error("restoring sessions/{}: {}", id, e.what());
     fail(grpc::StatusCode::UNAVAILABLE, "sessions/" + id + " cannot be restored: " + e.what());
