@@ -26,6 +26,11 @@
 //                          first move, with normals and energies): time per encoding; bytes
 //                          (positions + normals + energies) per frame and the client decoder's
 //                          time (client-cli/frame_decode.h) as counters.
+//   Restore/N              a stored session restored by a restarted server (SQLite store in a
+//                          temp folder): the first GetSession's time (parse, prepare, resolve,
+//                          factorize) with the solver's orderings kept in the store and with
+//                          them deleted, alternated each iteration: kept_p50_ms, cold_p50_ms,
+//                          cold_over_kept. Time column meaningless.
 //   Memory/N/{distinct,shared}/sessions:K
 //                          VmRSS delta for K sessions (CreateSession + SetConstraints + one
 //                          UpdateHandles each) on K distinct meshes or on one mesh; a fresh
@@ -56,7 +61,9 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <memory>
@@ -138,11 +145,11 @@ struct Loopback {
   std::shared_ptr<grpc::Channel> channel;
   std::unique_ptr<pb::Deformation::Stub> stub;
 
-  Loopback() {
+  explicit Loopback(const std::string& state_dir = g_state_dir) {
     service::ServerOptions o;  // defaults of hdeform-server: 2 workers, 4 GiB cache
     o.listen_address = "127.0.0.1:0";
     o.admin_token = kBenchToken;
-    o.state_dir = g_state_dir;
+    o.state_dir = state_dir;
     server = std::make_unique<service::Server>(o);
     grpc::ChannelArguments args;
     args.SetMaxReceiveMessageSize(-1);
@@ -563,7 +570,69 @@ void BM_Memory(benchmark::State& state, int n, bool distinct, int sessions) {
 }
 
 // ---------------------------------------------------------------------------------------
+void BM_Restore(benchmark::State& state, int n) {
+  namespace fs = std::filesystem;
+  std::string tmpl = (fs::temp_directory_path() / "hdeform-restore-XXXXXX").string();
+  if (!::mkdtemp(tmpl.data())) {
+    state.SkipWithError("mkdtemp failed");
+    return;
+  }
+  const fs::path dir = tmpl;
+  struct Remove {
+    fs::path dir;
+    ~Remove() {
+      std::error_code ec;
+      fs::remove_all(dir, ec);
+    }
+  } remove{dir};
+  const procedural::CapsuleCase capsule = procedural::capsule_case(n);
+  std::string name;
+  {
+    Loopback lb(dir.string());
+    pb::Session s;
+    auto status = upload(*lb.stub, "capsule.ply", ply_bytes(capsule.mesh), &s);
+    if (status.ok()) status = constrain(*lb.stub, s.name(), capsule);
+    pb::Frame f;
+    if (status.ok()) status = update_once(*lb.stub, s.name(), g_move++, &f);
+    if (!status.ok()) {
+      state.SkipWithError(status.error_message().c_str());
+      return;
+    }
+    name = s.name();
+  }  // a clean stop flushes the record and keeps the orderings
+  std::vector<double> kept, cold;
+  bool keep = true;
+  for (auto _ : state) {
+    if (!keep)
+      for (const auto& e : fs::directory_iterator(dir / "derived")) fs::remove(e.path());
+    Loopback lb(dir.string());
+    grpc::ClientContext ctx;
+    authorize(ctx);
+    pb::GetSessionRequest req;
+    req.set_name(name);
+    pb::Session out;
+    const auto t0 = Clock::now();
+    const auto status = lb.stub->GetSession(&ctx, req, &out);
+    (keep ? kept : cold).push_back(ms_since(t0));
+    if (!status.ok()) {
+      state.SkipWithError(status.error_message().c_str());
+      break;
+    }
+    keep = !keep;
+  }
+  const double k = percentile(kept, 0.5), c = percentile(cold, 0.5);
+  state.counters["vertices"] = n;
+  state.counters["kept_p50_ms"] = k;
+  state.counters["cold_p50_ms"] = c;
+  state.counters["cold_over_kept"] = k > 0 ? c / k : 0;
+}
+
 void register_all() {
+  for (int n : g_smoke ? std::vector<int>{10000} : std::vector<int>{100000, 1000000})
+    benchmark::RegisterBenchmark(("Restore/" + std::to_string(n)).c_str(), BM_Restore, n)
+        ->Iterations(g_smoke ? 2 : 6)
+        ->Unit(benchmark::kMillisecond)
+        ->UseRealTime();
   struct Size {
     int n, unary, stream, bursts, memory_sessions;
   };

@@ -135,3 +135,56 @@ TEST(VertexOrdering, ConstraintSetsShareTheMeshOrder) {
 
 }  // namespace
 }  // namespace hdeform
+
+namespace hdeform {
+namespace {
+
+// An order kept from an earlier process (the service's state store) is taken as it is, a
+// bad one is refused, and the same order gives the same frame bits as the METIS call did.
+TEST(VertexOrdering, AnAdoptedOrderIsTakenAsItIsAndABadOneIsRefused) {
+  const test::Benchmark b = test::load_benchmark("bar");
+  const PreparedMesh& computed = *b.mesh;
+  auto fresh = [&] { return PreparedMesh::create(computed.mesh()); };
+
+  const auto refused = fresh();
+  std::vector<int> shorter(computed.order().begin(), computed.order().end() - 1);
+  EXPECT_FALSE(refused->adopt_order(shorter, false)) << "wrong size";
+  std::vector<int> twice = computed.order();
+  twice[1] = twice[0];
+  EXPECT_FALSE(refused->adopt_order(twice, false)) << "a vertex twice";
+  std::vector<int> outside = computed.order();
+  outside[0] = refused->n();
+  EXPECT_FALSE(refused->adopt_order(outside, true)) << "an id out of range";
+  EXPECT_FALSE(refused->has_order());
+  EXPECT_FALSE(refused->has_wide_order());
+
+  // Any permutation is taken, and kept: a later adopt or call does not replace it.
+  const auto reversed = fresh();
+  std::vector<int> rev(static_cast<std::size_t>(reversed->n()));
+  std::iota(rev.rbegin(), rev.rend(), 0);
+  ASSERT_TRUE(reversed->adopt_order(rev, false));
+  EXPECT_TRUE(reversed->has_order());
+  double ms = -1;
+  EXPECT_EQ(reversed->order(&ms), rev);
+  EXPECT_EQ(ms, 0) << "no METIS call";
+  EXPECT_FALSE(reversed->adopt_order(computed.order(), false)) << "already there";
+  EXPECT_EQ(reversed->order(), rev);
+
+  // The computed orders adopted by a fresh copy: the same factors, so the same bits.
+  const auto adopted = fresh();
+  ASSERT_TRUE(adopted->adopt_order(computed.order(), false));
+  ASSERT_TRUE(adopted->adopt_order(computed.wide_order(), true));
+  EXPECT_TRUE(adopted->has_wide_order());
+  const ConstraintSet a(adopted, b.constraints), c(b.mesh, b.constraints);
+  HandleTransform t;
+  t.translation = Eigen::Vector3d(0.1, 0.3, -0.2);
+  t.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitZ()));
+  for (double beta : {0.0, 0.4}) {
+    const Frame fa = a.update(std::span(&t, 1), {beta, BetaUnits::area});
+    const Frame fc = c.update(std::span(&t, 1), {beta, BetaUnits::area});
+    EXPECT_EQ(fa.positions, fc.positions) << "beta " << beta;
+  }
+}
+
+}  // namespace
+}  // namespace hdeform

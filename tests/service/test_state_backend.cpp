@@ -359,6 +359,30 @@ TEST_P(StateBackendTest, PurgeKeepsOnlyKept) {
   EXPECT_EQ(state_->get_mesh(k1), std::nullopt);
 }
 
+// Derived data (the solver's orderings) by a mesh's hash: a put replaces, a purge keeps only
+// what it is told, meshes and derived data are purged apart, and a bad key is refused.
+TEST_P(StateBackendTest, DerivedDataIsKeptByMeshHashReplacedAndPurged) {
+  const std::string a(64, 'a'), b(64, 'b');
+  EXPECT_EQ(state_->get_derived(a), std::nullopt);
+  state_->put_derived(a, std::string("first\0", 6));
+  state_->put_derived(b, "other");
+  EXPECT_EQ(state_->get_derived(a), std::string("first\0", 6));
+  state_->put_derived(a, "second");
+  EXPECT_EQ(state_->get_derived(a), "second");
+  const std::string mesh = state_->put_mesh("a mesh");
+  EXPECT_EQ(state_->purge_derived({a}), 1u);
+  EXPECT_EQ(state_->get_derived(a), "second");
+  EXPECT_EQ(state_->get_derived(b), std::nullopt);
+  EXPECT_EQ(state_->get_mesh(mesh), "a mesh") << "purging derived data leaves the meshes";
+  EXPECT_EQ(state_->purge_meshes({}), 1u);
+  EXPECT_EQ(state_->get_derived(a), "second") << "purging meshes leaves derived data";
+  EXPECT_THROW(state_->put_derived("../x", "y"), StateError);
+  EXPECT_THROW(state_->get_derived(std::string(64, 'G')), StateError);
+  state_.reset();
+  state_ = harness_->open();
+  EXPECT_EQ(state_->get_derived(a), "second");
+}
+
 TEST_P(StateBackendTest, PurgeScansManyMeshes) {
   // Redis: several SCAN pages (COUNT 1000). SQLite: fewer, each put costs two fsyncs.
   const int n = GetParam() == "redis" ? 2500 : 200;

@@ -232,6 +232,24 @@ const std::vector<int>& PreparedMesh::wide_order(double* ms, const SparseMatrix*
                     ms);
 }
 
+bool PreparedMesh::adopt_order(std::vector<int> order, bool wide) const {
+  const std::size_t n = static_cast<std::size_t>(this->n());
+  if (order.size() != n) return false;
+  std::vector<bool> seen(n, false);
+  for (const int v : order) {
+    if (v < 0 || static_cast<std::size_t>(v) >= n || seen[static_cast<std::size_t>(v)])
+      return false;
+    seen[static_cast<std::size_t>(v)] = true;
+  }
+  bool taken = false;
+  std::call_once(wide ? wide_order_once_ : order_once_, [&] {
+    (wide ? wide_order_ : order_) = std::move(order);
+    (wide ? wide_order_ready_ : order_ready_).store(true, std::memory_order_release);
+    taken = true;
+  });
+  return taken;
+}
+
 PreparedMesh::BuildTimings PreparedMesh::build_timings() const {
   BuildTimings t = timings_;
   t.regularizer_ms = reg_ms_.load(std::memory_order_relaxed);

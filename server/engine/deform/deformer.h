@@ -62,8 +62,15 @@ class PreparedMesh {
   // assembles it when it needs it).
   const std::vector<int>& order(double* ms = nullptr) const;
   const std::vector<int>& wide_order(double* ms = nullptr, const SparseMatrix* reg = nullptr) const;
-  // Whether order() is computed (its next call returns at once).
+  // Whether order() / wide_order() is there (its next call returns at once).
   bool has_order() const { return order_ready_.load(std::memory_order_acquire); }
+  bool has_wide_order() const { return wide_order_ready_.load(std::memory_order_acquire); }
+  // An order computed before for this mesh (kept by the service with the mesh), taken
+  // instead of a METIS call: true when taken; false when that order is already there or
+  // `order` is not a permutation of 0..n−1 (the next call then computes it). Any permutation
+  // orders the solve correctly (only the fill depends on it), and the same order gives the
+  // same factor bits as the call that computed it.
+  bool adopt_order(std::vector<int> order, bool wide) const;
   SparseMatrix GtA() const;                                      // Gᵀ A (n × 3m)
   SparseMatrix GtDBD() const;                                    // Gᵀ D₃ᵀ B₃ D₃ (n × 3m)
   double total_area() const { return total_area_; }

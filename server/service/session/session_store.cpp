@@ -84,6 +84,7 @@ std::shared_ptr<Session> SessionStore::create(std::shared_ptr<const MeshRef> mes
     check_locked();
     while (id.empty() || sessions_.count(id)) id = random_hex64();
   }
+  if (orderings_) orderings_->prime(*mesh);
   auto s = std::make_shared<Session>(id, std::move(mesh), pool_, cache_, limits_.request);
   // Initialised before anyone can reach it (ImportSession's restore): no strand needed,
   // and a failed restore leaves nothing behind. The store step is installed after it: the
@@ -297,6 +298,7 @@ std::shared_ptr<Session> SessionStore::restore(const std::string& id) const {
   std::shared_ptr<Session> s;
   try {
     auto mesh = persistence_.load_mesh(record.snapshot(), record.mesh_key());
+    if (orderings_) orderings_->prime(*mesh);
     s = std::make_shared<Session>(id, std::move(mesh), pool_, cache_, limits_.request);
     // Re-applying the stored state is not a change to store: the gate comes after it (with
     // it, the restore's SetConstraints would write a record without the mesh key, at the
@@ -523,6 +525,7 @@ std::vector<SessionStore::StoredEntry> SessionStore::list_stored(
 void SessionStore::attach(Persistence persistence) {
   persistence_ = std::move(persistence);
   if (!durable()) return;
+  orderings_ = std::make_unique<OrderingStore>(*persistence_.backend);
   purge_stored(persistence_.purge_meshes);
 }
 
@@ -532,7 +535,7 @@ void SessionStore::purge_stored(bool meshes_too) {
   const auto ids = persistence_.backend->list_sessions();
   const std::int64_t now = unix_ms_now();
   std::size_t kept = 0, expired = 0, unreadable = 0;
-  std::vector<std::string> mesh_keys;
+  std::vector<std::string> mesh_keys, mesh_hashes;
   for (const auto& id : ids) {
     std::optional<std::string> bytes = persistence_.backend->get_session(id);
     if (!bytes) continue;
@@ -544,6 +547,7 @@ void SessionStore::purge_stored(bool meshes_too) {
         continue;
       }
       if (!record.mesh_key().empty()) mesh_keys.push_back(record.mesh_key());
+      mesh_hashes.push_back(record.snapshot().mesh_hash());
       // At start: a record stored before the token index existed gets its entries.
       if (meshes_too) {
         const auto hashes = index_hashes(record);
@@ -559,8 +563,10 @@ void SessionStore::purge_stored(bool meshes_too) {
   }
   std::size_t meshes = 0;
   // An unreadable record may refer to any mesh: then no mesh is dropped.
-  if (meshes_too && unreadable == 0)
+  if (meshes_too && unreadable == 0) {
     meshes = persistence_.backend->purge_meshes(mesh_keys);
+    persistence_.backend->purge_derived(mesh_hashes);
+  }
   if (meshes_too)
     spdlog::info("session state {}: {} stored sessions (restored on first use), {} expired, {} "
                  "unreadable, {} unused meshes dropped",
@@ -646,7 +652,11 @@ void SessionStore::gate(Session& session) const {
 void SessionStore::flush(bool final) {
   if (!durable()) return;
   const std::int64_t now = unix_ms_now();
-  for (auto& s : list()) {
+  const auto sessions = list();
+  std::vector<std::shared_ptr<const MeshRef>> meshes;
+  for (const auto& s : sessions) meshes.push_back(s->mesh_ref());
+  orderings_->keep(meshes);
+  for (auto& s : sessions) {
     auto& p = s->persisted();
     std::lock_guard lock(p.mutex);
     // A session in use has its record refreshed now and then: its idle clock is what

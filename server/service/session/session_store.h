@@ -5,6 +5,7 @@
 
 #include "service/infra/request_limits.h"
 #include "service/session/session.h"
+#include "service/session/ordering_store.h"
 #include "service/state/state_backend.h"
 
 #include <atomic>
@@ -164,6 +165,7 @@ class SessionStore {
   // by id; mutable: find() publishes sessions it restores
   mutable std::map<std::string, std::shared_ptr<Session>> sessions_;
   Persistence persistence_;
+  std::unique_ptr<OrderingStore> orderings_;  // with a durable store
   mutable std::atomic<std::size_t> restores_off_pool_{0};
   // One restore per id at a time (a second caller waits for the first and takes its
   // session); different ids restore in parallel. Guarded by mutex_.

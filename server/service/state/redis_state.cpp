@@ -30,6 +30,7 @@ constexpr std::string_view kSessionSet = "hdeform:sessions";
 // Set once per Redis dataset: a reconnection that finds it missing found an emptied store.
 constexpr std::string_view kMarker = "hdeform:marker";
 constexpr std::string_view kMeshPrefix = "hdeform:mesh:";
+constexpr std::string_view kDerivedPrefix = "hdeform:derived:";
 constexpr std::string_view kHistoryPrefix = "hdeform:history:";
 constexpr std::string_view kTokenPrefix = "hdeform:token:";  // the scripts spell it too
 constexpr std::string_view kSessionTokensPrefix = "hdeform:session-tokens:";
@@ -428,30 +429,51 @@ class RedisState final : public StateBackend {
   }
 
   std::size_t purge_meshes(const std::vector<std::string>& keep) override {
+    return purge_keys(kMeshPrefix, keep, "purge meshes");
+  }
+
+  void put_derived(const std::string& key, const std::string& bytes) override {
+    check_mesh_key(key);
+    call("put derived", {"SET", std::string(kDerivedPrefix) + key, bytes});
+  }
+
+  std::optional<std::string> get_derived(const std::string& key) override {
+    check_mesh_key(key);
+    return string_or_nil(call("get derived", {"GET", std::string(kDerivedPrefix) + key}),
+                         "get derived");
+  }
+
+  std::size_t purge_derived(const std::vector<std::string>& keep) override {
+    return purge_keys(kDerivedPrefix, keep, "purge derived");
+  }
+
+ private:
+  // Deletes the keys `prefix`KEY whose KEY is not in `keep`.
+  std::size_t purge_keys(std::string_view prefix, const std::vector<std::string>& keep,
+                         const char* what) {
     const std::unordered_set<std::string> kept(keep.begin(), keep.end());
-    const std::string pattern = std::string(kMeshPrefix) + "*";
+    const std::string pattern = std::string(prefix) + "*";
     std::unordered_set<std::string> doomed;  // SCAN may return a key twice
     std::string cursor = "0";
     do {
-      Reply r = call("purge meshes", {"SCAN", cursor, "MATCH", pattern, "COUNT", "1000"});
+      Reply r = call(what, {"SCAN", cursor, "MATCH", pattern, "COUNT", "1000"});
       if (r->type != REDIS_REPLY_ARRAY || r->elements != 2 ||
           r->element[0]->type != REDIS_REPLY_STRING || r->element[1]->type != REDIS_REPLY_ARRAY)
-        throw unexpected("purge meshes");
+        throw unexpected(what);
       cursor.assign(r->element[0]->str, r->element[0]->len);
       const redisReply* keys = r->element[1];
       for (std::size_t i = 0; i < keys->elements; ++i) {
         std::string name(keys->element[i]->str, keys->element[i]->len);
-        if (!kept.count(name.substr(kMeshPrefix.size()))) doomed.insert(std::move(name));
+        if (!kept.count(name.substr(prefix.size()))) doomed.insert(std::move(name));
       }
     } while (cursor != "0");
 
     std::size_t dropped = 0;
     for (const auto& name : doomed)
-      dropped += static_cast<std::size_t>(integer(call("purge meshes", {"DEL", name}), "purge"));
+      dropped += static_cast<std::size_t>(integer(call(what, {"DEL", name}), what));
     return dropped;
   }
 
- private:
   static std::string session_key(const std::string& id) {
     return std::string(kSessionPrefix) + id;
   }

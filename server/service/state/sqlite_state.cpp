@@ -256,13 +256,14 @@ void exec(sqlite3* db, const fs::path& path, const char* sql) {
   }
 }
 
-// Removes the temp files a crash during put_mesh can leave behind ("KEY.mesh.tmp.XXXXXX"),
-// and makes the meshes the owner's alone (an older server wrote them 0644).
-void tidy_meshes(const fs::path& meshes) {
+// Removes the temp files a crash during a write can leave behind ("KEY.mesh.tmp.XXXXXX",
+// "KEY.order.tmp.XXXXXX"), and makes the files the owner's alone (an older server wrote
+// meshes 0644).
+void tidy_files(const fs::path& folder) {
   std::error_code ec;
-  for (const auto& entry : fs::directory_iterator(meshes, ec)) {
+  for (const auto& entry : fs::directory_iterator(folder, ec)) {
     const std::string name = entry.path().filename().string();
-    if (name.find(".mesh.tmp.") != std::string::npos) fs::remove(entry.path(), ec);
+    if (name.find(".tmp.") != std::string::npos) fs::remove(entry.path(), ec);
     else if (entry.is_regular_file(ec)) ::chmod(entry.path().c_str(), kFileMode);
   }
 }
@@ -293,12 +294,14 @@ void make_private_folder(const fs::path& dir) {
 class SqliteState final : public StateBackend {
  public:
   explicit SqliteState(const fs::path& dir) : dir_(dir), db_path_(dir / "state.sqlite3"),
-                                              meshes_(dir / "meshes") {
+                                              meshes_(dir / "meshes"), derived_(dir / "derived") {
     make_private_folder(dir_);
     lock_ = lock_folder(dir_);
     open_database();
     make_private_folder(meshes_);
-    tidy_meshes(meshes_);  // safe: we hold the folder lock
+    make_private_folder(derived_);
+    tidy_files(meshes_);  // safe: we hold the folder lock
+    tidy_files(derived_);
     spdlog::info("state: {}", describe());
   }
 
@@ -454,20 +457,22 @@ class SqliteState final : public StateBackend {
   }
 
   std::size_t purge_meshes(const std::vector<std::string>& keep) override {
-    const std::unordered_set<std::string> kept(keep.begin(), keep.end());
-    std::size_t dropped = 0;
-    std::error_code ec;
-    for (const auto& entry : fs::directory_iterator(meshes_, ec)) {
-      const fs::path& p = entry.path();
-      if (p.extension() != ".mesh") continue;
-      const std::string key = p.stem().string();
-      if (!is_mesh_key(key) || kept.count(key)) continue;
-      std::error_code rm;
-      if (fs::remove(p, rm)) ++dropped;
-    }
-    if (ec) throw StateError("cannot list " + meshes_.string() + ": " + ec.message());
-    if (dropped > 0) fsync_dir(meshes_);
-    return dropped;
+    return purge_files(meshes_, ".mesh", keep);
+  }
+
+  // DIR/derived/KEY.order, written like a mesh (a crash leaves the old file or the new one).
+  void put_derived(const std::string& key, const std::string& bytes) override {
+    check_mesh_key(key);
+    write_atomically(derived_path(key), bytes);
+  }
+
+  std::optional<std::string> get_derived(const std::string& key) override {
+    check_mesh_key(key);
+    return read_file(derived_path(key));
+  }
+
+  std::size_t purge_derived(const std::vector<std::string>& keep) override {
+    return purge_files(derived_, ".order", keep);
   }
 
  private:
@@ -630,6 +635,26 @@ class SqliteState final : public StateBackend {
   }
 
   fs::path mesh_path(const std::string& key) const { return meshes_ / (key + ".mesh"); }
+  fs::path derived_path(const std::string& key) const { return derived_ / (key + ".order"); }
+
+  // Drops the files `folder`/KEY`extension` whose KEY is not in `keep`.
+  std::size_t purge_files(const fs::path& folder, const char* extension,
+                          const std::vector<std::string>& keep) {
+    const std::unordered_set<std::string> kept(keep.begin(), keep.end());
+    std::size_t dropped = 0;
+    std::error_code ec;
+    for (const auto& entry : fs::directory_iterator(folder, ec)) {
+      const fs::path& p = entry.path();
+      if (p.extension() != extension) continue;
+      const std::string key = p.stem().string();
+      if (!is_mesh_key(key) || kept.count(key)) continue;
+      std::error_code rm;
+      if (fs::remove(p, rm)) ++dropped;
+    }
+    if (ec) throw StateError("cannot list " + folder.string() + ": " + ec.message());
+    if (dropped > 0) fsync_dir(folder);
+    return dropped;
+  }
 
   // Temp file in the same folder, fsync, rename over the final name, fsync the folder: a
   // crash leaves either no file or the complete one.
@@ -637,7 +662,7 @@ class SqliteState final : public StateBackend {
     std::string tmpl = path.string() + ".tmp.XXXXXX";
     Fd fd(::mkostemp(tmpl.data(), O_CLOEXEC));
     if (fd.get() < 0)
-      throw StateError("cannot create a temp file in " + meshes_.string() + ": " +
+      throw StateError("cannot create a temp file in " + path.parent_path().string() + ": " +
                        errno_text(errno));
     try {
       write_all(fd.get(), bytes, tmpl);
@@ -650,10 +675,10 @@ class SqliteState final : public StateBackend {
       ::unlink(tmpl.c_str());
       throw;
     }
-    fsync_dir(meshes_);
+    fsync_dir(path.parent_path());
   }
 
-  fs::path dir_, db_path_, meshes_;
+  fs::path dir_, db_path_, meshes_, derived_;
   Fd lock_;
   std::mutex mu_;  // one connection; SQLite opened NOMUTEX, so we serialize here
   Db db_;

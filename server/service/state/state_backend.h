@@ -73,6 +73,12 @@ class StateBackend {
   // nullopt when absent. `key` must be 64 hex digits (else StateError).
   virtual std::optional<std::string> get_mesh(const std::string& key) = 0;
   virtual bool has_mesh(const std::string& key) = 0;
+  // ---- what the service derives from a mesh, by the engine mesh's hash (64 hex digits) ----
+  // A cache beside the meshes (the solver's orderings: StoredOrderings): a put replaces, a
+  // get of one never stored is nullopt. Dropped by purge_derived unless in `keep`.
+  virtual void put_derived(const std::string& key, const std::string& bytes) = 0;
+  virtual std::optional<std::string> get_derived(const std::string& key) = 0;
+  virtual std::size_t purge_derived(const std::vector<std::string>& keep) = 0;
   // Counts the times the store was found to have lost everything written before (Redis
   // restarted without persistence: a new connection finds its marker key gone); 0 for a
   // store that cannot.
