@@ -4,10 +4,10 @@ import { Code, ConnectError } from "@connectrpc/connect";
 import { describeError } from "./api";
 import type { App } from "./app";
 
-export async function reloadAfterConflict(app: App, what: string, err: unknown): Promise<void> {
+export async function reloadAfterConflict(app: Pick<App, "state" | "client" | "banner">, what: string, err: unknown): Promise<void> {
   const { state, client, banner } = app;
   banner.show(
-    `Your ${what} change was not applied: someone else changed the constraints or β first (${describeError(err)}). The session was reloaded; make the change again if you still want it.`,
+    `Your ${what.toLowerCase()} change was not applied: someone else changed the constraints or β first (${describeError(err)}). The session was reloaded; make the change again if you still want it.`,
     "rejected",
   );
   try {
@@ -30,11 +30,14 @@ export function dropsOthersKeys(err: unknown): err is ConnectError {
  * own words, and on yes it is sent again with discardTimeline (Undo brings the keys back).
  * On no, the refusal is thrown as it came.
  */
-export async function askingToDropKeys<T>(call: (discardTimeline: boolean) => Promise<T>): Promise<T> {
+export async function askingToDropKeys<T>(
+  call: (discardTimeline: boolean) => Promise<T>,
+  confirm: (message: string) => boolean = (m) => window.confirm(m),
+): Promise<T> {
   try {
     return await call(false);
   } catch (err) {
-    if (!dropsOthersKeys(err) || !window.confirm(`${err.rawMessage}\n\nDrop those keys? (Undo brings them back.)`)) throw err;
+    if (!dropsOthersKeys(err) || !confirm(`${err.rawMessage}\n\nDrop those keys? (Undo brings them back.)`)) throw err;
     return await call(true);
   }
 }

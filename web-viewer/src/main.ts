@@ -1,6 +1,8 @@
 // hdeform web viewer: wires the session state, the viewport, the selection tools, the panels
 // and sync (live frames over gRPC-Web) together, and runs the animation-frame loop.
 import { describeError, makeClient } from "./api";
+import { CommandLayer } from "./commands/command_layer";
+import { reloadAfterConflict } from "./conflict";
 import type { App } from "./app";
 import { $ } from "./dom";
 import { setupFrameApply } from "./frame_apply";
@@ -75,8 +77,18 @@ const state = new SessionState(link.watchOnly);
 const client = makeClient();
 const frameFormat = frameFormatFromQuery(window.location.search);
 if (frameFormat.error) banner.show(frameFormat.error);
+// The one command layer: every change the page makes goes through it (commands/).
+const commands = new CommandLayer({
+  client,
+  clientId: () => editors.identity.clientId,
+  retry: (call) => sync.edit(call),
+  refused: (text) => banner.show(text, "rejected"),
+  accepted: () => banner.clear("rejected"),
+  conflict: (what, err) => reloadAfterConflict(app, what, err),
+});
 const sync: Sync = new Sync({
   client,
+  commands,
   format: frameFormat.format,
   // Pipelined: a second update is sent while the first is solved (coalesce: the server skips
   // one a newer overtook; omit_buffers: frames come once, on the WatchSession stream), so the
@@ -99,8 +111,8 @@ const app: App = {
   banner,
   status,
   edits: {
-    setBeta: (request) => sync.setBeta(request),
-    setConstraints: (request) => sync.setConstraints(request),
+    execute: commands.execute.bind(commands),
+    lane: (key) => commands.lane(key),
     requestFrame: () => {
       if (state.sessionName && !state.watchOnly && state.constraintsApplied) sync.request();
     },

@@ -90,7 +90,7 @@ export class SessionLoader {
       const { client, state, banner } = this.app;
       // A view token pasted as `#edit=` opens the session (it reads) but every edit would be
       // refused: ask what the token may do (in parallel with GetSession) and watch if it reads only.
-      const role = edit && !state.watchOnly ? tokenRole(client, name) : Promise.resolve("unknown");
+      const role = edit && !state.watchOnly ? tokenRole(this.app.edits, name) : Promise.resolve("unknown");
       const s = await client.getSession({ name });
       if ((await role) === "view") {
         setTokens("", edit); // it opened the session, so it is the view token

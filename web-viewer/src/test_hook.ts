@@ -98,7 +98,7 @@ export interface HookParts {
   grid: GroundGrid;
 }
 
-export function installTestHook({ state, client, banner, status }: App, parts: HookParts): void {
+export function installTestHook({ state, client, banner, status, edits }: App, parts: HookParts): void {
   const { sync, viewport, gizmo, tools } = parts;
   window.hdeform = {
     get loaded() {
@@ -403,7 +403,9 @@ export function installTestHook({ state, client, banner, status }: App, parts: H
      */
     exactFrameAt: async (t: number) => {
       const pose = await client.poseAt({ name: state.sessionName, timeS: t });
-      const f = await client.updateHandles({ name: state.sessionName, transforms: pose.transforms, clientId: parts.editors.identity.clientId });
+      const name = state.sessionName;
+      const clientId = parts.editors.identity.clientId;
+      const f = await edits.execute({ method: "updateHandles", what: "Handle update", quiet: true, request: () => ({ name, transforms: pose.transforms, clientId }) });
       const p = f.positions;
       return Array.from(new Float32Array(p.buffer.slice(p.byteOffset, p.byteOffset + p.byteLength)));
     },

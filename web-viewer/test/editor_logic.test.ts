@@ -12,7 +12,9 @@ import { stepsDone } from "../src/panels/onboarding";
 import { snapSteps } from "../src/viewport/snap";
 import { parseSel } from "../src/sel_file";
 import { Code, ConnectError } from "@connectrpc/connect";
-import { HandleLease, type GrabClient } from "../src/multi/handle_lease";
+import { HandleLease } from "../src/multi/handle_lease";
+import { CommandLayer } from "../src/commands/command_layer";
+import type { DeformationClient } from "../src/api";
 
 class MemoryStore {
   private m = new Map<string, string>();
@@ -176,8 +178,8 @@ describe("handle lease", () => {
         calls.push({ method: "release", request });
         return {};
       },
-    } as unknown as GrabClient;
-    return { client, calls };
+    } as unknown as DeformationClient;
+    return { client: new CommandLayer({ client }), calls };
   }
   it("grabs, then releases what it holds", async () => {
     const { client, calls } = fakeGrab(async () => ({}));

@@ -12,6 +12,7 @@ import {
   type UpdateHandlesRequest,
   type WatchSessionRequest,
 } from "../src/gen/hdeform/v1/deform_pb";
+import type { DeformationClient } from "../src/api";
 import type { SyncClient } from "../src/sync/client";
 
 export interface Call<Req, Res> {
@@ -89,7 +90,7 @@ export class FakeClient {
       this.streams.push(stream);
       return stream.events(options?.signal);
     },
-  } as unknown as SyncClient;
+  } as unknown as SyncClient & Pick<DeformationClient, "setBeta" | "setConstraints">;
 
   get stream(): FakeStream {
     return this.streams[this.streams.length - 1];

@@ -5,19 +5,22 @@ import { create } from "@bufbuild/protobuf";
 import { Code, ConnectError } from "@connectrpc/connect";
 import { describe, it } from "node:test";
 import { PresenceSchema } from "../src/gen/hdeform/v1/deform_pb";
-import { HandleLease, type GrabClient } from "../src/multi/handle_lease";
+import { HandleLease } from "../src/multi/handle_lease";
+import { CommandLayer } from "../src/commands/command_layer";
+import type { DeformationClient } from "../src/api";
 import { PresenceModel } from "../src/multi/presence_model";
 import { faithful } from "../src/panels/number_box";
 import { tokenRole } from "../src/token_role";
 
-type Release = Parameters<typeof tokenRole>[0];
 const answering = (answer: () => Promise<unknown>, seen: Record<string, unknown>[] = []) =>
-  ({
-    releaseHandles: async (request: Record<string, unknown>) => {
-      seen.push(request);
-      return answer();
-    },
-  }) as unknown as Release;
+  new CommandLayer({
+    client: {
+      releaseHandles: async (request: Record<string, unknown>) => {
+        seen.push(request);
+        return answer();
+      },
+    } as unknown as DeformationClient,
+  });
 
 describe("token role", () => {
   it("an edit token: the edit-only probe succeeds; it names a throwaway client and no handle", async () => {
@@ -60,8 +63,8 @@ describe("presence across sessions", () => {
     const client = {
       grabHandles: async () => ({ presence: presence(2n, ["me"]) }),
       releaseHandles: async () => ({ presence: presence(3n, ["me"]) }),
-    } as unknown as GrabClient;
-    const lease = new HandleLease(client, () => ({ clientId: "me" }), (_p, name) => got.push(name));
+    } as unknown as DeformationClient;
+    const lease = new HandleLease(new CommandLayer({ client }), () => ({ clientId: "me" }), (_p, name) => got.push(name));
     await lease.grab("sessions/a", [0]);
     await lease.release();
     assert.deepEqual(got, ["sessions/a", "sessions/a"]);

@@ -6,6 +6,7 @@ import { Code, ConnectError } from "@connectrpc/connect";
 import { afterEach, describe, it } from "node:test";
 import { FrameEncoding, SessionEventSchema, SessionSchema, StepKind } from "../src/gen/hdeform/v1/deform_pb";
 import { Sync, type SyncEvents, type SyncOptions } from "../src/sync/sync";
+import { CommandLayer } from "../src/commands/command_layer";
 import { deletedEvent, FakeClient, frame, frameEvent, settle, stateEvent, until } from "./fake_client";
 
 const FAST = { reconnectFirstMs: 1, reconnectMaxMs: 4, lostBannerAfterMs: 60_000, editRetryWaitMs: 1000 };
@@ -29,6 +30,13 @@ function setup(window = 1, format?: SyncOptions["format"]) {
   const sentX = (i: number) => fake.updates[i].request.transforms[0].translation?.x;
   return { fake, pose, sync, events, sentX };
 }
+
+/** The page's command layer for SetBeta / SetConstraints: retried through `sync` (as main.ts wires it). */
+function commandsOf(fake: FakeClient, sync: Sync, clientId?: () => string) {
+  return new CommandLayer<"setBeta" | "setConstraints">({ client: fake.client, retry: (call) => sync.edit(call), clientId });
+}
+const setBeta = (commands: ReturnType<typeof commandsOf>, request: { name: string; beta?: { value: number }; clientId?: string }) =>
+  commands.execute({ method: "setBeta", what: "β", request: () => request });
 
 afterEach(() => {
   for (const s of opened.splice(0)) s.open(""); // stops every watch loop
@@ -218,13 +226,14 @@ describe("sync, connection", () => {
       throw new ConnectError("unavailable", Code.Unavailable);
     };
     fake.betaAnswers = [unavailable, unavailable, () => create(SessionSchema, {})];
-    await assert.rejects(sync.setBeta({ name: "sessions/s", beta: { value: 0.4 } }), /unavailable/);
+    const commands = commandsOf(fake, sync);
+    await assert.rejects(setBeta(commands, { name: "sessions/s", beta: { value: 0.4 } }), /unavailable/);
     assert.equal(fake.setBetaCalls, 2);
     // The retry is the same request to the server (its request_id): applied at most once.
     const [first, retry] = fake.requests.map((r) => r.requestId);
     assert.match(first ?? "", /^[0-9a-f]{32}$/);
     assert.equal(retry, first);
-    await sync.setBeta({ name: "sessions/s", beta: { value: 0.4 } });
+    await setBeta(commands, { name: "sessions/s", beta: { value: 0.4 } });
     assert.notEqual(fake.requests[2].requestId, first); // a new change: a new id
     assert.equal(sync.link.state, "connected");
   });
@@ -485,9 +494,10 @@ describe("sync, the confirmed pose", () => {
     const steps: SyncEvents["step"][] = [];
     sync.on("step", (st) => steps.push(st));
     sync.open("sessions/s");
-    await sync.setBeta({ name: "sessions/s", beta: { value: 0.3 } });
-    await sync.setConstraints({ name: "sessions/s" });
-    await sync.setBeta({ name: "sessions/s", clientId: "explicit" });
+    const commands = commandsOf(fake, sync, () => "tab1");
+    await setBeta(commands, { name: "sessions/s", beta: { value: 0.3 } });
+    await commands.execute({ method: "setConstraints", what: "Constraints", request: () => ({ name: "sessions/s" }) });
+    await setBeta(commands, { name: "sessions/s", clientId: "explicit" });
     assert.deepEqual(
       fake.requests.map((r) => r.clientId),
       ["tab1", "tab1", "explicit"],

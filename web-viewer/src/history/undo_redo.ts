@@ -3,16 +3,12 @@
 // the session it answers is adopted here at once, and the same state and a frame of it come on
 // the watch stream for every page — or refuses it (ABORTED: a later change touched the same
 // thing, the message names it; FAILED_PRECONDITION: nothing to undo), and then nothing changes
-// but the banner, which shows the server's own words.
-//
-// Not sent through sync.edit: that retries after a transient failure, and an undo that had in
-// fact reached the server would then undo a second step.
-import { describeError } from "../api";
+// but the banner, which shows the server's own words (the command layer's refusal).
+// A retry after a transient failure carries the same request_id, so the server answers it as
+// the first and never undoes a second step.
 import type { App } from "../app";
 import type { Session } from "../gen/hdeform/v1/deform_pb";
 import type { Sync } from "../sync/sync";
-import { askingToDropKeys } from "../conflict";
-import { newRequestId } from "../request_id";
 
 export type UndoKind = "undo" | "redo";
 
@@ -24,7 +20,7 @@ export interface UndoRedo {
 }
 
 export function setupUndoRedo(app: App, sync: Sync, clientId: () => string): UndoRedo {
-  const { state, client, banner } = app;
+  const { state, edits } = app;
   const adopt = (s: Session) => {
     if (s.name !== state.sessionName) return; // another session opened meanwhile
     if (state.session && s.version < state.session.version) return; // a newer state came first
@@ -38,20 +34,18 @@ export function setupUndoRedo(app: App, sync: Sync, clientId: () => string): Und
       if (state.watchOnly || !state.sessionName || running) return false;
       if (sync.dragging) return false; // the drag is not a step yet
       running = true;
-      const request = { name: state.sessionName, clientId: clientId(), step: step ?? 0n, requestId: newRequestId() };
+      const name = state.sessionName;
       try {
         adopt(
-          await askingToDropKeys((discardTimeline) =>
-            kind === "undo" ? client.undo({ ...request, discardTimeline }) : client.redo({ ...request, discardTimeline }),
-          ),
+          await edits.execute({
+            method: kind,
+            what: kind === "undo" ? "Undo" : "Redo",
+            dropsKeys: true,
+            request: () => ({ name, clientId: clientId(), step: step ?? 0n }),
+          }),
         );
-        banner.clear("rejected");
         return true;
-      } catch (err) {
-        // The server's words ("Undo of step 4 (Alice: …) refused: …"); named so when they are not.
-        const what = kind === "undo" ? "Undo" : "Redo";
-        const message = describeError(err);
-        banner.show(message.startsWith(what) ? message : `${what}: ${message}`, "rejected");
+      } catch {
         return false;
       } finally {
         running = false;

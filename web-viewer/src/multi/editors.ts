@@ -24,7 +24,7 @@ export interface Editors {
 }
 
 export function setupEditors(app: App, sync: Sync): Editors {
-  const { state, client, banner } = app;
+  const { state, banner } = app;
   const identity = new Identity(window.sessionStorage, window.localStorage);
   const presence = new PresenceModel(identity.clientId);
   const listeners: (() => void)[] = [];
@@ -41,7 +41,7 @@ export function setupEditors(app: App, sync: Sync): Editors {
     for (const l of listeners) l();
   };
   // A late GrabHandles / ReleaseHandles answer of the previous session must not list its people.
-  const lease = new HandleLease(client, () => identity.participant(), (p, name) => {
+  const lease = new HandleLease(app.edits, () => identity.participant(), (p, name) => {
     if (name === sync.sessionName) adopt(p);
   });
   sync.on("presence", adopt);

@@ -4,7 +4,7 @@ import { describeError, fetchMesh, newSessionId, setRoutingSession } from "../ap
 import { repairNotice } from "../mesh_repair";
 import type { App } from "../app";
 import { $ } from "../dom";
-import { MeshFormat, SnapshotSchema, type Session } from "../gen/hdeform/v1/deform_pb";
+import { MeshFormat, SnapshotSchema, type Session, type Snapshot } from "../gen/hdeform/v1/deform_pb";
 import { withUpAxis } from "../glb_up_axis";
 import type { ExportUp } from "./export_up";
 
@@ -20,7 +20,7 @@ export function saveBytes(bytes: Uint8Array | string, filename: string, type: st
   setTimeout(() => URL.revokeObjectURL(a.href), 10_000);
 }
 
-export function setupFilesPanel({ state, client, banner }: App, load: (s: Session) => Promise<void>, exportUp: ExportUp): void {
+export function setupFilesPanel({ state, client, banner, edits }: App, load: (s: Session) => Promise<void>, exportUp: ExportUp): void {
   const baseName = () => (state.session?.meshName || "mesh").replace(/\.[^.]+$/, "").replace(/[^\w.-]+/g, "_");
   const download = async (format: MeshFormat, ext: string, type: string) => {
     try {
@@ -49,21 +49,29 @@ export function setupFilesPanel({ state, client, banner }: App, load: (s: Sessio
     const file = input.files?.[0];
     input.value = "";
     if (!file) return;
+    let snapshot: Snapshot;
     try {
       const bytes = new Uint8Array(await file.arrayBuffer());
-      const snapshot = file.name.endsWith(".json")
-        ? fromJsonString(SnapshotSchema, new TextDecoder().decode(bytes))
-        : fromBinary(SnapshotSchema, bytes);
-      // A client-chosen id, sent as the routing header too: behind a load balancer the import
-      // then lands on the replica that every later call of the new session reaches.
-      const id = newSessionId();
-      setRoutingSession(id);
-      const s = await client.importSession({ snapshot, sessionId: id });
+      snapshot = file.name.endsWith(".json") ? fromJsonString(SnapshotSchema, new TextDecoder().decode(bytes)) : fromBinary(SnapshotSchema, bytes);
+    } catch (err) {
+      return banner.show(`Import failed: ${describeError(err)}`);
+    }
+    // A client-chosen id, sent as the routing header too: behind a load balancer the import
+    // then lands on the replica that every later call of the new session reaches.
+    const id = newSessionId();
+    setRoutingSession(id);
+    let s: Session;
+    try {
+      s = await edits.execute({ method: "importSession", what: "Import", request: () => ({ snapshot, sessionId: id }) });
+    } catch {
+      if (state.sessionName) setRoutingSession(state.sessionName); // still showing the previous session
+      return; // the layer said why
+    }
+    try {
       await load(s);
       banner.clear();
       if (s.repair?.lines.length) banner.notice(repairNotice(s.repair.lines), "repaired"); // a repaired upload's snapshot
     } catch (err) {
-      if (state.sessionName) setRoutingSession(state.sessionName); // still showing the previous session
       banner.show(`Import failed: ${describeError(err)}`);
     }
   });

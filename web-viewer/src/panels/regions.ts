@@ -1,9 +1,6 @@
 // The Regions panel: what the tools assign (Fixed, Handle k, Erase), + handle, Clear, the
 // per-region counts, and Apply constraints (SetConstraints; also on entering Move with
 // unapplied edits).
-import { Code, ConnectError } from "@connectrpc/connect";
-import { describeError } from "../api";
-import { askingToDropKeys, dropsOthersKeys, reloadAfterConflict } from "../conflict";
 import { regionColourCss } from "../region_colours";
 import { openMeshFirst } from "./banner";
 import type { App } from "../app";
@@ -11,6 +8,7 @@ import { $ } from "../dom";
 import { handleName, handleWord, labelName } from "../handle_names";
 import { adjacency, selectionChange, type Adjacency, type SelectionCommand } from "../selection/commands";
 import type { MeshData } from "../state";
+import type { Session } from "../gen/hdeform/v1/deform_pb";
 
 export interface RegionsPanel {
   applyConstraints: () => Promise<void>;
@@ -74,31 +72,31 @@ export function setupRegionsPanel(app: App): RegionsPanel {
     // Vertex indices of the base GLB this viewer loaded: the server maps them through its weld
     // map (glTF uploads), so they need not be engine ids.
     const region = (ids: number[]) => ({ selectors: ids.length ? [{ kind: { case: "baseIds" as const, value: { ids } } }] : [] });
+    status.set("factorizing…");
+    let s: Session;
     try {
-      status.set("factorizing…");
-      const s = await askingToDropKeys((discardTimeline) =>
-        edits.setConstraints({
+      s = await edits.execute({
+        method: "setConstraints",
+        what: "Constraints",
+        dropsKeys: true,
+        request: () => ({
           name,
           constraints: { fixed: region(fixed), handles: handleIds.map(region) },
           expectedConfigVersion: state.session?.configVersion ?? 0n,
-          discardTimeline,
         }),
-      );
-      if (name !== state.sessionName) return;
-      state.labelsDirty = false;
-      banner.clear("rejected");
-      state.handles = [];
-      state.adoptSession(s, { labels: true, transforms: false });
-      state.handleCount = Math.max(1, handleIds.length);
-      if (state.activeHandle > handleIds.length) state.activeHandle = 1;
-      state.resetHandles();
-      showLabels();
-      edits.requestFrame();
-    } catch (err) {
-      if (dropsOthersKeys(err)) banner.show(`Constraints not applied, the timeline kept: ${describeError(err)}`, "rejected");
-      else if (err instanceof ConnectError && err.code === Code.Aborted) await reloadAfterConflict(app, "constraints", err);
-      else banner.show(`Constraints rejected: ${describeError(err)}`, "rejected");
+      });
+    } catch {
+      return; // the layer said why (or re-read the session)
     }
+    if (name !== state.sessionName) return;
+    state.labelsDirty = false;
+    state.handles = [];
+    state.adoptSession(s, { labels: true, transforms: false });
+    state.handleCount = Math.max(1, handleIds.length);
+    if (state.activeHandle > handleIds.length) state.activeHandle = 1;
+    state.resetHandles();
+    showLabels();
+    edits.requestFrame();
   }
 
   state.on("labels", showLabels);

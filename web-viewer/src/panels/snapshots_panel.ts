@@ -2,16 +2,13 @@
 // the session): a name and Save, then the list — name, author, when — with Restore and Delete.
 // The list is read again after each action (and when a session opens). A restore is a step like
 // an undo: its answer is adopted at once, its state and frame come on the watch stream.
-import { Code, ConnectError } from "@connectrpc/connect";
 import { describeError } from "../api";
 import type { App } from "../app";
-import { askingToDropKeys, dropsOthersKeys, reloadAfterConflict } from "../conflict";
 import { $ } from "../dom";
 import type { NamedSnapshot } from "../gen/hdeform/v1/deform_pb";
 import { relativeTime } from "../history/relative_time";
 import type { UndoRedo } from "../history/undo_redo";
 import type { Sync } from "../sync/sync";
-import { newRequestId } from "../request_id";
 import { StepKind } from "../gen/hdeform/v1/deform_pb";
 import { openMeshFirst } from "./banner";
 
@@ -25,7 +22,7 @@ export interface SnapshotsPanel {
 }
 
 export function setupSnapshotsPanel(app: App, sync: Sync, undo: UndoRedo, clientId: () => string): SnapshotsPanel {
-  const { state, client, banner } = app;
+  const { state, client, banner, edits } = app;
   const nameField = $<HTMLInputElement>("snapshot-name");
   const save = $<HTMLButtonElement>("snapshot-save");
   const ul = $("snapshot-list");
@@ -65,14 +62,13 @@ export function setupSnapshotsPanel(app: App, sync: Sync, undo: UndoRedo, client
     }
   };
 
-  const act = async (what: string, call: () => Promise<unknown>) => {
+  // The command layer shows a refusal ("Snapshot save rejected: …"); the list is read again
+  // either way.
+  const act = async (call: () => Promise<unknown>) => {
     try {
       await call();
-      banner.clear("rejected");
-    } catch (err) {
-      if (what === "restore" && dropsOthersKeys(err)) banner.show(`Snapshot not restored, the timeline kept: ${describeError(err)}`, "rejected");
-      else if (what === "restore" && err instanceof ConnectError && err.code === Code.Aborted) await reloadAfterConflict(app, "restore", err);
-      else banner.show(`Snapshot ${what}: ${describeError(err)}`, "rejected");
+    } catch {
+      /* shown by the layer */
     }
     await refresh();
   };
@@ -84,7 +80,8 @@ export function setupSnapshotsPanel(app: App, sync: Sync, undo: UndoRedo, client
       nameField.focus();
       return;
     }
-    void act("save", () => client.saveSnapshot({ name: state.sessionName, snapshot, clientId: clientId(), requestId: newRequestId() }));
+    const name = state.sessionName;
+    void act(() => edits.execute({ method: "saveSnapshot", what: "Snapshot save", request: () => ({ name, snapshot, clientId: clientId() }) }));
   };
   save.addEventListener("click", doSave);
   nameField.addEventListener("keydown", (ev) => {
@@ -104,16 +101,18 @@ export function setupSnapshotsPanel(app: App, sync: Sync, undo: UndoRedo, client
     }
     confirming = null;
     if (which === "restore") {
-      const requestId = newRequestId();
-      void act("restore", async () =>
+      void act(async () =>
         undo.adopt(
-          await askingToDropKeys((discardTimeline) =>
-            client.restoreSnapshot({ name, snapshot, clientId: clientId(), expectedConfigVersion: state.session?.configVersion ?? 0n, discardTimeline, requestId }),
-          ),
+          await edits.execute({
+            method: "restoreSnapshot",
+            what: "Snapshot restore",
+            dropsKeys: true,
+            request: () => ({ name, snapshot, clientId: clientId(), expectedConfigVersion: state.session?.configVersion ?? 0n }),
+          }),
         ),
       );
     } else {
-      void act("delete", () => client.deleteSnapshot({ name, snapshot, clientId: clientId(), requestId: newRequestId() }));
+      void act(() => edits.execute({ method: "deleteSnapshot", what: "Snapshot delete", request: () => ({ name, snapshot, clientId: clientId() }) }));
     }
   });
 

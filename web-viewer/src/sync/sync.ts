@@ -14,9 +14,9 @@
 // comes on the stream; a stream still connecting would miss it); frames apply in version
 // order from wherever they come. The update after a
 // non-dragging one never coalesces, so a drag's last update is always solved.
-import { newRequestId } from "../request_id";
 import type { MessageInitShape } from "@bufbuild/protobuf";
-import { describeError, isAbort, isTransient } from "../api";
+import { isTransient } from "../api";
+import { CommandLayer } from "../commands/command_layer";
 import { Emitter } from "../events";
 import type {
   Frame,
@@ -28,8 +28,6 @@ import type {
   Presence,
   Session,
   SessionEvent,
-  SetBetaRequestSchema,
-  SetConstraintsRequestSchema,
 } from "../gen/hdeform/v1/deform_pb";
 import { FrameEncoding } from "../gen/hdeform/v1/deform_pb";
 import type { SyncClient } from "./client";
@@ -86,6 +84,11 @@ export interface Pose {
 
 export interface SyncOptions {
   client: SyncClient;
+  /**
+   * The command layer the updates go through (main.ts: the page's one, whose retry is this
+   * Sync's edit()); unset: one of its own on `client`.
+   */
+  commands?: CommandLayer<"updateHandles">;
   pose: () => Pose;
   /** After a reconnect, the session's current shape (frames may have been missed). */
   refreshShape?: (name: string, session: Session, signal: AbortSignal) => Promise<void>;
@@ -104,6 +107,7 @@ function carriesShape(frame: Frame): boolean {
 
 export class Sync extends Emitter<SyncEvents> implements WatchHost {
   readonly client: SyncClient;
+  private readonly commands: CommandLayer<"updateHandles">;
   readonly link: LinkState;
   readonly timing: SyncTiming;
   readonly window: number;
@@ -142,6 +146,7 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
   constructor(options: SyncOptions) {
     super();
     this.client = options.client;
+    this.commands = options.commands ?? new CommandLayer<"updateHandles">({ client: options.client, retry: (call) => this.edit(call) });
     this.pose = options.pose;
     this.participantOf = options.participant ?? (() => undefined);
     this.refreshShape = options.refreshShape ?? (async () => {});
@@ -263,29 +268,46 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
     let seq = 0;
     let omitBuffers = false;
     let sent: Pose | null = null;
-    this.edit(() => {
-      seq = ++this.sequence;
-      this.sentAt.set(seq, performance.now());
-      if (this.sentAt.size > 64) this.sentAt.delete(this.sentAt.keys().next().value!);
-      omitBuffers = this.pipelined && this.streamLive;
-      sent = this.pose();
-      const { transforms, handles, energies } = sent;
-      const coalesce = this.pipelined && this.lastSentDragging;
-      this.lastSentDragging = this.held;
-      return this.client.updateHandles({
-        name,
-        sequence: BigInt(seq),
-        transforms: handles ? handles.map((h) => transforms[h]) : transforms,
-        handles: handles ?? [],
-        clientId: this.participantOf()?.clientId ?? "",
-        energies,
-        // While the gizmo is held the server may answer with a drag frame (float32 factor).
-        dragging: this.held,
-        coalesce,
-        omitBuffers,
-        format: this.replyFormat,
-      });
-    })
+    // The drag's updates are its gesture (`dragging`: the server may answer with a drag frame,
+    // float32 factor, and makes the drag one step); an update of no drag is a step of its own.
+    const gesture = this.held ? { phase: "update" as const } : undefined;
+    this.commands
+      .execute({
+        method: "updateHandles",
+        what: "Handle update",
+        gesture,
+        request: () => {
+          seq = ++this.sequence;
+          this.sentAt.set(seq, performance.now());
+          if (this.sentAt.size > 64) this.sentAt.delete(this.sentAt.keys().next().value!);
+          omitBuffers = this.pipelined && this.streamLive;
+          sent = this.pose();
+          const { transforms, handles, energies } = sent;
+          const coalesce = this.pipelined && this.lastSentDragging;
+          this.lastSentDragging = gesture !== undefined;
+          return {
+            name,
+            sequence: BigInt(seq),
+            transforms: handles ? handles.map((h) => transforms[h]) : transforms,
+            handles: handles ?? [],
+            clientId: this.participantOf()?.clientId ?? "",
+            energies,
+            coalesce,
+            omitBuffers,
+            format: this.replyFormat,
+          };
+        },
+        // Shown through the "error" event (main.ts: the banner); the gizmo goes back too.
+        showIn: (message) => {
+          if (name !== this.name) return;
+          this.emit("error", { message, kind: "rejected" });
+          // The newest update failed: the server keeps the last pose it confirmed. A newer update
+          // still to be sent or in flight will say where the handle is instead.
+          if (seq === this.sequence && !this.dirty && this.confirmed) {
+            this.emit("revert", { transforms: this.confirmed, message });
+          }
+        },
+      })
       .then((frame) => {
         if (name !== this.name) return; // another session was opened meanwhile
         if (seq === this.sequence) this.emit("clearError", "rejected");
@@ -296,16 +318,8 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
           this.awaitingBuffers = frame.version;
         }
         this.offer(frame, "reply");
-      })
-      .catch((err) => {
-        if (isAbort(err) || name !== this.name) return;
-        const message = `Handle update rejected: ${describeError(err)}`;
-        this.emit("error", { message, kind: "rejected" });
-        // The newest update failed: the server keeps the last pose it confirmed. A newer update
-        // still to be sent or in flight will say where the handle is instead.
-        if (seq === this.sequence && !this.dirty && this.confirmed) {
-          this.emit("revert", { transforms: this.confirmed, message });
-        }
+      }, () => {
+        /* refused: shown by showIn */
       })
       .finally(() => {
         this.inFlight--;
@@ -328,22 +342,11 @@ export class Sync extends Emitter<SyncEvents> implements WatchHost {
     }
   }
 
-  // Both carry this page's client_id (unless the request names one), so the server's history
-  // names the author and Undo (by client_id) finds the change as this page's own.
-  setBeta(request: MessageInitShape<typeof SetBetaRequestSchema>): Promise<Session> {
-    const requestId = newRequestId(); // the same on the retry: applied once
-    return this.edit(() => this.client.setBeta({ clientId: this.participantOf()?.clientId ?? "", requestId, ...request }));
-  }
-
-  setConstraints(request: MessageInitShape<typeof SetConstraintsRequestSchema>): Promise<Session> {
-    const requestId = newRequestId();
-    return this.edit(() => this.client.setConstraints({ clientId: this.participantOf()?.clientId ?? "", requestId, ...request }));
-  }
-
   /**
    * An edit waits while the page reconnects; when it fails for a transient reason it starts a
    * reconnect and is made once more after it. `call` builds its request each time (a retry
-   * sends the newest state; edits carry absolute state, so a repeat cannot apply twice).
+   * sends the newest state: an update's poses are absolute, and the other edits carry the same
+   * request_id, so a repeat cannot apply twice). The command layer's retry.
    */
   async edit<T>(call: () => Promise<T>): Promise<T> {
     if (this.link.state !== "connected") await this.link.waitConnected(this.timing.editRetryWaitMs);

@@ -4,8 +4,6 @@
 // of a key's pose (Ctrl+C / Ctrl+V), Play (the exported GLB in the viewport) and Export (the same
 // GLB as a download). Every change sends the whole edited key list (SetTimeline). Watch pages
 // see the keys and move their own playhead; they change nothing (the calls need the edit token).
-import { newRequestId } from "../request_id";
-import { Code, ConnectError } from "@connectrpc/connect";
 import type { MessageInitShape } from "@bufbuild/protobuf";
 import { describeError } from "../api";
 import type { App } from "../app";
@@ -50,7 +48,7 @@ function kib(n: number): string {
 }
 
 export function setupTimelinePanel(app: App, sync: Sync, editors: Editors, scrub: Scrub, player: AnimationPlayer, exportUp: ExportUp): TimelinePanel {
-  const { state, client } = app;
+  const { state, client, edits } = app;
   const strip = $("timeline");
   const viewportEl = $("viewport");
   const play = $<HTMLButtonElement>("tl-play");
@@ -162,12 +160,21 @@ export function setupTimelinePanel(app: App, sync: Sync, editors: Editors, scrub
     busy = true;
     render();
     try {
-      const t = await client.setTimeline({
-        name,
-        timeline: { keys: next, easing: nextEasing },
-        clientId: editors.identity.clientId,
-        expectedConfigVersion: state.session?.configVersion ?? 0n,
-        requestId: newRequestId(),
+      const t = await edits.execute({
+        method: "setTimeline",
+        what: "Timeline",
+        request: () => ({
+          name,
+          timeline: { keys: next, easing: nextEasing },
+          clientId: editors.identity.clientId,
+          expectedConfigVersion: state.session?.configVersion ?? 0n,
+        }),
+        // The strip's note says what became of the timeline's edits, refusals too.
+        showIn: (text) => say(text, true),
+        conflict: async (err) => {
+          say(`Not saved: someone else changed the constraints or β first (${describeError(err)}).`, true);
+          await load();
+        },
       });
       if (name !== state.sessionName) return;
       adopt(t, "set");
@@ -176,11 +183,8 @@ export function setupTimelinePanel(app: App, sync: Sync, editors: Editors, scrub
         render();
       }
       say(what);
-    } catch (err) {
-      if (err instanceof ConnectError && err.code === Code.Aborted) {
-        say(`Not saved: someone else changed the constraints or β first (${describeError(err)}).`, true);
-        await load();
-      } else say(`Timeline not saved: ${describeError(err)}`, true);
+    } catch {
+      /* said in the strip */
     } finally {
       busy = false;
       render();
