@@ -16,10 +16,12 @@
 //     front view: a real box drag around it selects no vertex on the far side (facing away from
 //     the camera: cos < −0.1) and every vertex clearly facing it (cos > 0.1); a lasso around it
 //     the same; with X-ray (Alt+Z) the box takes all of them. The depth pass's time is printed.
+//     Numpad 5: an orthographic picture looking the same way, where a visible-only box takes the
+//     half facing the view direction and nothing behind; Numpad 5 again: perspective.
 // Screenshots orient-*.png, lasso-*.png, visible-*.png.
 
 /** The hooks these checks need: a missing one is a failure, not a skip. */
-const HOOKS = ["camera", "viewHelperPoint", "viewHelperEndAt", "viewAnimating", "grid", "xray", "lastLasso", "projection", "positions", "labels", "screenPoint", "bbox", "selectBox", "select", "depthPassMs"];
+const HOOKS = ["camera", "orthographic", "projectionMatrix", "viewHelperPoint", "viewHelperEndAt", "viewAnimating", "grid", "xray", "lastLasso", "projection", "positions", "labels", "screenPoint", "bbox", "selectBox", "select", "depthPassMs"];
 
 async function hooksPresent(page, check, what) {
   const missing = await page.evaluate((names) => names.filter((k) => !window.hdeform || !(k in window.hdeform)), HOOKS);
@@ -413,5 +415,45 @@ export async function visibleOnlyChecks({ context, base, log, check, sleep, shot
   const c3 = sideCounts(all);
   check((await hook(() => window.hdeform.xray)) && all.size === N && c3.back === c3.backAll, `visible-only: with X-ray (Alt+Z) the same box selects ${all.size} of ${N} (far side ${c3.back} of ${c3.backAll})`);
   await shot(page, "visible-box-sphere-xray");
+
+  // Numpad 5: orthographic (Blender's toggle). The picture's projection is orthographic, and the
+  // tools see through it: a visible-only box takes exactly the half facing the view direction.
+  await page.keyboard.press("Alt+z"); // X-ray off again
+  await hook(() => window.hdeform.select("none"));
+  await page.mouse.click(vp.x + 20, vp.y + vp.height / 2);
+  const before = await view(page);
+  await page.keyboard.press("Numpad5");
+  await settle(page, sleep);
+  const ortho = await hook(() => ({ on: window.hdeform.orthographic, P: window.hdeform.projectionMatrix() }));
+  const after = await view(page);
+  check(
+    ortho.on && ortho.P[11] === 0 && ortho.P[15] === 1 && dot(before.dir, after.dir) > 0.999999,
+    `orthographic: Numpad 5 draws an orthographic picture (P[11] ${ortho.P[11]}, P[15] ${ortho.P[15]}) looking the same way`,
+  );
+  await shot(page, "visible-ortho-sphere");
+  const oc = [];
+  for (const x of [bmin[0], bmax[0]]) for (const y of [bmin[1], bmax[1]]) for (const z of [bmin[2], bmax[2]]) oc.push(await hook(([a, b, c]) => window.hdeform.screenPoint(a, b, c), [x, y, z]));
+  const ox0 = Math.min(...oc.map((c) => c.x)) - 10, ox1 = Math.max(...oc.map((c) => c.x)) + 10;
+  const oy0 = Math.min(...oc.map((c) => c.y)) - 10, oy1 = Math.max(...oc.map((c) => c.y)) + 10;
+  await page.mouse.move(ox0, oy0);
+  await page.mouse.down();
+  await page.mouse.move((ox0 + ox1) / 2, (oy0 + oy1) / 2, { steps: 3 });
+  await page.mouse.move(ox1, oy1, { steps: 3 });
+  await page.mouse.up();
+  await sleep(50);
+  const orthoSel = region(await hook(() => window.hdeform.labels()));
+  // Facing an orthographic view: the outward normal against the view direction (every ray is parallel).
+  const towards = after.dir.map((c) => -c);
+  const oBack = [...orthoSel].filter((v) => dot(unit([P[3 * v], P[3 * v + 1], P[3 * v + 2]]), towards) < -0.1).length;
+  const oFrontAll = facing.filter((_c, v) => dot(unit([P[3 * v], P[3 * v + 1], P[3 * v + 2]]), towards) > 0.1).length;
+  const oFront = [...orthoSel].filter((v) => dot(unit([P[3 * v], P[3 * v + 1], P[3 * v + 2]]), towards) > 0.1).length;
+  check(
+    oBack === 0 && oFront === oFrontAll && orthoSel.size < 0.6 * N,
+    `orthographic: a visible-only box around the sphere selects ${orthoSel.size} of ${N}: ${oBack} on the far side, ${oFront} of the ${oFrontAll} facing the view`,
+  );
+  await page.keyboard.press("Numpad5");
+  await settle(page, sleep);
+  const persp = await hook(() => ({ on: window.hdeform.orthographic, P: window.hdeform.projectionMatrix() }));
+  check(!persp.on && persp.P[11] === -1 && persp.P[15] === 0, `orthographic: Numpad 5 again goes back to perspective (P[11] ${persp.P[11]}, P[15] ${persp.P[15]})`);
   await page.close();
 }

@@ -27,10 +27,9 @@ export type KeyAction =
   | "viewLeft" // Ctrl+Numpad 3
   | "viewTop" // Numpad 7
   | "viewBottom" // Ctrl+Numpad 7
+  | "toggleOrthographic" // Numpad 5 (Blender): perspective / orthographic
   | "toggleXray" // Alt+Z (Blender): Box and Lasso select through the mesh
   | "help"; // ?
-// Numpad 5 (Blender: perspective / orthographic) is not bound: the viewer has one perspective
-// camera that OrbitControls, the handle gizmo and the tools' projections all share.
 
 /** Blender's keypad views: the key's physical code → [view, view with Ctrl]. */
 const NUMPAD_VIEWS: Record<string, [KeyAction, KeyAction]> = {
@@ -55,6 +54,8 @@ export function keyAction(ev: KeyInput): KeyAction | null {
   const numpad = ev.code ? NUMPAD_VIEWS[ev.code] : undefined;
   if (numpad && !ev.altKey) return numpad[ev.ctrlKey || ev.metaKey ? 1 : 0];
   if (ev.code === "NumpadDecimal" && !ev.altKey && !ev.ctrlKey && !ev.metaKey) return "frameSelection"; // Blender's "view selected"
+  // With Num Lock off Numpad 5 types "Clear" (or nothing): the physical key decides.
+  if (ev.code === "Numpad5" && !ev.altKey && !ev.ctrlKey && !ev.metaKey) return "toggleOrthographic";
   if (ev.altKey && !ev.ctrlKey && !ev.metaKey && (ev.code === "KeyZ" || ev.key === "z" || ev.key === "Z")) return "toggleXray";
   // Alt+A: select none, as in Blender (Alt alone with A is not the browser's).
   if (ev.altKey && !ev.ctrlKey && !ev.metaKey && (ev.code === "KeyA" || ev.key === "a" || ev.key === "A")) return "selectNone";
@@ -195,6 +196,7 @@ export const SHORTCUTS: [string, string][] = [
   ["F · Numpad .", "frame the active handle / selected region"],
   ["Numpad 1 / 3 / 7", "front / right / top view (Blender's keypad; the model's up axis stays up)"],
   ["Ctrl+Numpad 1 / 3 / 7", "back / left / bottom view"],
+  ["Numpad 5", "perspective / orthographic view"],
   ["Home", "frame everything"],
   ["Delete", "clear the region being assigned"],
   ["V", "show / hide the active handle's weights (0 = fixed, 1 = moves with it)"],

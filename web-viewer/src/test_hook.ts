@@ -14,7 +14,7 @@ import type { Mode } from "./state";
 import type { Sync } from "./sync/sync";
 import { toProtoTransforms } from "./transforms";
 import { parseGlb } from "./viewport/glb";
-import type { HandleGizmo } from "./viewport/handle_gizmo";
+import { gizmoFactor, type HandleGizmo } from "./viewport/handle_gizmo";
 import type { MeshDisplay } from "./viewport/mesh_display";
 import type { Viewport } from "./viewport/viewport";
 import { contentBox } from "./viewport/content_box";
@@ -246,6 +246,11 @@ export function installTestHook({ state, client, banner, status, edits }: App, p
     },
     /** Camera position and orbit target (world = model coordinates). */
     camera: () => ({ position: viewport.camera.position.toArray(), target: viewport.orbit.target.toArray(), up: viewport.camera.up.toArray() }),
+    /** The picture is orthographic (Numpad 5), and the projection it is drawn with (column-major). */
+    get orthographic() {
+      return viewport.orthographic;
+    },
+    projectionMatrix: () => viewport.viewCamera.projectionMatrix.toArray(),
     /** The session's current mesh as GetMesh's GLB (base64): what a GLB download starts from. */
     meshGlb: async () => {
       const bytes = await fetchMesh(client, state.sessionName, false, MeshFormat.GLB);
@@ -268,7 +273,8 @@ export function installTestHook({ state, client, banner, status, edits }: App, p
       if (mesh) {
         for (let i = 0; i < mesh.n; i++) {
           const w = viewport.root.localToWorld(v.fromArray(mesh.cur, 3 * i));
-          const inFront = w.clone().sub(viewport.camera.position).dot(viewport.camera.getWorldDirection(new THREE.Vector3())) > 0;
+          const cam = viewport.viewCamera;
+          const inFront = w.clone().sub(cam.position).dot(cam.getWorldDirection(new THREE.Vector3())) > 0;
           if (!inFront || out(viewport.toClient(w))) vertices++;
         }
       }
@@ -341,13 +347,15 @@ export function installTestHook({ state, client, banner, status, edits }: App, p
      * direction (unit) a drag there turns it (positive angle about the axis).
      */
     gizmoRingPoint: (axis: "x" | "y" | "z") => {
-      const { gizmo: g, pivotObject, camera } = viewport;
+      const { gizmo: g, pivotObject, viewCamera: camera } = viewport;
       if (!g.object) return null;
       const centre = pivotObject.getWorldPosition(new THREE.Vector3());
-      const factor = centre.distanceTo(camera.position) * Math.min((1.9 * Math.tan((Math.PI * camera.fov) / 360)) / camera.zoom, 7);
+      const factor = gizmoFactor(camera, centre);
       const radius = 0.5 * ((factor * g.size) / 4); // TransformControls' rotate rings: radius 0.5
       const a = new THREE.Vector3(axis === "x" ? 1 : 0, axis === "y" ? 1 : 0, axis === "z" ? 1 : 0);
-      const eye = camera.position.clone().sub(centre).normalize();
+      // TransformControls' eye: towards the camera (orthographic: against its direction).
+      const eye =
+        camera instanceof THREE.OrthographicCamera ? camera.getWorldDirection(new THREE.Vector3()).negate() : camera.position.clone().sub(centre).normalize();
       const towards = eye.clone().addScaledVector(a, -eye.dot(a)).normalize(); // in the ring's plane
       const at = centre.clone().addScaledVector(towards, radius);
       const tangent = a.clone().cross(eye).normalize(); // TransformControls' angle: offset · (axis × eye)
@@ -457,8 +465,8 @@ export function installTestHook({ state, client, banner, status, edits }: App, p
       const r = viewport.canvas.getBoundingClientRect();
       const ndc = new THREE.Vector2(((x - r.left) / r.width) * 2 - 1, -((y - r.top) / r.height) * 2 + 1);
       const ray = new THREE.Raycaster();
-      ray.setFromCamera(ndc, viewport.camera);
-      const normal = viewport.camera.getWorldDirection(new THREE.Vector3());
+      ray.setFromCamera(ndc, viewport.viewCamera);
+      const normal = viewport.viewCamera.getWorldDirection(new THREE.Vector3());
       const plane = new THREE.Plane().setFromNormalAndCoplanarPoint(normal, viewport.orbit.target);
       return ray.ray.intersectPlane(plane, new THREE.Vector3())?.toArray() ?? null;
     },

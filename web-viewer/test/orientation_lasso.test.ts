@@ -22,13 +22,17 @@ describe("keypad views", () => {
     assert.equal(keyAction({ key: ".", code: "NumpadDecimal" }), "frameSelection");
     assert.equal(keyAction({ key: "Home", code: "Home" }), "frameAll"); // the real Home key
     assert.equal(keyAction({ key: "1", code: "Digit1" }), null); // the top row is not the keypad
-    assert.equal(keyAction({ key: "5", code: "Numpad5" }), null); // one perspective camera: not bound
+    assert.equal(keyAction({ key: "5", code: "Numpad5" }), "toggleOrthographic"); // Blender's perspective / orthographic
+    assert.equal(keyAction({ key: "Clear", code: "Numpad5" }), "toggleOrthographic"); // Num Lock off
+    assert.equal(keyAction({ key: "5", code: "Numpad5", ctrlKey: true }), null);
+    assert.equal(keyAction({ key: "5", code: "Digit5" }), null);
     assert.equal(keyAction({ key: "Ω", code: "KeyZ", altKey: true }), "toggleXray");
     assert.equal(keyAction({ key: "z", code: "KeyZ" }), "axisZ");
     const keys = SHORTCUTS.map(([k]) => k).join(" | ");
     assert.match(keys, /Numpad 1 \/ 3 \/ 7/);
     assert.match(keys, /Ctrl\+Numpad/);
     assert.match(keys, /Numpad \./);
+    assert.match(keys, /Numpad 5/);
     assert.match(keys, /Alt\+Z/);
   });
 
@@ -140,6 +144,20 @@ describe("visible-only", () => {
     const step = visibleFilter(image((x) => (x === 0 ? 5 : 8)), 0.01);
     assert.ok(step(1.5, 1.5, depthAt(8)));
     assert.ok(!step(0.5, 1.5, depthAt(9)));
+  });
+
+  it("orthographic (Numpad 5): depth is linear in distance, and the slack is pixels in model units", () => {
+    assert.equal(viewDistance(0.25, 2, 10, true), 4);
+    assert.equal(viewDistance(0, 2, 10, true), 2);
+    const linear = (z: number) => (z - near) / (far - near);
+    const pixels = new Uint8Array(4 * 16);
+    const q = Math.round(linear(5) * 16777215);
+    for (let o = 0; o < 64; o += 4) pixels.set([q >> 16, (q >> 8) & 255, q & 255, 255], o);
+    const wall = visibleFilter({ width: 4, height: 4, pixels, near, far, pixelAngle: 0, orthographic: true, pixelSize: 0.01 }, 0.01);
+    assert.ok(wall(1.5, 1.5, linear(5.03))); // within the tolerance and three pixels (0.04)
+    assert.ok(!wall(1.5, 1.5, linear(5.1)));
+    // Read as perspective depth, the same picture would put the wall elsewhere: the flag matters.
+    assert.ok(Math.abs(viewDistance(linear(5), near, far) - 5) > 1);
   });
 });
 

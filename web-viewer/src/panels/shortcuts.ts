@@ -110,6 +110,9 @@ export function setupShortcuts(app: App, gizmo: HandleGizmo, viewport: Viewport,
       case "viewBottom":
         lookFrom(action.slice(4).toLowerCase() as ViewName);
         break;
+      case "toggleOrthographic":
+        viewport.toggleOrthographic();
+        break;
       case "toggleXray":
         toggleXray();
         break;

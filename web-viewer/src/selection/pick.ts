@@ -10,7 +10,7 @@ export function pick(viewport: Viewport, object: THREE.Object3D | null, ev: Poin
   if (!object) return null;
   const r = viewport.canvas.getBoundingClientRect();
   const ndc = new THREE.Vector2(((ev.clientX - r.left) / r.width) * 2 - 1, -((ev.clientY - r.top) / r.height) * 2 + 1);
-  raycaster.setFromCamera(ndc, viewport.camera);
+  raycaster.setFromCamera(ndc, viewport.viewCamera);
   const hit = raycaster.intersectObject(object, false)[0];
   if (!hit || hit.faceIndex === undefined || hit.faceIndex === null) return null;
   return { point: viewport.root.worldToLocal(hit.point.clone()), triangle: hit.faceIndex };

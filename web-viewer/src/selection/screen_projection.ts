@@ -12,7 +12,7 @@ export interface Projection {
 }
 
 export function currentProjection(viewport: Viewport): Projection {
-  const { camera, root } = viewport;
+  const { viewCamera: camera, root } = viewport;
   root.updateMatrixWorld(true);
   camera.updateMatrixWorld();
   const M = new THREE.Matrix4().multiplyMatrices(camera.projectionMatrix, camera.matrixWorldInverse).multiply(root.matrixWorld);

@@ -35,9 +35,9 @@ export function unpackDepth(pixels: Uint8Array, o: number): number {
   return (pixels[o] * 65536 + pixels[o + 1] * 256 + pixels[o + 2]) / 16777215;
 }
 
-/** Distance along the view axis of window depth `d` for a perspective camera's near / far. */
-export function viewDistance(d: number, near: number, far: number): number {
-  return (near * far) / (far - d * (far - near));
+/** Distance along the view axis of window depth `d` for a camera's near / far (an orthographic one's depth is linear). */
+export function viewDistance(d: number, near: number, far: number, orthographic = false): number {
+  return orthographic ? near + d * (far - near) : (near * far) / (far - d * (far - near));
 }
 
 /** A depth picture of the mesh and how to read it. */
@@ -48,8 +48,11 @@ export interface DepthImage {
   pixels: Uint8Array;
   near: number;
   far: number;
-  /** One pixel's height as a fraction of the distance (2 tan(fov / 2) / height). */
+  /** One pixel's height as a fraction of the distance (2 tan(fov / 2) / height); 0 when orthographic. */
   pixelAngle: number;
+  /** An orthographic picture (Numpad 5): linear depth, and one pixel's height in model units. */
+  orthographic?: boolean;
+  pixelSize?: number;
 }
 
 /**
@@ -58,6 +61,8 @@ export interface DepthImage {
  */
 export function visibleFilter(img: DepthImage, tolerance: number): VertexFilter {
   const { width: w, height: h, pixels, near, far, pixelAngle } = img;
+  const ortho = img.orthographic === true;
+  const pixelSize = img.pixelSize ?? 0;
   return (x, y, depth) => {
     const px = Math.floor(x), py = Math.floor(y);
     let farthest = -1; // none of the 9 pixels shows the mesh: nothing in front
@@ -66,11 +71,11 @@ export function visibleFilter(img: DepthImage, tolerance: number): VertexFilter 
         const cx = px + dx, cy = py + dy;
         if (cx < 0 || cy < 0 || cx >= w || cy >= h) continue;
         const d = unpackDepth(pixels, 4 * ((h - 1 - cy) * w + cx));
-        if (d < 1) farthest = Math.max(farthest, viewDistance(d, near, far));
+        if (d < 1) farthest = Math.max(farthest, viewDistance(d, near, far, ortho));
       }
     if (farthest < 0) return true;
-    const dist = viewDistance(depth, near, far);
-    return dist <= farthest + tolerance + 3 * dist * pixelAngle;
+    const dist = viewDistance(depth, near, far, ortho);
+    return dist <= farthest + tolerance + 3 * (dist * pixelAngle + pixelSize);
   };
 }
 
@@ -87,7 +92,7 @@ export class DepthProbe {
     const object = this.display.object;
     if (!object) return null;
     const t0 = performance.now();
-    const { renderer, camera, element } = this.viewport;
+    const { renderer, viewCamera: camera, element } = this.viewport;
     const width = Math.max(1, element.clientWidth), height = Math.max(1, element.clientHeight);
     if (!this.target || this.target.width !== width || this.target.height !== height) {
       this.target?.dispose();
@@ -111,6 +116,10 @@ export class DepthProbe {
     renderer.setClearColor(before.colour, before.alpha);
     this.scene.remove(probe);
     this.lastMs = performance.now() - t0;
+    if (camera instanceof THREE.OrthographicCamera) {
+      const pixelSize = (camera.top - camera.bottom) / camera.zoom / height;
+      return { width, height, pixels, near: camera.near, far: camera.far, pixelAngle: 0, orthographic: true, pixelSize };
+    }
     return { width, height, pixels, near: camera.near, far: camera.far, pixelAngle: (2 * Math.tan(THREE.MathUtils.degToRad(camera.fov) / 2)) / height };
   }
 }

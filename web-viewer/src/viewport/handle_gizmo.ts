@@ -204,12 +204,11 @@ export class HandleGizmo {
    * along the handle's own axes in local space); null when the gizmo is not shown.
    */
   screenPoint(axis?: "x" | "y" | "z"): ScreenPoint | null {
-    const { gizmo, pivotObject, camera } = this.viewport;
+    const { gizmo, pivotObject, viewCamera: camera } = this.viewport;
     if (!gizmo.object) return null;
     const world = pivotObject.getWorldPosition(new THREE.Vector3());
     if (axis) {
-      const factor =
-        world.distanceTo(camera.position) * Math.min((1.9 * Math.tan((Math.PI * camera.fov) / 360)) / camera.zoom, 7);
+      const factor = gizmoFactor(camera, world);
       const length = (factor * gizmo.size) / 4;
       const dir = new THREE.Vector3(axis === "x" ? 1 : 0, axis === "y" ? 1 : 0, axis === "z" ? 1 : 0);
       if (this.space === "local" || this.mode === "scale") dir.applyQuaternion(pivotObject.getWorldQuaternion(new THREE.Quaternion()));
@@ -217,4 +216,10 @@ export class HandleGizmo {
     }
     return this.viewport.toClient(world);
   }
+}
+
+/** TransformControls' size factor of a gizmo at `world` (three's TransformControlsGizmo). */
+export function gizmoFactor(camera: THREE.PerspectiveCamera | THREE.OrthographicCamera, world: THREE.Vector3): number {
+  if (camera instanceof THREE.OrthographicCamera) return (camera.top - camera.bottom) / camera.zoom;
+  return world.distanceTo(camera.position) * Math.min((1.9 * Math.tan((Math.PI * camera.fov) / 360)) / camera.zoom, 7);
 }

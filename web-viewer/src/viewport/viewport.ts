@@ -4,6 +4,13 @@
 // The scene is the model's own frame (root is never rotated): a z-up model gets camera.up =
 // +z instead, so the gizmo's "world" axes are the model's axes in every gizmo mode (Scale,
 // which TransformControls always orients to the object, agreed with Move only this way).
+//
+// Orthographic view (Numpad 5, Blender's toggle): `camera`, the perspective camera, stays the
+// one that orbits, frames and turns to the keypad views; the picture is drawn with `viewCamera`,
+// which in orthographic mode is an OrthographicCamera posed as `camera` and as wide at the orbit
+// target as the perspective view is there. So dolly-zoom and pan work unchanged (the width
+// follows the distance), and everything that projects or picks (the gizmo, the tools, the
+// depth pass) asks for `viewCamera`.
 import * as THREE from "three";
 import { OrbitControls } from "three/examples/jsm/controls/OrbitControls.js";
 import { TransformControls } from "three/examples/jsm/controls/TransformControls.js";
@@ -14,6 +21,8 @@ export class Viewport {
   readonly renderer: THREE.WebGLRenderer;
   readonly scene = new THREE.Scene();
   readonly camera = new THREE.PerspectiveCamera(40, 1, 0.001, 1000);
+  private readonly orthoCamera = new THREE.OrthographicCamera(-1, 1, 1, -1, 0, 1000);
+  private ortho = false;
   /** Model space (= the scene's frame); the gizmo's object too, so its pose is in model coordinates. */
   readonly root = new THREE.Group();
   readonly pivotObject = new THREE.Object3D();
@@ -58,11 +67,52 @@ export class Viewport {
     this.needsRender = true;
   }
 
+  /** The picture is orthographic (Numpad 5). */
+  get orthographic(): boolean {
+    return this.ortho;
+  }
+
+  /** The camera the picture is drawn, projected and picked with, posed as `camera` now. */
+  get viewCamera(): THREE.PerspectiveCamera | THREE.OrthographicCamera {
+    if (!this.ortho) return this.camera;
+    this.poseOrtho();
+    return this.orthoCamera;
+  }
+
+  /** Numpad 5: perspective ⇄ orthographic, from where the camera is. */
+  toggleOrthographic(): void {
+    this.ortho = !this.ortho;
+    this.gizmo.camera = this.viewCamera;
+    this.requestRender();
+  }
+
+  private poseOrtho(): void {
+    const { camera, orthoCamera: o } = this;
+    camera.updateMatrixWorld();
+    const dist = camera.position.distanceTo(this.orbit.target);
+    const half = dist * Math.tan(THREE.MathUtils.degToRad(camera.fov / 2));
+    o.top = half;
+    o.bottom = -half;
+    o.left = -half * camera.aspect;
+    o.right = half * camera.aspect;
+    // Backed off along the view: an orthographic picture shows what lies behind the perspective
+    // camera's position too (a close-up of the model's middle keeps its front half).
+    const back = Math.max(dist, this.modelRadius()) * 2;
+    const forward = camera.getWorldDirection(new THREE.Vector3());
+    o.position.copy(camera.position).addScaledVector(forward, -back);
+    o.quaternion.copy(camera.quaternion);
+    o.up.copy(camera.up);
+    o.near = 0;
+    o.far = back + camera.far;
+    o.updateProjectionMatrix();
+    o.updateMatrixWorld();
+  }
+
   /** Called once per animation frame. */
   renderIfNeeded(): void {
     if (!this.needsRender) return;
     this.needsRender = false;
-    this.renderer.render(this.scene, this.camera);
+    this.renderer.render(this.scene, this.viewCamera);
     for (const draw of this.overlays) draw(this.renderer);
   }
 
@@ -158,7 +208,7 @@ export class Viewport {
 
   /** Client coordinates of a world-space point. */
   toClient(world: THREE.Vector3): ScreenPoint {
-    const p = world.clone().project(this.camera);
+    const p = world.clone().project(this.viewCamera);
     const r = this.canvas.getBoundingClientRect();
     return { x: r.left + ((p.x + 1) / 2) * r.width, y: r.top + ((1 - p.y) / 2) * r.height };
   }
