@@ -235,5 +235,17 @@ def frame_decode():
     put("fuzz_frame_decode", "roundtrip", bytes([1]) + verts * 40)
 
 
+def stored_orderings():
+    """hdeform.state.StoredOrderings of the target's mesh (hash 'a' * 64, 8 vertices): both
+    orders, one only, and a near miss (a vertex twice), for fuzz_session_record."""
+    packed = lambda p: b"".join(pb_varint(v) for v in p)
+    head = pb_field(1, 2, b"a" * 64) + pb_field(2, 0, 8)
+    put("fuzz_session_record", "orderings-both",
+        head + pb_field(3, 2, packed([3, 1, 4, 0, 5, 7, 2, 6])) + pb_field(4, 2, packed(range(8))))
+    put("fuzz_session_record", "orderings-one", head + pb_field(3, 2, packed(range(7, -1, -1))))
+    put("fuzz_session_record", "orderings-repeat", head + pb_field(4, 2, packed([0, 1, 2, 3, 4, 5, 6, 6])))
+
+
 if __name__ == "__main__":
     obj(); off(); ply(); stl(); gltf(); sel(); def_(); grpc_web(); http_request(); frame_decode()
+    stored_orderings()

@@ -1,5 +1,6 @@
 #include "service/session/ordering_store.h"
 
+#include "service/state/stored_record.h"
 #include "stored_session.pb.h"
 
 #include <spdlog/spdlog.h>
@@ -27,21 +28,16 @@ void OrderingStore::prime(const MeshRef& mesh) {
     return;
   }
   if (!bytes) return;
-  hdeform::state::StoredOrderings stored;
-  if (!stored.ParseFromString(*bytes) || stored.mesh_hash() != mesh.hash ||
-      stored.vertices() != pm.n()) {
-    spdlog::warn("mesh {}: the stored orderings are unreadable or of another mesh; computing "
-                 "them",
+  const auto stored = parse_orderings(*bytes, mesh.hash, pm.n());
+  if (!stored) {
+    spdlog::warn("mesh {}: the stored orderings are unreadable, of another mesh or not "
+                 "permutations of its vertices; computing them",
                  mesh.hash);
     return;
   }
   unsigned taken = 0;
-  if (stored.order_size() > 0 &&
-      pm.adopt_order({stored.order().begin(), stored.order().end()}, false))
-    taken |= kOrder;
-  if (stored.wide_order_size() > 0 &&
-      pm.adopt_order({stored.wide_order().begin(), stored.wide_order().end()}, true))
-    taken |= kWide;
+  if (!stored->order.empty() && pm.adopt_order(stored->order, false)) taken |= kOrder;
+  if (!stored->wide_order.empty() && pm.adopt_order(stored->wide_order, true)) taken |= kWide;
   if (taken == 0) return;
   {
     std::lock_guard lock(mutex_);

@@ -43,4 +43,29 @@ std::vector<std::string> index_hashes(const std::vector<TokenHash>& presented) {
   return out;
 }
 
+namespace {
+bool is_permutation(const std::vector<int>& p, int n) {
+  if (p.size() != static_cast<std::size_t>(n)) return false;
+  std::vector<bool> seen(p.size(), false);
+  for (const int v : p) {
+    if (v < 0 || v >= n || seen[static_cast<std::size_t>(v)]) return false;
+    seen[static_cast<std::size_t>(v)] = true;
+  }
+  return true;
+}
+}  // namespace
+
+std::optional<StoredOrders> parse_orderings(std::string_view bytes, const std::string& hash,
+                                            int vertices) {
+  hdeform::state::StoredOrderings stored;
+  if (!stored.ParseFromArray(bytes.data(), static_cast<int>(bytes.size())) ||
+      stored.mesh_hash() != hash || stored.vertices() != vertices)
+    return std::nullopt;
+  StoredOrders out{{stored.order().begin(), stored.order().end()},
+                   {stored.wide_order().begin(), stored.wide_order().end()}};
+  for (const auto* p : {&out.order, &out.wide_order})
+    if (!p->empty() && !is_permutation(*p, vertices)) return std::nullopt;
+  return out;
+}
+
 }  // namespace hdeform::service

@@ -7,7 +7,9 @@
 #include "stored_session.pb.h"
 
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace hdeform::service {
@@ -23,5 +25,15 @@ SessionTokens tokens_of(const hdeform::state::StoredSession& record);
 std::vector<std::string> index_hashes(const hdeform::state::StoredSession& record);
 // The hashes a caller presented, in the same form.
 std::vector<std::string> index_hashes(const std::vector<TokenHash>& presented);
+
+// The solver's orderings kept for a mesh (StoredOrderings, ordering_store.h), read back: each
+// a permutation of 0..vertices−1, or empty when it was not kept. nullopt when the bytes are
+// not a StoredOrderings of mesh `hash` with `vertices` vertices, or an order is not such a
+// permutation. Never throws.
+struct StoredOrders {
+  std::vector<int> order, wide_order;
+};
+std::optional<StoredOrders> parse_orderings(std::string_view bytes, const std::string& hash,
+                                            int vertices);
 
 }  // namespace hdeform::service
