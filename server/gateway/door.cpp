@@ -362,8 +362,14 @@ void HttpGateway::Impl::handle(const ConnectionPtr& c) {
     return upload(c, query);
   }
   if (method == http::verb::get || method == http::verb::head) {
-    // GETs have no body; consume one anyway.
+    // A GET or HEAD has no body here: one announced is refused before it is read (else the
+    // body parser would reserve up to --max-body-bytes outside the upload budget).
+    if (c->header->chunked() || c->header->content_length().value_or(0) > 0) {
+      return reply_and_close(c, http::status::bad_request,
+                             "bad request: a GET or HEAD carries no body\n", version);
+    }
     auto parser = std::make_shared<http::request_parser<http::string_body>>(std::move(*c->header));
+    parser->body_limit(0);
     const bool head = method == http::verb::head;
     return read_body(c, parser, [this, c, path, head, version, keep_alive](beast::error_code ec) {
       if (ec) return after_response(c, After::close);
