@@ -17,7 +17,6 @@ namespace hdeform::gateway {
 
 namespace {
 
-constexpr std::size_t kMaxHeaderBytes = 16u << 10;
 constexpr std::size_t kFirstRead = 4u << 10;      // first bytes of a keep-alive request
 constexpr milliseconds kLingerTime{2000};         // lingering close: at most this long …
 constexpr std::size_t kLingerBytes = 256u << 20;  // … and this many bytes drained

@@ -5,6 +5,7 @@
 // a request: a held WatchSession costs a socket, a GrpcCall and a little memory.
 #pragma once
 
+#include "gateway/call_checks.h"
 #include "gateway/grpc_call.h"
 #include "gateway/http_gateway.h"
 #include "gateway/request_checks.h"
@@ -26,8 +27,6 @@
 namespace hdeform::gateway {
 
 namespace http = beast::http;
-
-inline constexpr std::string_view kServicePrefix = "/hdeform.v1.Deformation/";
 
 struct HttpGateway::Impl {
   // One TCP connection. Stream is not thread-safe: every operation on it runs on its strand.

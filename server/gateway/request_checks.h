@@ -6,6 +6,7 @@
 
 #include <boost/beast/http.hpp>
 
+#include <cstddef>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -13,6 +14,9 @@
 namespace hdeform::gateway {
 
 using RequestHeader = boost::beast::http::request_header<>;
+
+// The largest request header the door reads (request line and fields; Beast's header_limit).
+inline constexpr std::size_t kMaxHeaderBytes = 16u << 10;
 
 // The Host names the door answers for (--allowed-hosts). Always: localhost names
 // ("localhost", "*.localhost") and IP literals (a request naming the server by address cannot
