@@ -158,8 +158,9 @@ def grpc_web():
 
 
 def http_request():
-    """A control byte (bits 0-5: split stride, 0 = all at once; bit 6: the gateway's header
-    parser then body parser), then the bytes a client sent on one connection."""
+    """A control byte (bits 0-5: split stride, 0 = all at once; bit 6: Host policy "*"; bit 7:
+    the door's 1 MiB upload chunk instead of 13 bytes), then the bytes a client sent on one
+    connection."""
     frame = lambda flag, payload: struct.pack(">BI", flag, len(payload)) + payload
     crlf = lambda *lines: ("\r\n".join(lines) + "\r\n\r\n").encode()
     seed = lambda name, control, data: put("fuzz_http_request", name, bytes([control]) + data)
@@ -174,7 +175,7 @@ def http_request():
                                                                   "X-Forwarded-Host: a.team.example, b"], frame(0, b"")))
     off = b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"
     chunks = b"".join(b"%x\r\n%s\r\n" % (len(off[i:i + 16]), off[i:i + 16]) for i in range(0, len(off), 16))
-    seed("upload-chunked", 0x43, crlf("POST /upload?name=tri.off HTTP/1.1", "Host: localhost:8080",
+    seed("upload-chunked", 0x43, crlf("POST /upload?filename=tri.off HTTP/1.1", "Host: localhost:8080",
                                       "X-Hdeform-Upload: 1", "Transfer-Encoding: chunked") + chunks + b"0\r\n\r\n")
     seed("upload-session-id", 0x00, crlf("POST /upload HTTP/1.1", "Host: 127.0.0.1", "X-Session-Id: s1",
                                          f"Content-Length: {len(off)}") + off)
@@ -192,6 +193,33 @@ def http_request():
          crlf("GET / HTTP/1.1", "Host: localhost", "Host: evil.example"))
     seed("host-list", 0x00, crlf("GET / HTTP/1.1", "Host: viewer.example, .team.example, *.b.example, *"))
     seed("http10-no-host", 0x00, crlf("GET / HTTP/1.0"))
+    # Whole streams through the door: pipelined calls, chunked gRPC-Web bodies, refusals.
+    call = lambda method, extra, body, chunked=False: crlf(
+        f"POST /hdeform.v1.Deformation/{method} HTTP/1.1", "Host: localhost:8080",
+        "Content-Type: application/grpc-web+proto", "X-Grpc-Web: 1", *extra,
+        "Transfer-Encoding: chunked" if chunked else f"Content-Length: {len(body)}") + (
+        b"".join(b"%x\r\n%s\r\n" % (len(body[i:i + 7]), body[i:i + 7]) for i in range(0, len(body), 7))
+        + b"0\r\n\r\n" if chunked else body)
+    two = frame(0, b"") + frame(0, b"\x0a\x01x")
+    seed("unary-two-messages", 0x00, call("ListSessions", [], two) + crlf("GET /healthz HTTP/1.1", "Host: localhost"))
+    seed("unary-mid-frame", 0x03, call("ListMeshes", [], frame(0, b"abcdef")[:8]) + call("ListMeshes", [], frame(0, b"")))
+    seed("grpc-web-chunked-pipelined", 0x09,
+         call("GetSession", ["grpc-timeout: 250m"], frame(0, b"\x0a\x0asessions/s1"), chunked=True) +
+         call("NoSuchMethod", [], frame(0, b"")) +
+         call("CreateSession", ["Authorization: Bearer t"], frame(0, b"\x0a\x02\x0a\x00") * 3, chunked=True) +
+         call("ListMeshes", ["Connection: close"], frame(0, b"")))
+    seed("grpc-web-text", 0x40, crlf("POST /hdeform.v1.Deformation/ListMeshes HTTP/1.1", "Host: any.example",
+                                     "Content-Type: application/grpc-web-text", "Content-Length: 8") + b"AAAAAAA=" +
+         call("ListMeshes", [], frame(0x80, b"grpc-status: 0\r\n") + frame(0, b"")))
+    seed("grpc-web-get", 0x00, crlf("GET /hdeform.v1.Deformation/ListMeshes HTTP/1.1", "Host: localhost"))
+    seed("upload-library-repair", 0x80, crlf("POST /upload?library=capsule&repair=1e-3 HTTP/1.1", "Host: [::1]",
+                                             "X-Hdeform-Upload: 1", "Content-Length: 0") +
+         crlf("POST /upload?filename=a%2Eoff&session_id=s%31 HTTP/1.1", "Host: localhost", "X-Session-Id: s1",
+              "Transfer-Encoding: chunked") + chunks + b"0\r\n\r\n" +
+         crlf("POST /upload?filename=x&repair=abc HTTP/1.1", "Host: localhost", "X-Hdeform-Upload: 1"))
+    seed("percent-path", 0x00, crlf("POST /hdeform.v1.Deformation%2FListMeshes HTTP/1.1", "Host: localhost",
+                                     "Content-Type: application/grpc-web", "Content-Length: 5") + frame(0, b"") +
+         crlf("GET /%2e%2e/%00 HTTP/1.1", "Host: localhost"))
 
 
 def pb_varint(v):
