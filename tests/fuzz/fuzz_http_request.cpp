@@ -13,7 +13,7 @@
 // or kChunkedBodyLimit —, the Content-Type rule, grpc_web::parse_frames, body_refusal and its
 // trailers frame, grpc-timeout), /upload (the query's filename/library/repair rules, the
 // header moved into request_parser<buffer_body> read into a fixed chunk, refilled as the
-// door's read_more does), GET/HEAD (string_body, the body read and dropped); anything else
+// door's read_more does), GET/HEAD (a body announced is refused; string_body with none); anything else
 // ends the connection.
 //
 // First byte (control): bits 0–5 are the split stride (0: every byte at once, else the bytes
@@ -355,7 +355,9 @@ bool one_request(Stream& s, const Config& config) {
     return upload(header, s, query, config.upload_chunk);
   }
   if (method == http::verb::get || method == http::verb::head) {
+    if (header.chunked() || header.content_length().value_or(0) > 0) return false;  // 400
     http::request_parser<http::string_body> parser(std::move(header));
+    parser.body_limit(0);
     if (read_until(parser, s, message_done)) return false;
     return keep_alive;  // the file, /healthz or 404: the connection stays
   }
