@@ -2,13 +2,14 @@
 // (unary, server-streaming and one-message client streams alike), each response message comes
 // back as one HTTP chunk (a gRPC-Web data frame) as soon as it arrives, then the trailers.
 //
-// Two rules keep gRPC 1.51's in-process transport from stranding a server stream (its write
-// pending, the stream off the transport's list, Server::Shutdown waiting for it forever):
-// a read is always outstanding on the call while no message waits (read-ahead), so a server
-// write never sits unread while the browser is slow; and a call whose method takes one
-// request message is never half-closed (the server has its message; WritesDone only matters
-// to client-streaming methods). Back-pressure is still bounded: one message being written to
-// the browser and at most one more held; only then does the door stop reading the call.
+// The next response message is read once the socket has taken the one before: until then it
+// waits in the service, whose streams keep only the newest frame, so a slow link gets the
+// newest frame, not one read ahead that went stale behind a 2.4 MB write (WAN bench,
+// docs/benchmarks.md "When the door reads the next frame"). A read is outstanding whenever
+// no chunk is being written. A call whose method takes one request message is never
+// half-closed (the server has its message; WritesDone only matters to client-streaming
+// methods), and stop() cancels every call (live_calls.h): together these keep gRPC 1.51's
+// in-process transport from stranding a server stream at shutdown.
 #include "gateway/door.h"
 
 #include <spdlog/spdlog.h>
@@ -36,11 +37,9 @@ struct Relay {
   HttpGateway::Impl::After next = HttpGateway::Impl::After::close;
   std::shared_ptr<GrpcCall> call;
   std::size_t written = 0;     // request messages written to the call
-  bool reading = false;        // a read is outstanding on the call
   bool reads_over = false;     // the call has no more messages
   bool writes_over = false;    // every message written (and WritesDone issued), or a write failed
-  bool writing = false;        // an HTTP chunk is being written
-  std::optional<std::vector<grpc::Slice>> held;  // the message read while `writing`
+  bool writing = false;        // an HTTP chunk is being written (and no read outstanding)
   bool http_ok = true;         // false: the browser is gone; drain the call
   std::optional<grpc::Status> ended;
   std::size_t count = 0;
@@ -50,10 +49,7 @@ struct Relay {
   void release_if_idle() {
     if (reads_over && writes_over) call->release();
   }
-  void read() {
-    reading = true;
-    call->read();
-  }
+  void read() { call->read(); }
   void write_next() {
     if (written < body.messages.size()) {
       call->write(body.messages[written++]);
@@ -67,8 +63,8 @@ struct Relay {
 
 void finish_relay(const std::shared_ptr<Relay>& r);
 
-// Writes one message to the browser as an HTTP chunk; once it is written, the held message
-// (if any) follows and reading resumes, or the relay finishes if the call has ended.
+// Writes one message to the browser as an HTTP chunk; once it is written, reading resumes,
+// or the relay finishes if the call has ended.
 void send_message(const std::shared_ptr<Relay>& r, std::vector<grpc::Slice> message) {
   auto slices = std::make_shared<std::vector<grpc::Slice>>(std::move(message));
   std::size_t length = 0;
@@ -86,23 +82,15 @@ void send_message(const std::shared_ptr<Relay>& r, std::vector<grpc::Slice> mess
                            r->writing = false;
                            if (!written) {
                              r->http_ok = false;
-                             r->held.reset();
                              r->call->cancel();
                            }
-                           if (r->held) {
-                             auto next = std::move(*r->held);
-                             r->held.reset();
-                             send_message(r, std::move(next));
-                           } else if (r->ended) {
-                             return finish_relay(r);
-                           }
-                           if (!r->reading && !r->reads_over) r->read();
+                           if (r->ended) return finish_relay(r);
+                           if (!r->reads_over) r->read();
                          });
 }
 
 // A response message arrived (ok) or the call has no more (not ok).
 void on_read(const std::shared_ptr<Relay>& r, bool ok) {
-  r->reading = false;
   if (!ok) {
     r->reads_over = true;
     r->release_if_idle();
@@ -110,12 +98,7 @@ void on_read(const std::shared_ptr<Relay>& r, bool ok) {
   }
   std::vector<grpc::Slice> slices;  // references to the message: the buffer can be reused
   if (!r->http_ok || !r->call->message().Dump(&slices).ok()) return r->read();  // drain
-  if (r->writing) {
-    r->held = std::move(slices);  // the one message held; reading waits for the write
-    return;
-  }
-  send_message(r, std::move(slices));
-  r->read();  // read-ahead while the chunk is written
+  send_message(r, std::move(slices));  // the next read once the socket has taken it
 }
 
 void start_relay(const std::shared_ptr<Relay>& r) {
