@@ -13,6 +13,9 @@
 //   * --sessions library sessions, cycling through --meshes. A mesh with a Botsch–Sorkine
 //     .sel beside it is constrained with it (label 0 fixed, label 2 handle, as the service
 //     tests do); any other mesh with two half-spaces across its longest bounding-box axis.
+//     --capsule N instead uploads the procedural capsule of about N vertices (tests/fixtures/
+//     procedural.h, as engine_bench and service_bench use) to every session: base fixed, cap
+//     handle; the capacity curve (docs/benchmarks.md "Capacity") is measured on it.
 //   * Per session, --editors Deform streams, each sending one update every 1/--rate s (a
 //     smooth sinusoidal rotation + translation of the handle; the editors of a session are
 //     out of phase, so they really pull against each other), and --watchers WatchSession
@@ -32,6 +35,8 @@
 // the end), a failed write, a malformed or out-of-order frame, a `deleted` event before the
 // bench deletes the sessions, a failed DeleteSession. The exit status is 1 when there is one.
 #include "hdeform/v1/deform.grpc.pb.h"
+#include "engine/io/mesh_io.h"
+#include "fixtures/procedural.h"
 
 #include <CLI/CLI.hpp>
 #include <grpcpp/grpcpp.h>
@@ -661,10 +666,37 @@ grpc::Status with_deadline(Call&& call, const std::string& token = "", int secon
   return call(ctx);
 }
 
+// The plan of a session CreateSession just answered: its name, token and bounding-box axes.
+SessionPlan plan_of(const std::string& mesh, const pb::Session& s) {
+  SessionPlan plan;
+  plan.mesh = mesh;
+  plan.name = s.name();
+  plan.edit_token = s.edit_token();
+  plan.vertex_count = s.vertex_count();
+  std::array<double, 3> size{};
+  for (int k = 0; k < 3; ++k) size[k] = coord(s.bbox_max(), k) - coord(s.bbox_min(), k);
+  plan.long_axis = static_cast<int>(std::max_element(size.begin(), size.end()) - size.begin());
+  plan.side_axis = (plan.long_axis + 1) % 3;
+  plan.extent = size[plan.long_axis];
+  return plan;
+}
+
+bool set_constraints(pb::Deformation::Stub& stub, const SessionPlan& plan,
+                     const pb::Constraints& constraints, std::string& error) {
+  pb::SetConstraintsRequest req;
+  req.set_name(plan.name);
+  *req.mutable_constraints() = constraints;
+  pb::Session out;
+  const auto status = with_deadline(
+      [&](grpc::ClientContext& ctx) { return stub.SetConstraints(&ctx, req, &out); },
+      plan.edit_token);
+  if (!status.ok())
+    error = "SetConstraints " + plan.name + " (" + plan.mesh + "): " + status_text(status);
+  return status.ok();
+}
+
 std::optional<SessionPlan> open_session(pb::Deformation::Stub& stub, const pb::LibraryMesh& mesh,
                                         const fs::path& data_dir, std::string& error) {
-  SessionPlan plan;
-  plan.mesh = mesh.name();
   pb::Session s;
   auto status = with_deadline([&](grpc::ClientContext& ctx) {
     auto writer = stub.CreateSession(&ctx, &s);
@@ -678,25 +710,49 @@ std::optional<SessionPlan> open_session(pb::Deformation::Stub& stub, const pb::L
     error = "CreateSession " + mesh.name() + ": " + status_text(status);
     return std::nullopt;
   }
-  plan.name = s.name();
-  plan.edit_token = s.edit_token();
-  plan.vertex_count = s.vertex_count();
-  std::array<double, 3> size{};
-  for (int k = 0; k < 3; ++k) size[k] = coord(s.bbox_max(), k) - coord(s.bbox_min(), k);
-  plan.long_axis = static_cast<int>(std::max_element(size.begin(), size.end()) - size.begin());
-  plan.side_axis = (plan.long_axis + 1) % 3;
-  plan.extent = size[plan.long_axis];
-  pb::SetConstraintsRequest req;
-  req.set_name(plan.name);
-  *req.mutable_constraints() = constraints_for(mesh, s, data_dir, plan);
-  pb::Session out;
-  status = with_deadline(
-      [&](grpc::ClientContext& ctx) { return stub.SetConstraints(&ctx, req, &out); },
-      plan.edit_token);
+  SessionPlan plan = plan_of(mesh.name(), s);
+  if (!set_constraints(stub, plan, constraints_for(mesh, s, data_dir, plan), error))
+    return std::nullopt;
+  return plan;
+}
+
+// The procedural capsule, uploaded as binary PLY (1 MiB chunks) and constrained by ids.
+struct Capsule {
+  hdeform::procedural::CapsuleCase mesh;
+  std::string ply;
+};
+
+std::optional<SessionPlan> open_capsule_session(pb::Deformation::Stub& stub, const Capsule& c,
+                                                std::string& error) {
+  const std::string name = "capsule" + std::to_string(c.mesh.mesh.num_vertices());
+  pb::Session s;
+  auto status = with_deadline([&](grpc::ClientContext& ctx) {
+    auto writer = stub.CreateSession(&ctx, &s);
+    pb::CreateSessionRequest req;
+    req.mutable_header()->set_filename(name + ".ply");
+    req.mutable_header()->set_total_bytes(static_cast<std::int64_t>(c.ply.size()));
+    bool ok = writer->Write(req);
+    constexpr std::size_t kChunk = 1u << 20;
+    for (std::size_t at = 0; ok && at < c.ply.size(); at += kChunk) {
+      pb::CreateSessionRequest chunk;
+      chunk.set_chunk(c.ply.substr(at, kChunk));
+      ok = writer->Write(chunk);
+    }
+    writer->WritesDone();
+    return writer->Finish();
+  });
   if (!status.ok()) {
-    error = "SetConstraints " + plan.name + " (" + mesh.name() + "): " + status_text(status);
+    error = "CreateSession " + name + ": " + status_text(status);
     return std::nullopt;
   }
+  SessionPlan plan = plan_of(name, s);
+  plan.constraints = "base and cap";
+  pb::Constraints constraints;
+  constraints.mutable_fixed()->add_selectors()->mutable_ids()->mutable_ids()->Add(
+      c.mesh.base.begin(), c.mesh.base.end());
+  constraints.add_handles()->add_selectors()->mutable_ids()->mutable_ids()->Add(
+      c.mesh.cap.begin(), c.mesh.cap.end());
+  if (!set_constraints(stub, plan, constraints, error)) return std::nullopt;
   return plan;
 }
 
@@ -744,7 +800,7 @@ int main(int argc, char** argv) {
   std::string server, server_bin = default_server_binary(), server_args, meshes_arg =
       "cactus,bar,cylinder,knight";
   std::string data_dir = HDEFORM_LOAD_DATA, curve_csv;
-  int sessions = 100, editors = 2, watchers = 2, channels = 0, report_every = 10;
+  int sessions = 100, editors = 2, watchers = 2, channels = 0, report_every = 10, capsule = 0;
   pid_t server_pid = 0;
   double rate = 30, duration = 600;
   app.add_option("--server", server, "HOST:PORT of a running hdeform-server (default: spawn one)");
@@ -758,6 +814,11 @@ int main(int argc, char** argv) {
   app.add_option("--rate", rate, "updates per second per editor")->capture_default_str()->check(CLI::Range(0.1, 1000.0));
   app.add_option("--duration", duration, "seconds of streaming")->capture_default_str()->check(CLI::Range(1.0, 1e6));
   app.add_option("--meshes", meshes_arg, "library meshes, cycled over the sessions")->capture_default_str();
+  app.add_option("--capsule", capsule,
+                 "upload the procedural capsule of about this many vertices to every session "
+                 "instead of library meshes (0: library meshes)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 2000000));
   app.add_option("--data-dir", data_dir, "where the library's .sel files are read from")->capture_default_str();
   app.add_option("--channels", channels, "TCP connections (0 = one per session)")->capture_default_str();
   app.add_option("--report-every", report_every, "seconds between progress lines")->capture_default_str()->check(CLI::PositiveNumber);
@@ -823,7 +884,7 @@ int main(int argc, char** argv) {
     }
   }
   std::vector<pb::LibraryMesh> meshes;
-  for (const auto& want : split(meshes_arg, ',')) {
+  for (const auto& want : capsule ? std::vector<std::string>{} : split(meshes_arg, ',')) {
     auto it = std::find_if(library.meshes().begin(), library.meshes().end(),
                            [&](const pb::LibraryMesh& m) { return m.name() == want; });
     if (it == library.meshes().end()) {
@@ -832,6 +893,16 @@ int main(int argc, char** argv) {
     }
     meshes.push_back(*it);
   }
+  std::optional<Capsule> capsule_mesh;
+  if (capsule) {
+    capsule_mesh.emplace();
+    capsule_mesh->mesh = hdeform::procedural::capsule_case(capsule);
+    hdeform::WriteOptions binary;
+    binary.binary_ply = true;
+    capsule_mesh->ply = hdeform::write_mesh_bytes(hdeform::MeshFileFormat::ply,
+                                                  capsule_mesh->mesh.mesh.V,
+                                                  capsule_mesh->mesh.mesh.F, nullptr, binary);
+  }
 
   const double rss_idle = rss_mib(pid);
   const auto setup0 = Clock::now();
@@ -839,9 +910,11 @@ int main(int argc, char** argv) {
   plans.reserve(static_cast<std::size_t>(sessions));  // editors keep references into it
   for (int i = 0; i < sessions; ++i) {
     std::string error;
-    auto plan = open_session(*stubs[static_cast<std::size_t>(i % nchannels)],
-                             meshes[static_cast<std::size_t>(i) % meshes.size()],
-                             fs::path(data_dir), error);
+    auto& stub = *stubs[static_cast<std::size_t>(i % nchannels)];
+    auto plan = capsule_mesh
+                    ? open_capsule_session(stub, *capsule_mesh, error)
+                    : open_session(stub, meshes[static_cast<std::size_t>(i) % meshes.size()],
+                                   fs::path(data_dir), error);
     if (!plan) {
       std::cerr << "error: " << error << "\n";
       return 2;
