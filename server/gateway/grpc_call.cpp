@@ -73,13 +73,18 @@ void GrpcCall::OnReadDone(bool ok) {
 
 void GrpcCall::OnDone(const grpc::Status& status) {
   LiveCalls& live = live_;  // the posted event may delete this call before the end
-  auto self = std::move(self_);
-  boost::asio::post(strand_, [self, status] {
-    // Moved out: the handlers may hold what holds this call; dropping them ends the cycle.
-    auto events = std::move(self->events_);
-    events.done(status);
-  });
-  live.remove(this);  // last (a key only): once none is left, the door may destroy the channel
+  const GrpcCall* const key = this;
+  {
+    auto self = std::move(self_);
+    boost::asio::post(strand_, [self, status] {
+      // Moved out: the handlers may hold what holds this call; dropping them ends the cycle.
+      auto events = std::move(self->events_);
+      events.done(status);
+    });
+  }  // OnDone's own reference goes before remove(): were it the last, the call (and its
+     // strand executor) would be destroyed after stop() saw none left and the door's
+     // io_context went (TSan, TlsGateway.HealthzAndGrpcWebOverHttps)
+  live.remove(key);  // last (a key only): once none is left, the door may destroy the channel
 }
 
 void LiveCalls::add(const std::shared_ptr<GrpcCall>& call) {
