@@ -36,7 +36,7 @@
 // bench deletes the sessions, a failed DeleteSession. The exit status is 1 when there is one.
 #include "hdeform/v1/deform.grpc.pb.h"
 #include "engine/io/mesh_io.h"
-#include "fixtures/procedural.h"
+#include "capsule_upload.h"
 
 #include <CLI/CLI.hpp>
 #include <grpcpp/grpcpp.h>
@@ -727,19 +727,7 @@ std::optional<SessionPlan> open_capsule_session(pb::Deformation::Stub& stub, con
   const std::string name = "capsule" + std::to_string(c.mesh.mesh.num_vertices());
   pb::Session s;
   auto status = with_deadline([&](grpc::ClientContext& ctx) {
-    auto writer = stub.CreateSession(&ctx, &s);
-    pb::CreateSessionRequest req;
-    req.mutable_header()->set_filename(name + ".ply");
-    req.mutable_header()->set_total_bytes(static_cast<std::int64_t>(c.ply.size()));
-    bool ok = writer->Write(req);
-    constexpr std::size_t kChunk = 1u << 20;
-    for (std::size_t at = 0; ok && at < c.ply.size(); at += kChunk) {
-      pb::CreateSessionRequest chunk;
-      chunk.set_chunk(c.ply.substr(at, kChunk));
-      ok = writer->Write(chunk);
-    }
-    writer->WritesDone();
-    return writer->Finish();
+    return hdeform::bench::upload_mesh(stub, ctx, name + ".ply", c.ply, &s);
   });
   if (!status.ok()) {
     error = "CreateSession " + name + ": " + status_text(status);
@@ -747,11 +735,7 @@ std::optional<SessionPlan> open_capsule_session(pb::Deformation::Stub& stub, con
   }
   SessionPlan plan = plan_of(name, s);
   plan.constraints = "base and cap";
-  pb::Constraints constraints;
-  constraints.mutable_fixed()->add_selectors()->mutable_ids()->mutable_ids()->Add(
-      c.mesh.base.begin(), c.mesh.base.end());
-  constraints.add_handles()->add_selectors()->mutable_ids()->mutable_ids()->Add(
-      c.mesh.cap.begin(), c.mesh.cap.end());
+  const pb::Constraints constraints = hdeform::bench::capsule_constraints(c.mesh);
   if (!set_constraints(stub, plan, constraints, error)) return std::nullopt;
   return plan;
 }

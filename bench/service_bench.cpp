@@ -43,6 +43,7 @@
 //   --hdeform_state_dir=DIR  the latency server keeps its sessions in a SQLite store in DIR
 //   (as hdeform-server --state-dir), so moves and changes pass the store step.
 #include "bench_common.h"
+#include "capsule_upload.h"
 #include "engine/runtime/process_environment.h"
 #include "fixtures/procedural.h"
 #include "frame_decode.h"
@@ -174,19 +175,7 @@ grpc::Status upload(pb::Deformation::Stub& stub, const std::string& filename,
                     const std::string& bytes, pb::Session* out) {
   grpc::ClientContext ctx;
   authorize(ctx);
-  auto writer = stub.CreateSession(&ctx, out);
-  pb::CreateSessionRequest req;
-  req.mutable_header()->set_filename(filename);
-  req.mutable_header()->set_total_bytes(static_cast<std::int64_t>(bytes.size()));
-  bool ok = writer->Write(req);
-  constexpr std::size_t kChunk = 1u << 20;
-  for (std::size_t at = 0; ok && at < bytes.size(); at += kChunk) {
-    pb::CreateSessionRequest chunk;
-    chunk.set_chunk(bytes.substr(at, kChunk));
-    ok = writer->Write(chunk);
-  }
-  writer->WritesDone();
-  return writer->Finish();
+  return bench::upload_mesh(stub, ctx, filename, bytes, out);
 }
 
 grpc::Status constrain(pb::Deformation::Stub& stub, const std::string& name,
@@ -195,11 +184,7 @@ grpc::Status constrain(pb::Deformation::Stub& stub, const std::string& name,
   authorize(ctx);
   pb::SetConstraintsRequest req;
   req.set_name(name);
-  auto* fixed = req.mutable_constraints()->mutable_fixed()->add_selectors()->mutable_ids();
-  fixed->mutable_ids()->Add(c.base.begin(), c.base.end());
-  auto* cap =
-      req.mutable_constraints()->add_handles()->add_selectors()->mutable_ids();
-  cap->mutable_ids()->Add(c.cap.begin(), c.cap.end());
+  *req.mutable_constraints() = bench::capsule_constraints(c);
   pb::Session out;
   return stub.SetConstraints(&ctx, req, &out);
 }
