@@ -19,6 +19,7 @@
 #include "engine/io/selection.h"
 #include "engine/operators/sparse_times3.h"
 #include "engine/runtime/process_environment.h"
+#include "engine/runtime/warm_cores.h"
 #include "engine/simd/cpu_features.h"
 #include "engine/solve/supernodal_factorization.h"
 #include "engine/solve/supernodal_solve.h"
@@ -441,7 +442,9 @@ void BM_BetaRefactor(benchmark::State& state, std::string key) {
 //   drag_paced  `drag`, with 128 MB written and 50 ms of sleep between moves, as a 20 Hz
 //          drag meets it in the service (the sleep costs the most: docs/benchmarks.md
 //          "The paced drag")
-enum class Move { full, exact, drag, light, alloc, drag_paced };
+//   drag_paced_warm  `drag_paced` with the cores kept warm from each move on, as the service
+//          does while a drag is active (warm_cores.h)
+enum class Move { full, exact, drag, light, alloc, drag_paced, drag_paced_warm };
 
 // What a 20 Hz drag leaves between two moves: other work (encoding, the network, other
 // sessions) through the caches, and 50 ms in which this thread's cores may idle. Untimed.
@@ -462,7 +465,8 @@ void BM_Update(benchmark::State& state, std::string key, double beta, Move mode,
   c.cs->prepare(Beta{beta});
   UpdateOptions opt;
   if (mode == Move::light) opt.energies = opt.normals = false;
-  const bool drag = mode == Move::drag || mode == Move::drag_paced;
+  const bool paced = mode == Move::drag_paced || mode == Move::drag_paced_warm;
+  const bool drag = mode == Move::drag || paced;
   if (mode == Move::exact || drag) opt.energies = false;
   if (drag) {
     opt.measures = false;
@@ -478,6 +482,7 @@ void BM_Update(benchmark::State& state, std::string key, double beta, Move mode,
   long solves = 0;  // K_FF solves per move (the drag path's refinement steps)
   for (auto _ : state) {
     const HandleTransform t = move(c, i++);
+    if (mode == Move::drag_paced_warm) WarmCores::instance().extend();
     if (mode == Move::alloc) {
       Frame fresh = c.cs->update(std::span(&t, 1), Beta{beta}, opt);
       benchmark::DoNotOptimize(fresh.positions.data());
@@ -486,7 +491,7 @@ void BM_Update(benchmark::State& state, std::string key, double beta, Move mode,
       benchmark::DoNotOptimize(f.positions.data());
       solves += f.solves;
     }
-    if (mode == Move::drag_paced) between_paced_moves(state);
+    if (paced) between_paced_moves(state);
   }
   size_counters(state, c);
   if (mode != Move::alloc)
@@ -892,7 +897,8 @@ void register_size(int n) {
   for (double beta : kBetas) {
     for (auto [mode, tag] : {std::pair{Move::full, "full"}, {Move::exact, "exact"},
                              {Move::drag, "drag"}, {Move::light, "light"}, {Move::alloc, "alloc"},
-                             {Move::drag_paced, "drag_paced"}})
+                             {Move::drag_paced, "drag_paced"},
+                             {Move::drag_paced_warm, "drag_paced_warm"}})
       reg("Update" + N + "/" + beta_tag(beta) + "/" + tag, fast, BM_Update, key, beta, mode, 0);
   }
   if (big)  // the 1M drag frame is measured in a steady state: 2 moves first, then 5 timed

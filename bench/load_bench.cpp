@@ -19,7 +19,8 @@
 //   * Per session, --editors Deform streams, each sending one update every 1/--rate s (a
 //     smooth sinusoidal rotation + translation of the handle; the editors of a session are
 //     out of phase, so they really pull against each other), and --watchers WatchSession
-//     streams.
+//     streams. --drag marks every update `dragging`, as the viewer does mid-drag (the drag
+//     path's frames, and the server keeps its cores warm between them).
 //   * All streams use gRPC's callback API, so the whole client runs on gRPC's own small
 //     thread pool plus one driver thread that paces the updates and the main thread that
 //     samples and prints.
@@ -278,6 +279,7 @@ class ChildServer {
 // ---------------------------------------------------------------------------------------
 // Counters and errors shared by all streams.
 struct Shared {
+  bool drag = false;  // --drag: every update marked `dragging` (drag-precision frames)
   std::atomic<bool> stopping{false};  // from now on `deleted` and our cancellations are expected
   std::atomic<std::int64_t> updates_sent{0}, editor_frames{0}, watcher_frames{0},
       watcher_states{0}, watcher_other{0}, client_coalesced{0};
@@ -490,6 +492,7 @@ class Editor final : public grpc::ClientBidiReactor<pb::DeformRequest, pb::Frame
     r.Clear();
     if (seq == 1) r.set_name(plan_.name);  // the first message names the session
     r.set_sequence(seq);
+    r.set_dragging(shared_.drag);
     const double phase = 2 * std::numbers::pi * kHz * t + index_ * std::numbers::pi / 2;
     const double angle = kMaxAngle * std::sin(phase);
     auto* tr = r.add_transforms();
@@ -796,6 +799,8 @@ int main(int argc, char** argv) {
   app.add_option("--editors", editors, "Deform clients per session")->capture_default_str()->check(CLI::Range(0, 1000));
   app.add_option("--watchers", watchers, "WatchSession clients per session")->capture_default_str()->check(CLI::Range(0, 1000));
   app.add_option("--rate", rate, "updates per second per editor")->capture_default_str()->check(CLI::Range(0.1, 1000.0));
+  bool drag = false;
+  app.add_flag("--drag", drag, "mark every update `dragging`, as the viewer does mid-drag");
   app.add_option("--duration", duration, "seconds of streaming")->capture_default_str()->check(CLI::Range(1.0, 1e6));
   app.add_option("--meshes", meshes_arg, "library meshes, cycled over the sessions")->capture_default_str();
   app.add_option("--capsule", capsule,
@@ -919,6 +924,7 @@ int main(int argc, char** argv) {
 
   // --- streams ----------------------------------------------------------------------------
   Shared shared;
+  shared.drag = drag;
   std::vector<std::unique_ptr<Watcher>> watch;
   std::vector<std::unique_ptr<Editor>> edit;
   for (int i = 0; i < sessions; ++i) {

@@ -15,8 +15,9 @@
 //   Stream/N               Deform bidi stream with one update in flight: write, read frame.
 //   Burst/N/updates:U      Deform stream: U updates written as fast as possible, frames
 //                          read on a second thread; frames, frames/s, coalesced updates.
-//   Drag/N/hz:H/updates:U  the same at a fixed rate (a user dragging at H Hz): fps, and
-//                          p50/p99 latency from each answered update to its frame.
+//   Drag/N/hz:H/updates:U  the same at a fixed rate (a user dragging at H Hz, every update
+//                          but the last marked `dragging`, as the viewer sends them): fps,
+//                          and p50/p99 latency from each answered update to its frame.
 //   Drag/N/hz:20/updates:U/ENC
 //                          at 20 Hz (no queue behind a move) with frames in encoding ENC:
 //                          over_p50_ms (median of latency − Frame.solve_ms) is what the
@@ -40,11 +41,14 @@
 // time column is the mean).
 //
 // Extra flags (ours): --hdeform_smoke  a handful of iterations everywhere (ctest bench-smoke);
+//   --hdeform_warm_cores_ms=MS  as hdeform-server's --warm-cores-ms (0: cores may halt
+//                           between drag moves)
 //   --hdeform_state_dir=DIR  the latency server keeps its sessions in a SQLite store in DIR
 //   (as hdeform-server --state-dir), so moves and changes pass the store step.
 #include "bench_common.h"
 #include "capsule_upload.h"
 #include "engine/runtime/process_environment.h"
+#include "engine/runtime/warm_cores.h"
 #include "fixtures/procedural.h"
 #include "frame_decode.h"
 #include "hdeform/v1/deform.grpc.pb.h"
@@ -468,6 +472,7 @@ void BM_Burst(benchmark::State& state, int n, int updates, int interval_us,
         req.mutable_format()->set_encoding(encoding);
       }
       req.set_sequence(base + i);
+      req.set_dragging(interval_us > 0 && i + 1 < updates);  // a Burst is not a drag
       set_move(req.add_transforms(), base + i);
       sent_ns[i].store(Clock::now().time_since_epoch().count());
       if (!stream->Write(req)) break;
@@ -706,10 +711,15 @@ int main(int argc, char** argv) {
   hdeform::ensure_process_environment(argv);  // as hdeform-server does
   std::vector<char*> args;
   constexpr std::string_view kStateFlag = "--hdeform_state_dir=";
+  // As hdeform-server's --warm-cores-ms (0: the cores may halt between drag moves).
+  constexpr std::string_view kWarmFlag = "--hdeform_warm_cores_ms=";
   for (int i = 0; i < argc; ++i) {
     const std::string_view a = argv[i];
     if (a.starts_with(kStateFlag))
       g_state_dir = std::string(a.substr(kStateFlag.size()));
+    else if (a.starts_with(kWarmFlag))
+      hdeform::WarmCores::instance().set_window(
+          std::chrono::milliseconds(std::stoi(std::string(a.substr(kWarmFlag.size())))));
     else
       args.push_back(argv[i]);
   }

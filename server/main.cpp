@@ -2,6 +2,7 @@
 // the web viewer). Every flag also reads an HDEFORM_* environment variable.
 #include "common/ready_file.h"
 #include "engine/runtime/process_environment.h"
+#include "engine/runtime/warm_cores.h"
 #include "service/access/access.h"
 #include "service/rpc/server.h"
 #include "service/state/state_backend.h"
@@ -113,6 +114,14 @@ int main(int argc, char** argv) {
   app.add_option("--workers", workers, "solver threads")
       ->envname("HDEFORM_WORKERS")
       ->check(CLI::Range(1, 256))
+      ->capture_default_str();
+  int warm_cores_ms = -1;
+  app.add_option("--warm-cores-ms", warm_cores_ms,
+                 "keep the cores from idling this long after each drag move, so the next "
+                 "frame is not slowed by halted cores (0 = off; -1 = 250, or off under a "
+                 "cgroup CPU quota)")
+      ->envname("HDEFORM_WARM_CORES_MS")
+      ->check(CLI::Range(-1, 10000))
       ->capture_default_str();
   hdeform::service::RequestLimits request;
   std::size_t max_upload_inflight_mb = 1024;
@@ -397,6 +406,14 @@ int main(int argc, char** argv) {
       return 1;
     }
   }
+
+  auto& warm = hdeform::WarmCores::instance();
+  if (warm_cores_ms >= 0) warm.set_window(std::chrono::milliseconds(warm_cores_ms));
+  if (warm.window().count() > 0)
+    spdlog::info("cores kept warm for {} ms after each drag move", warm.window().count());
+  else
+    spdlog::info("cores not kept warm between drag moves{}",
+                 warm_cores_ms < 0 ? " (the cgroup has a CPU quota)" : "");
 
   std::unique_ptr<hdeform::service::Server> server;
   try {

@@ -330,8 +330,14 @@ bad-inputs)
     "$HDEFORM" --server 127.0.0.1:1 --timeout 5 deform cactus --sel "$BS/cactus.sel"
   ;;
 remote)
+  # The warm-cores window: a bad value refused at start, the default named in the log.
+  "$SERVER_BIN" --warm-cores-ms 20000 >"$TMP/out" 2>"$TMP/err" && fail "--warm-cores-ms 20000 accepted"
+  grep -q -- '--warm-cores-ms: Value 20000 not in range -1 to 10000' "$TMP/err" ||
+    fail "--warm-cores-ms 20000: '$(cat "$TMP/err")'"
   start_server
   echo "server at $ADDR"
+  grep -Eq 'cores kept warm for 250 ms after each drag move|cores not kept warm between drag moves \(the cgroup has a CPU quota\)' \
+    "$TMP/server.out" || fail "no warm-cores line in the server log: $(head -5 "$TMP/server.out")"
   "$HDEFORM" --server "$ADDR" deform cactus --sel "$BS/cactus.sel" --def "$BS/cactus.def" \
     -o "$TMP/remote.glb" >"$TMP/out" || fail "remote deform exited $?"
   check_measures "$TMP/out"

@@ -2,6 +2,7 @@
 // move that changes β or the pose goes through the store step before it is committed.
 #include "service/session/session.h"
 
+#include "engine/runtime/warm_cores.h"
 #include "service/frames/frame_encoding.h"
 #include "service/infra/service_error.h"
 #include "service/session/convert.h"
@@ -95,6 +96,8 @@ pb::Frame Session::superseded_locked(const Update& u) const {
 
 std::shared_ptr<pb::Frame> Session::update(const Update& given) {
   touch();
+  // The next move of this drag comes in ≈ 50 ms: the cores must not halt meanwhile.
+  if (given.dragging) hdeform::WarmCores::instance().extend();
   const auto t0 = std::chrono::steady_clock::now();
   Move m = begin_move(given);
   Update u = given;
