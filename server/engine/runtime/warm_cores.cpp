@@ -5,7 +5,9 @@
 #include <iterator>
 #include <string>
 
+#include <sched.h>
 #include <sys/resource.h>
+#include <sys/syscall.h>
 #include <unistd.h>
 
 namespace hdeform {
@@ -92,12 +94,35 @@ void WarmCores::set_window(std::chrono::milliseconds window) {
   if (window.count() <= 0) deadline_ns_.store(0, std::memory_order_relaxed);
 }
 
+namespace {
+
+// This thread at nice 19 with a 0.1 ms time slice: a solver thread that wakes on its core
+// takes the core within the slice (EEVDF lets the running task finish its slice, 0.75 ms or
+// more by default; measured at 4 sessions of 100K, the short slice cut the p99 the spinners
+// add), and under load it gets ≈ 1.5 % of a core. Raising nice and a custom slice (Linux
+// ≥ 6.12; older kernels ignore it) need no privilege. Not SCHED_IDLE: measured, its paced
+// frame stayed 1.5× the back-to-back one, nice 19's 1.1× (docs/benchmarks.md "Warm cores
+// through a drag").
+void lower_this_thread() {
+  struct {  // the kernel's struct sched_attr (its header clashes with glibc's <sched.h>)
+    std::uint32_t size, sched_policy;
+    std::uint64_t sched_flags;
+    std::int32_t sched_nice;
+    std::uint32_t sched_priority;
+    std::uint64_t sched_runtime, sched_deadline, sched_period;
+  } attr{};
+  attr.size = sizeof attr;
+  attr.sched_policy = SCHED_OTHER;
+  attr.sched_nice = 19;
+  attr.sched_runtime = 100'000;  // ns: the slice
+  if (syscall(SYS_sched_setattr, 0, &attr, 0) != 0)
+    setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 19);
+}
+
+}  // namespace
+
 void WarmCores::spin_loop() {
-  // Nice 19 for this thread alone (Linux's nice is per thread): a woken solver thread
-  // preempts it, and under load it takes ≈ 1.5 % of a core. Raising nice needs no privilege.
-  // Not SCHED_IDLE: measured, its paced frame stayed 1.5× the back-to-back one, nice 19's
-  // 1.1× (docs/benchmarks.md "Warm cores through a drag").
-  setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 19);
+  lower_this_thread();
   unsigned seen = wakes_.load(std::memory_order_acquire);
   for (;;) {
     if (stop_.load(std::memory_order_relaxed)) return;

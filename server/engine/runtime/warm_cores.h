@@ -1,8 +1,8 @@
 // Cores kept awake through an interactive drag. Between two 20 Hz moves the machine idles
 // for ≈ 40 ms; on these VMs an idle vCPU halts, and the next frame then runs 1.5–1.9× slower
-// than back to back (slow wake-up, cold caches and clocks: docs/benchmarks.md "Warm cores").
-// While warm, one thread per core spins at nice 19: it runs only when the core would halt,
-// and any other thread preempts it at once.
+// than back to back (slow wake-up, cold caches and clocks: docs/benchmarks.md "Warm cores
+// through a drag"). While warm, one thread per core spins at nice 19 in 0.1 ms slices: it
+// runs when the core would halt, and a waking thread takes the core within a slice.
 #pragma once
 
 #include <atomic>
