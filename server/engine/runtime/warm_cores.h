@@ -45,7 +45,7 @@ class WarmCores {
   void spin_loop();
   std::atomic<std::int64_t> deadline_ns_{0};  // Clock's epoch; the spinners stop past it
   std::atomic<std::int64_t> window_ms_;
-  std::atomic<unsigned> wakes_{0};  // bumped when a deadline is set after the last one passed
+  std::atomic<unsigned> wakes_{0};  // bumped by every extend(): what a sleeping spinner waits on
   std::atomic<int> spinning_{0};
   std::atomic<bool> stop_{false};
   std::vector<std::thread> threads_;
