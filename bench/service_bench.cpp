@@ -63,6 +63,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -717,10 +718,18 @@ int main(int argc, char** argv) {
     const std::string_view a = argv[i];
     if (a.starts_with(kStateFlag))
       g_state_dir = std::string(a.substr(kStateFlag.size()));
-    else if (a.starts_with(kWarmFlag))
-      hdeform::WarmCores::instance().set_window(
-          std::chrono::milliseconds(std::stoi(std::string(a.substr(kWarmFlag.size())))));
-    else
+    else if (a.starts_with(kWarmFlag)) {
+      const std::string_view v = a.substr(kWarmFlag.size());
+      int ms = -1;
+      const auto [end, ec] = std::from_chars(v.data(), v.data() + v.size(), ms);
+      if (ec != std::errc() || end != v.data() + v.size() || ms < 0 || ms > 10000) {
+        std::fprintf(stderr, "%.*s: expected milliseconds in 0..10000, got \"%.*s\"\n",
+                     static_cast<int>(kWarmFlag.size() - 1), kWarmFlag.data(),
+                     static_cast<int>(v.size()), v.data());
+        return 2;
+      }
+      hdeform::WarmCores::instance().set_window(std::chrono::milliseconds(ms));
+    } else
       args.push_back(argv[i]);
   }
   int nargs = static_cast<int>(args.size());

@@ -9,6 +9,7 @@
 #include "engine/operators/system_blocks.h"
 #include "engine/runtime/serial_openmp.h"
 #include "engine/runtime/two_threads.h"
+#include "engine/solve/permutation.h"
 #include "engine/solve/solver.h"
 #include "engine/solve/vertex_ordering.h"
 
@@ -233,14 +234,7 @@ const std::vector<int>& PreparedMesh::wide_order(double* ms, const SparseMatrix*
 }
 
 bool PreparedMesh::adopt_order(std::vector<int> order, bool wide) const {
-  const std::size_t n = static_cast<std::size_t>(this->n());
-  if (order.size() != n) return false;
-  std::vector<bool> seen(n, false);
-  for (const int v : order) {
-    if (v < 0 || static_cast<std::size_t>(v) >= n || seen[static_cast<std::size_t>(v)])
-      return false;
-    seen[static_cast<std::size_t>(v)] = true;
-  }
+  if (!is_permutation_of(order, n())) return false;
   bool taken = false;
   std::call_once(wide ? wide_order_once_ : order_once_, [&] {
     (wide ? wide_order_ : order_) = std::move(order);

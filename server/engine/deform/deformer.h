@@ -196,8 +196,8 @@ inline constexpr double kMaxCoordinate = 1e30;
 // and caches the factorization of K_FF per β. Thread-safe: update() may be called
 // concurrently (factorizations are built once under a lock). Charged to a FactorBudget
 // (charge_to), its cached systems are evicted least recently used and rebuilt on demand.
-class ConstraintSet : public std::enable_shared_from_this<ConstraintSet>,
-                      public FactorBudget::Owner {
+class ConstraintSet final : public std::enable_shared_from_this<ConstraintSet>,
+                            public FactorBudget::Owner {
  public:
   // Throws InvalidInput: ids out of range, overlapping or empty regions, a single handle
   // with no fixed vertex, a component without a constrained vertex.

@@ -1,5 +1,6 @@
 #include "service/state/stored_record.h"
 
+#include "engine/solve/permutation.h"
 #include "service/state/state_backend.h"
 
 #include <cstring>
@@ -43,18 +44,6 @@ std::vector<std::string> index_hashes(const std::vector<TokenHash>& presented) {
   return out;
 }
 
-namespace {
-bool is_permutation(const std::vector<int>& p, int n) {
-  if (p.size() != static_cast<std::size_t>(n)) return false;
-  std::vector<bool> seen(p.size(), false);
-  for (const int v : p) {
-    if (v < 0 || v >= n || seen[static_cast<std::size_t>(v)]) return false;
-    seen[static_cast<std::size_t>(v)] = true;
-  }
-  return true;
-}
-}  // namespace
-
 std::optional<StoredOrders> parse_orderings(std::string_view bytes, const std::string& hash,
                                             int vertices) {
   hdeform::state::StoredOrderings stored;
@@ -64,7 +53,7 @@ std::optional<StoredOrders> parse_orderings(std::string_view bytes, const std::s
   StoredOrders out{{stored.order().begin(), stored.order().end()},
                    {stored.wide_order().begin(), stored.wide_order().end()}};
   for (const auto* p : {&out.order, &out.wide_order})
-    if (!p->empty() && !is_permutation(*p, vertices)) return std::nullopt;
+    if (!p->empty() && !is_permutation_of(*p, vertices)) return std::nullopt;
   return out;
 }
 
