@@ -584,6 +584,14 @@ void BM_UpdateConcurrent(benchmark::State& state, std::string key, double beta) 
   }
 }
 
+// The mesh's METIS order (nested_dissection of L), from 1 or 2 threads at once: two sessions
+// opening different meshes. Each thread has its own METIS random stream
+// (vertex_ordering.cpp), so the two calls need not wait for each other.
+void BM_Ordering(benchmark::State& state, std::string key) {
+  Case& c = get(key);
+  for (auto _ : state) benchmark::DoNotOptimize(nested_dissection(c.pm->L()).data());
+}
+
 // Phases of update(), each on its own (the same operations the engine performs).
 enum class Phase {
   guidance, rhs, solve, measures, measures_ef2, normals, normals_gather,
@@ -912,6 +920,11 @@ void register_size(int n) {
   if (!big) {
     auto* b = benchmark::RegisterBenchmark(("UpdateConcurrent" + N + "/" + beta_tag(0.0)).c_str(),
                                            BM_UpdateConcurrent, key, 0.0);
+    b->Unit(benchmark::kMillisecond)->UseRealTime()->Threads(1)->Threads(2);
+    if (g_smoke) b->Iterations(1);
+  }
+  if (!big) {
+    auto* b = benchmark::RegisterBenchmark(("Ordering" + N).c_str(), BM_Ordering, key);
     b->Unit(benchmark::kMillisecond)->UseRealTime()->Threads(1)->Threads(2);
     if (g_smoke) b->Iterations(1);
   }

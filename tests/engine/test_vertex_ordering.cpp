@@ -9,7 +9,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <numeric>
 #include <stdexcept>
 #include <thread>
@@ -81,18 +83,55 @@ TEST(VertexOrdering, RestrictedMeshOrderSolvesLikeMetisOnKFF) {
   check_model("capsule 8K", *pm, c);
 }
 
-// METIS's random generator is global: calls at once still give each its serial order.
+// Calls at once, with no lock between them, still give each its serial order: each thread
+// has its own METIS random stream (with libc's one stream, interleaved draws change them).
 TEST(VertexOrdering, ConcurrentCallsGiveTheSerialOrder) {
   const test::Benchmark b = test::load_benchmark("bar");
   const SparseMatrix& L = b.mesh->L();
   const SparseMatrix& R = b.mesh->Reg();
   const std::vector<int> narrow = nested_dissection(L), wide = nested_dissection(L, R);
-  std::vector<std::vector<int>> got(4);
+  constexpr int kRounds = 4;
+  std::vector<std::vector<std::vector<int>>> got(4, std::vector<std::vector<int>>(kRounds));
   std::vector<std::thread> threads;
   for (std::size_t k = 0; k < got.size(); ++k)
-    threads.emplace_back([&, k] { got[k] = k % 2 ? nested_dissection(L, R) : nested_dissection(L); });
+    threads.emplace_back([&, k] {
+      for (auto& order : got[k]) order = k % 2 ? nested_dissection(L, R) : nested_dissection(L);
+    });
   for (auto& t : threads) t.join();
-  for (std::size_t k = 0; k < got.size(); ++k) EXPECT_EQ(got[k], k % 2 ? wide : narrow) << k;
+  for (std::size_t k = 0; k < got.size(); ++k)
+    for (int r = 0; r < kRounds; ++r) EXPECT_EQ(got[k][r], k % 2 ? wide : narrow) << k << " " << r;
+}
+
+// GKlib traps SIGABRT and SIGTERM while METIS runs. Calls at once, ending in any order, leave
+// the process's handlers as they were (GKlib's own save and restore per call can leave its
+// handler installed for good).
+TEST(VertexOrdering, ConcurrentCallsLeaveTheSignalHandlersAlone) {
+  const test::Benchmark b = test::load_benchmark("bar");
+  const SparseMatrix& L = b.mesh->L();
+  const SparseMatrix& R = b.mesh->Reg();
+  const auto before_abort = std::signal(SIGABRT, SIG_DFL);
+  const auto before_terminate = std::signal(SIGTERM, SIG_IGN);
+  std::vector<std::thread> threads;
+  for (int k = 0; k < 4; ++k)
+    threads.emplace_back([&, k] {
+      for (int r = 0; r < 6; ++r)
+        EXPECT_FALSE((k % 2 ? nested_dissection(L, R) : nested_dissection(L)).empty());
+    });
+  for (auto& t : threads) t.join();
+  EXPECT_EQ(std::signal(SIGABRT, before_abort), SIG_DFL);
+  EXPECT_EQ(std::signal(SIGTERM, before_terminate), SIG_IGN);
+}
+
+// METIS's draws come from the stream vertex_ordering.cpp keeps, not libc's: a program's own
+// rand() sequence goes on as if METIS had not run (it would skip ahead with GKlib's own).
+TEST(VertexOrdering, MetisDrawsFromItsOwnStream) {
+  const test::Benchmark b = test::load_benchmark("bar");
+  std::srand(20261206);
+  const int first = std::rand();
+  std::srand(20261206);
+  ASSERT_FALSE(nested_dissection(b.mesh->L()).empty());
+  EXPECT_EQ(std::rand(), first) << "METIS drew from libc's rand(): the per-thread stream is not "
+                                   "in effect (is gk_randint64 exported from this program?)";
 }
 
 // The graph is the union of the patterns' strictly lower parts: a diagonal adds no edge, an

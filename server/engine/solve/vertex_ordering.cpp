@@ -2,9 +2,89 @@
 
 #include <Eigen/CholmodSupport>
 
+#include <csignal>
+#include <cstdint>
+#include <cstdlib>
 #include <mutex>
+
 #include <stdexcept>
 #include <string>
+
+// METIS 5.1 (Debian's build) draws its random numbers through GKlib's gk_randinit,
+// gk_randint32 and gk_randint64, which call libc's srand / rand: one stream for the whole
+// process, so two calls at once would each get an order that depends on the other. These
+// definitions take their place (libmetis calls them through its PLT; CMakeLists.txt exports
+// them from every program that links the solver) with the same generator, kept per thread:
+// each call sees exactly the stream it would see alone, and calls on different threads run
+// at once. Checked by VertexOrdering.ConcurrentCallsGiveTheSerialOrder and
+// VertexOrdering.MetisDrawsFromItsOwnStream.
+namespace {
+struct ThreadRandom {
+  random_data data{};
+  char state[128] = {};  // 128 bytes: glibc's TYPE_3, the generator behind rand()
+  ThreadRandom() { initstate_r(1, state, sizeof state, &data); }
+};
+thread_local ThreadRandom thread_random;
+
+std::uint32_t next_random() {
+  std::int32_t r = 0;
+  random_r(&thread_random.data, &r);
+  return static_cast<std::uint32_t>(r);
+}
+}  // namespace
+
+// GKlib also traps SIGABRT and SIGTERM (its exits on an allocation failure or an error) for
+// the span of each METIS call, so that they jump back and METIS returns an error code: it
+// saves the process's handlers when a call starts and puts them back when it ends. Two calls
+// at once would put them back out of order and leave GKlib's handler in place for good (an
+// abort() anywhere later would then jump to a buffer that is not there). These two take the
+// place of gk_sigtrap / gk_siguntrap the same way: the first call in installs GKlib's handler,
+// the last one out restores what was there. Each thread keeps its own jump buffers, as in
+// GKlib. Checked by VertexOrdering.ConcurrentCallsLeaveTheSignalHandlersAlone.
+extern "C" {
+extern __thread int gk_cur_jbufs;  // libmetis: this thread's innermost jump buffer (−1: none)
+void gk_sigthrow(int signum);      // libmetis: longjmp to it
+}
+namespace {
+constexpr int kJumpBuffers = 128;  // GKlib's MAX_JBUFS (gk_jbufs: 128 jmp_buf of 200 bytes)
+std::mutex trap_mutex;
+int trapped = 0;  // METIS calls in progress, under trap_mutex
+sighandler_t saved_abort = SIG_DFL, saved_terminate = SIG_DFL;
+}  // namespace
+
+extern "C" {
+int gk_sigtrap() {
+  if (gk_cur_jbufs + 1 >= kJumpBuffers) return 0;
+  ++gk_cur_jbufs;
+  std::lock_guard lock(trap_mutex);
+  if (trapped++ == 0) {
+    saved_abort = std::signal(SIGABRT, gk_sigthrow);
+    saved_terminate = std::signal(SIGTERM, gk_sigthrow);
+  }
+  return 1;
+}
+int gk_siguntrap() {
+  if (gk_cur_jbufs == -1) return 0;
+  {
+    std::lock_guard lock(trap_mutex);
+    if (--trapped == 0) {
+      std::signal(SIGABRT, saved_abort);
+      std::signal(SIGTERM, saved_terminate);
+    }
+  }
+  --gk_cur_jbufs;
+  return 1;
+}
+
+void gk_randinit(std::uint64_t seed) {
+  srandom_r(static_cast<unsigned>(seed), &thread_random.data);
+}
+std::uint32_t gk_randint32() { return next_random(); }
+std::uint64_t gk_randint64() {
+  const std::uint64_t high = next_random();  // GKlib's order: the first draw is the high word
+  return (high << 32) | next_random();
+}
+}
 
 namespace hdeform {
 
@@ -19,15 +99,9 @@ struct Common {
   Common& operator=(const Common&) = delete;
 };
 
-// METIS 5.1 keeps its random generator in global state (GKlib's): one call at a time, so a
-// mesh gets the same order whichever other meshes are being ordered meanwhile (the
-// factorizations never call METIS: they are given these orders).
-std::mutex metis_mutex;
-
 std::vector<int> metis_order(cholmod_sparse* A, cholmod_common* c) {
   std::vector<int> order(A->nrow);
   if (order.empty()) return order;
-  std::lock_guard lock(metis_mutex);
   // postorder 0: each constraint set's analysis postorders its own elimination tree.
   if (!cholmod_metis(A, nullptr, 0, /*postorder=*/0, order.data(), c))
     throw std::runtime_error("METIS ordering failed (CHOLMOD status " + std::to_string(c->status) +

@@ -14,7 +14,8 @@ namespace hdeform {
 
 // METIS nested dissection (through CHOLMOD) of the symmetric pattern of A, n × n, read
 // from its lower triangle: order[k] = the vertex eliminated k-th. Deterministic, also with
-// concurrent calls (METIS runs one call at a time: its random generator is global). Serial.
+// concurrent calls, which run at once (each thread has its own METIS random stream:
+// vertex_ordering.cpp). Serial.
 std::vector<int> nested_dissection(const SparseMatrix& A);
 // The same for the union of the patterns of A and B (both n × n, symmetric).
 std::vector<int> nested_dissection(const SparseMatrix& A, const SparseMatrix& B);
