@@ -6,7 +6,6 @@
 #include <cstdint>
 #include <cstdlib>
 #include <mutex>
-
 #include <stdexcept>
 #include <string>
 
