@@ -11,7 +11,7 @@ set -euo pipefail
 build=(
   build-essential cmake pkg-config
   # engine
-  libeigen3-dev libsuitesparse-dev libopenblas0-pthread libblas-dev liblapack-dev
+  libeigen3-dev libsuitesparse-dev libmetis-dev libopenblas0-pthread libblas-dev liblapack-dev
   libtinygltf-dev libstb-dev
   # service and clients
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler libssl-dev

@@ -8,14 +8,21 @@
 
 #include "engine/operators/operators.h"
 
+#include <cstddef>
 #include <vector>
 
 namespace hdeform {
 
-// METIS nested dissection (through CHOLMOD) of the symmetric pattern of A, n × n, read
-// from its lower triangle: order[k] = the vertex eliminated k-th. Deterministic, also with
-// concurrent calls, which run at once (each thread has its own METIS random stream:
-// vertex_ordering.cpp). Serial.
+// From this many vertices on, nested_dissection splits the graph once (METIS's vertex
+// separator) and orders the two halves on two threads; below it, one METIS call (through
+// CHOLMOD) on the caller's thread.
+inline constexpr std::size_t kSplitOrderFrom = 20000;
+
+// METIS nested dissection of the symmetric pattern of A, n × n, read from its lower
+// triangle: order[k] = the vertex eliminated k-th. Deterministic, also with concurrent
+// calls, which run at once (each thread has its own METIS random stream:
+// vertex_ordering.cpp). Two threads from kSplitOrderFrom vertices on (the caller's and one
+// it starts and joins), else serial.
 std::vector<int> nested_dissection(const SparseMatrix& A);
 // The same for the union of the patterns of A and B (both n × n, symmetric).
 std::vector<int> nested_dissection(const SparseMatrix& A, const SparseMatrix& B);
