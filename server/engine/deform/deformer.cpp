@@ -452,9 +452,11 @@ std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_
   BuildTimings timings;
   if (raw_beta == 0.0) {
     // The Laplacian's own narrow pattern (SPEC: factoring β = 0 on the wide one is slower).
-    // The blocks and the ordering (METIS, serial; the mesh's first constraint set pays it)
-    // need nothing from each other: one core each. Once the mesh has its order, the blocks
-    // take both cores instead.
+    // The blocks and the ordering (METIS; the mesh's first constraint set pays it) need
+    // nothing from each other: one core each while METIS is serial. Once the mesh has its
+    // order, or when METIS takes both cores itself (kSplitOrderFrom), the blocks take both
+    // cores and the order follows (beside the two-thread order, the blocks took 100–165 ms
+    // instead of 10–16 at 100K: docs/benchmarks.md "Nested dissection on two threads").
     Blocks b;
     std::vector<int> perm;
     auto blocks = [&] {
@@ -465,7 +467,7 @@ std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_
       timings.blocks_ms = ms(t0);
     };
     auto order = [&] { perm = free_order(/*wide=*/false, timings); };
-    if (mesh_->has_order()) {
+    if (mesh_->has_order() || static_cast<std::size_t>(mesh_->n()) >= kSplitOrderFrom) {
       blocks();
       order();
     } else {
