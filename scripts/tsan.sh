@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # ThreadSanitizer pass over the concurrent suites: the service (sessions, strands, streams,
 # the worker pool), the security suite (cancellation, deletes racing calls, uploads), the
-# HTTP gateway and the two-thread factorization kernel (kernel_tests). clang++ (as scripts/sanitize.sh). Suppressions: tests/tsan.supp, each one justified
+# HTTP gateway, the two-thread factorization kernel and METIS calls at once (kernel_tests). clang++ (as scripts/sanitize.sh). Suppressions: tests/tsan.supp, each one justified
 # there (only uninstrumented Debian libraries).
 source "$(dirname "${BASH_SOURCE[0]}")/lib.sh"
 BUILD="${HDEFORM_TSAN_BUILD_DIR:-$ROOT/build-tsan}"
