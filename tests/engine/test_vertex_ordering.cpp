@@ -6,11 +6,16 @@
 #include "fixtures.h"
 #include "fixtures/procedural.h"
 
+#include <Eigen/CholmodSupport>
 #include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <csignal>
+#include <cstring>
 #include <numeric>
 #include <stdexcept>
 #include <utility>
@@ -96,6 +101,123 @@ TEST(VertexOrdering, SplitOrderKeepsMetisFill) {
   c.handles = {cc.cap};
   check_model("capsule 30K", *pm, c, 1.08);
   EXPECT_EQ(nested_dissection(pm->L(), pm->Reg()), pm->wide_order());
+}
+
+// An n-vertex grid graph's Laplacian pattern (rows of 100, the last row short).
+SparseMatrix grid(int n) {
+  std::vector<Eigen::Triplet<double>> t;
+  for (int v = 0; v < n; ++v) {
+    t.emplace_back(v, v, 4.0);
+    for (int w : {v % 100 ? v - 1 : -1, v - 100})
+      if (w >= 0) t.emplace_back(v, w, -1.0), t.emplace_back(w, v, -1.0);
+  }
+  SparseMatrix M(n, n);
+  M.setFromTriplets(t.begin(), t.end());
+  return M;
+}
+
+// METIS called once through CHOLMOD, as below kSplitOrderFrom.
+std::vector<int> one_metis_call(const SparseMatrix& A) {
+  cholmod_common c;
+  cholmod_start(&c);
+  cholmod_sparse a = Eigen::viewAsCholmod(A.selfadjointView<Eigen::Lower>());
+  std::vector<int> order(static_cast<std::size_t>(A.rows()));
+  const int ok = cholmod_metis(&a, nullptr, 0, 0, order.data(), &c);
+  cholmod_finish(&c);
+  EXPECT_TRUE(ok);
+  return order;
+}
+
+// The split starts at kSplitOrderFrom vertices exactly: one vertex fewer is METIS's one call;
+// from it on, a separator and two halves, each half drawing METIS's stream from its start, so
+// the order differs from the one call's.
+TEST(VertexOrdering, SplitOrderStartsAtItsThreshold) {
+  const int n = static_cast<int>(kSplitOrderFrom);
+  const SparseMatrix below = grid(n - 1), at = grid(n);
+  EXPECT_EQ(nested_dissection(below), one_metis_call(below));
+  const std::vector<int> split = nested_dissection(at);
+  EXPECT_TRUE(is_permutation_of_iota(split));
+  EXPECT_NE(split, one_metis_call(at));
+}
+
+}  // namespace
+}  // namespace hdeform
+
+// A malloc that fails the k-th call on a thread that asked for it, for the test below; the
+// sanitizers bring their own malloc, so it is left out of their builds.
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define HDEFORM_FAILING_MALLOC 0
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+#define HDEFORM_FAILING_MALLOC 0
+#endif
+#endif
+#ifndef HDEFORM_FAILING_MALLOC
+#define HDEFORM_FAILING_MALLOC 1
+namespace {
+thread_local long mallocs_until_failure = -1;  // −1: never
+}  // namespace
+extern "C" void* __libc_malloc(std::size_t size);
+extern "C" void* malloc(std::size_t size) {
+  if (mallocs_until_failure >= 0 && mallocs_until_failure-- == 0) return nullptr;
+  return __libc_malloc(size);
+}
+#endif
+
+namespace hdeform {
+namespace {
+
+// Memory running out anywhere in the split order is an exception, never the end of the
+// process: METIS_NodeND traps its allocation failures itself, and the separator call, which
+// Debian's METIS leaves untrapped, is trapped by vertex_ordering.cpp. A child process fails
+// the caller's k-th allocation for k = 0, 1, 2, … through the separator and past it, then
+// orders with nothing failing; the signal handlers end as they began.
+TEST(VertexOrdering, SplitOrderOutOfMemoryIsAnError) {
+#if !HDEFORM_FAILING_MALLOC
+  GTEST_SKIP() << "the sanitizers' malloc cannot be made to fail";
+#else
+  procedural::CapsuleCase cc = procedural::capsule_case(30000);
+  const auto pm = PreparedMesh::create(std::move(cc.mesh));
+  const SparseMatrix& L = pm->L();
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    const auto abort_handler = std::signal(SIGABRT, SIG_DFL);
+    std::signal(SIGABRT, abort_handler);
+    std::freopen("/dev/null", "w", stdout);  // METIS prints each failure and its memory
+    int in_separator = 0, elsewhere = 0;
+    bool past_it = false;  // a failure after the separator's
+    // Each k up to the separator's first allocation, then every 17th through it.
+    for (long k = 0; k < 5000 && !past_it; k += in_separator ? 17 : 1) {
+      mallocs_until_failure = k;
+      try {
+        nested_dissection(L);
+      } catch (const std::exception& e) {
+        if (std::strstr(e.what(), "vertex separator")) {
+          ++in_separator;
+        } else {
+          ++elsewhere;
+          past_it = in_separator > 0;
+        }
+      }
+      mallocs_until_failure = -1;
+    }
+    std::fprintf(stderr, "[ measured ] failed allocations: %d in the separator, %d elsewhere\n",
+                 in_separator, elsewhere);
+    const bool ordered = is_permutation_of_iota(nested_dissection(L));
+    const bool handlers = std::signal(SIGABRT, abort_handler) == abort_handler;
+    // More than one: the first is gk_malloc_init's own, before the trap is set.
+    ::_exit(in_separator < 2 ? 3 : !ordered ? 4 : !handlers ? 5 : 0);
+  }
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status)) << "a failed allocation ended the process (signal "
+                                 << (WIFSIGNALED(status) ? WTERMSIG(status) : 0) << ")";
+  EXPECT_NE(WEXITSTATUS(status), 3) << "no allocation failed inside the separator's trap";
+  EXPECT_NE(WEXITSTATUS(status), 4) << "no order after the failures";
+  EXPECT_NE(WEXITSTATUS(status), 5) << "the failures left GKlib's signal handler in place";
+  EXPECT_EQ(WEXITSTATUS(status), 0);
+#endif
 }
 
 // Graphs above kSplitOrderFrom that METIS's separator could trip on: no edge at all (the

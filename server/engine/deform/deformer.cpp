@@ -455,8 +455,8 @@ std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_
     // The blocks and the ordering (METIS; the mesh's first constraint set pays it) need
     // nothing from each other: one core each while METIS is serial. Once the mesh has its
     // order, or when METIS takes both cores itself (kSplitOrderFrom), the blocks take both
-    // cores and the order follows (beside the two-thread order, the blocks took 100–165 ms
-    // instead of 10–16 at 100K: docs/benchmarks.md "Nested dissection on two threads").
+    // cores and the order follows (beside the two-thread order, the blocks took 111–153 ms
+    // instead of 7 at 100K: docs/benchmarks.md "Nested dissection on two threads").
     Blocks b;
     std::vector<int> perm;
     auto blocks = [&] {

@@ -2,7 +2,9 @@
 
 #include <Eigen/CholmodSupport>
 #include <metis.h>
+#include <pthread.h>
 
+#include <csetjmp>
 #include <csignal>
 #include <cstdint>
 #include <cstdlib>
@@ -11,6 +13,7 @@
 #include <numeric>
 #include <stdexcept>
 #include <string>
+#include <system_error>
 
 // METIS 5.1 (Debian's build) draws its random numbers through GKlib's gk_randinit,
 // gk_randint32 and gk_randint64, which call libc's srand / rand: one stream for the whole
@@ -43,12 +46,19 @@ std::uint32_t next_random() {
 // place of gk_sigtrap / gk_siguntrap the same way: the first call in installs GKlib's handler,
 // the last one out restores what was there. Each thread keeps its own jump buffers, as in
 // GKlib. Checked by VertexOrdering.ConcurrentCallsLeaveTheSignalHandlersAlone.
-extern "C" {
-extern __thread int gk_cur_jbufs;  // libmetis: this thread's innermost jump buffer (−1: none)
-void gk_sigthrow(int signum);      // libmetis: longjmp to it
-}
 namespace {
 constexpr int kJumpBuffers = 128;  // GKlib's MAX_JBUFS (gk_jbufs: 128 jmp_buf of 200 bytes)
+}  // namespace
+extern "C" {
+extern __thread int gk_cur_jbufs;  // libmetis: this thread's innermost jump buffer (−1: none)
+extern __thread jmp_buf gk_jbufs[kJumpBuffers];  // libmetis: this thread's jump buffers
+void gk_sigthrow(int signum);      // libmetis: longjmp to it
+int gk_malloc_init();              // libmetis: track this thread's METIS allocations…
+void gk_malloc_cleanup(int showstats);  // …and free what a jump out left behind
+int gk_sigtrap();
+int gk_siguntrap();
+}
+namespace {
 std::mutex trap_mutex;
 int trapped = 0;  // METIS calls in progress, under trap_mutex
 sighandler_t saved_abort = SIG_DFL, saved_terminate = SIG_DFL;
@@ -110,6 +120,18 @@ void check_metis(int status, const char* what) {
                              std::to_string(status) + ")");
 }
 
+// GKlib jumps out of its SIGABRT handler with longjmp to a buffer set by setjmp, which does
+// not save the signal mask in glibc: after a trapped failure SIGABRT stays blocked on the
+// thread, and the next failure's raise() returns into METIS with a null pointer. Each METIS
+// call puts the thread's mask back (VertexOrdering.SplitOrderOutOfMemoryIsAnError).
+struct KeepSignalMask {
+  sigset_t mask;
+  KeepSignalMask() { pthread_sigmask(SIG_SETMASK, nullptr, &mask); }
+  ~KeepSignalMask() { pthread_sigmask(SIG_SETMASK, &mask, nullptr); }
+  KeepSignalMask(const KeepSignalMask&) = delete;
+  KeepSignalMask& operator=(const KeepSignalMask&) = delete;
+};
+
 // An adjacency graph in METIS's form: the neighbours of v are adjncy[xadj[v] .. xadj[v+1]).
 struct Graph {
   std::vector<idx_t> xadj{0}, adjncy;
@@ -144,10 +166,34 @@ std::vector<idx_t> node_nd(Graph& g) {
     std::iota(perm.begin(), perm.end(), 0);
     return perm;
   }
-  check_metis(METIS_NodeND(&n, g.xadj.data(), g.adjncy.data(), nullptr, nullptr, perm.data(),
-                           iperm.data()),
-              "nested dissection");
+  int status;
+  {
+    KeepSignalMask mask;
+    status = METIS_NodeND(&n, g.xadj.data(), g.adjncy.data(), nullptr, nullptr, perm.data(),
+                          iperm.data());
+  }
+  check_metis(status, "nested dissection");
   return perm;
+}
+
+// METIS_ComputeVertexSeparator as METIS_NodeND runs itself: Debian's 5.1.0 sets no trap
+// around it (NodeND does), so an allocation failure inside would abort the process, or jump
+// through another call's trap to a buffer this thread does not have. Same prologue as
+// NodeND's (ometis.c): track the allocations, trap, and on a jump back free and return
+// METIS_ERROR_MEMORY. Only trivially destructible objects here: the jump skips destructors.
+int trapped_vertex_separator(idx_t* n, idx_t* xadj, idx_t* adjncy, idx_t* separator,
+                             idx_t* part) {
+  if (!gk_malloc_init()) return METIS_ERROR_MEMORY;
+  if (!gk_sigtrap()) {
+    gk_malloc_cleanup(0);
+    return METIS_ERROR;
+  }
+  volatile int status = METIS_ERROR_MEMORY;  // read after a jump back
+  if (sigsetjmp(gk_jbufs[gk_cur_jbufs], /*savemask=*/1) == 0)  // glibc: jmp_buf is sigjmp_buf
+    status = METIS_ComputeVertexSeparator(n, xadj, adjncy, nullptr, nullptr, separator, part);
+  gk_siguntrap();
+  gk_malloc_cleanup(0);
+  return status;
 }
 
 std::vector<int> metis_order(cholmod_sparse* A, cholmod_common* c) {
@@ -155,6 +201,7 @@ std::vector<int> metis_order(cholmod_sparse* A, cholmod_common* c) {
   if (order.empty()) return order;
   if (order.size() < kSplitOrderFrom) {
     // postorder 0: each constraint set's analysis postorders its own elimination tree.
+    KeepSignalMask mask;
     if (!cholmod_metis(A, nullptr, 0, /*postorder=*/0, order.data(), c))
       throw std::runtime_error("METIS ordering failed (CHOLMOD status " +
                                std::to_string(c->status) + ")");
@@ -177,9 +224,8 @@ std::vector<int> metis_order(cholmod_sparse* A, cholmod_common* c) {
       return order;
     }
     idx_t n = static_cast<idx_t>(order.size()), separator = 0;
-    check_metis(METIS_ComputeVertexSeparator(&n, static_cast<idx_t*>(graph->p),
-                                             static_cast<idx_t*>(graph->i), nullptr, nullptr,
-                                             &separator, part.data()),
+    check_metis(trapped_vertex_separator(&n, static_cast<idx_t*>(graph->p),
+                                         static_cast<idx_t*>(graph->i), &separator, part.data()),
                 "vertex separator");
     for (idx_t side : {0, 1}) half[side] = induced(xadj, adjncy, part, side, ids[side]);
     cholmod_free_sparse(&graph, c);
@@ -187,15 +233,20 @@ std::vector<int> metis_order(cholmod_sparse* A, cholmod_common* c) {
     cholmod_free_sparse(&graph, c);
     throw;
   }
-  auto second = std::async(std::launch::async, [&] { return node_nd(half[1]); });
+  std::future<std::vector<idx_t>> second;
+  try {
+    second = std::async(std::launch::async, [&] { return node_nd(half[1]); });
+  } catch (const std::system_error&) {  // no thread to be had: both halves here, in turn
+  }
   std::vector<idx_t> first;
   try {
     first = node_nd(half[0]);
   } catch (...) {
-    second.wait();
+    if (second.valid()) second.wait();
     throw;
   }
-  const std::vector<idx_t> perm[2] = {std::move(first), second.get()};
+  const std::vector<idx_t> perm[2] = {std::move(first),
+                                      second.valid() ? second.get() : node_nd(half[1])};
   std::size_t k = 0;
   for (int side : {0, 1})
     for (idx_t i : perm[side]) order[k++] = ids[side][static_cast<std::size_t>(i)];
