@@ -5,6 +5,7 @@
 #include "engine/solve/vertex_ordering.h"
 #include "fixtures.h"
 #include "fixtures/procedural.h"
+#include "fixtures/sanitizers.h"
 
 #include <Eigen/CholmodSupport>
 #include <gtest/gtest.h>
@@ -103,17 +104,23 @@ TEST(VertexOrdering, SplitOrderKeepsMetisFill) {
   EXPECT_EQ(nested_dissection(pm->L(), pm->Reg()), pm->wide_order());
 }
 
-// An n-vertex grid graph's Laplacian pattern (rows of 100, the last row short).
-SparseMatrix grid(int n) {
+// A symmetric n × n matrix with the given edges (i, j) off the diagonal, each once.
+SparseMatrix pattern(int n, const std::vector<std::pair<int, int>>& edges) {
   std::vector<Eigen::Triplet<double>> t;
-  for (int v = 0; v < n; ++v) {
-    t.emplace_back(v, v, 4.0);
-    for (int w : {v % 100 ? v - 1 : -1, v - 100})
-      if (w >= 0) t.emplace_back(v, w, -1.0), t.emplace_back(w, v, -1.0);
-  }
+  for (int i = 0; i < n; ++i) t.emplace_back(i, i, 4.0);
+  for (auto [i, j] : edges) t.emplace_back(i, j, -1.0), t.emplace_back(j, i, -1.0);
   SparseMatrix M(n, n);
   M.setFromTriplets(t.begin(), t.end());
   return M;
+}
+
+// An n-vertex grid graph's pattern (rows of 100, the last row short).
+SparseMatrix grid(int n) {
+  std::vector<std::pair<int, int>> edges;
+  for (int v = 0; v < n; ++v)
+    for (int w : {v % 100 ? v - 1 : -1, v - 100})
+      if (w >= 0) edges.emplace_back(v, w);
+  return pattern(n, edges);
 }
 
 // METIS called once through CHOLMOD, as below kSplitOrderFrom.
@@ -145,15 +152,7 @@ TEST(VertexOrdering, SplitOrderStartsAtItsThreshold) {
 
 // A malloc that fails the k-th call on a thread that asked for it, for the test below; the
 // sanitizers bring their own malloc, so it is left out of their builds.
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-#define HDEFORM_FAILING_MALLOC 0
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
-#define HDEFORM_FAILING_MALLOC 0
-#endif
-#endif
-#ifndef HDEFORM_FAILING_MALLOC
-#define HDEFORM_FAILING_MALLOC 1
+#if !HDEFORM_SANITIZED
 namespace {
 thread_local long mallocs_until_failure = -1;  // −1: never
 }  // namespace
@@ -173,7 +172,7 @@ namespace {
 // the caller's k-th allocation for k = 0, 1, 2, … through the separator and past it, then
 // orders with nothing failing; the signal handlers end as they began.
 TEST(VertexOrdering, SplitOrderOutOfMemoryIsAnError) {
-#if !HDEFORM_FAILING_MALLOC
+#if HDEFORM_SANITIZED
   GTEST_SKIP() << "the sanitizers' malloc cannot be made to fail";
 #else
   procedural::CapsuleCase cc = procedural::capsule_case(30000);
@@ -224,18 +223,14 @@ TEST(VertexOrdering, SplitOrderOutOfMemoryIsAnError) {
 // identity, as below it), and many small components (every vertex once).
 TEST(VertexOrdering, SplitOrderTakesEdgelessAndScatteredGraphs) {
   const int n = static_cast<int>(kSplitOrderFrom) + 3000;
-  SparseMatrix I(n, n);
-  I.setIdentity();
+  const SparseMatrix I = pattern(n, {});
   std::vector<int> identity(static_cast<std::size_t>(n));
   std::iota(identity.begin(), identity.end(), 0);
   EXPECT_EQ(nested_dissection(I), identity);
-  std::vector<Eigen::Triplet<double>> t;
-  for (int v = 0; v < n; ++v) t.emplace_back(v, v, 4.0);
+  std::vector<std::pair<int, int>> edges;
   for (int v = 0; v + 2 < n; v += 3)  // disjoint triangles
-    for (auto [i, j] : {std::pair{v + 1, v}, {v + 2, v}, {v + 2, v + 1}})
-      t.emplace_back(i, j, -1.0), t.emplace_back(j, i, -1.0);
-  SparseMatrix T(n, n);
-  T.setFromTriplets(t.begin(), t.end());
+    for (auto e : {std::pair{v + 1, v}, {v + 2, v}, {v + 2, v + 1}}) edges.push_back(e);
+  const SparseMatrix T = pattern(n, edges);
   const std::vector<int> order = nested_dissection(T);
   EXPECT_TRUE(is_permutation_of_iota(order));
   EXPECT_EQ(nested_dissection(T), order);
@@ -256,22 +251,14 @@ TEST(VertexOrdering, MetisDrawsFromItsOwnStream) {
 // The graph is the union of the patterns' strictly lower parts: a diagonal adds no edge, an
 // edge both parts hold is one, and vertices without edges are still ordered.
 TEST(VertexOrdering, GraphIsTheUnionOfTheLowerPatterns) {
-  auto matrix = [](int n, std::vector<std::pair<int, int>> lower) {
-    std::vector<Eigen::Triplet<double>> t;
-    for (int i = 0; i < n; ++i) t.emplace_back(i, i, 4.0);
-    for (auto [i, j] : lower) t.emplace_back(i, j, -1.0), t.emplace_back(j, i, -1.0);
-    SparseMatrix M(n, n);
-    M.setFromTriplets(t.begin(), t.end());
-    return M;
-  };
-  const SparseMatrix diagonal = matrix(5, {});
+  const SparseMatrix diagonal = pattern(5, {});
   EXPECT_EQ(nested_dissection(diagonal), (std::vector<int>{0, 1, 2, 3, 4}));
   // A path 0–1–2–3–4 and vertex 5 alone, split over two parts that share the edge 1–2.
-  const SparseMatrix A = matrix(6, {{1, 0}, {2, 1}}), B = matrix(6, {{2, 1}, {3, 2}, {4, 3}});
+  const SparseMatrix A = pattern(6, {{1, 0}, {2, 1}}), B = pattern(6, {{2, 1}, {3, 2}, {4, 3}});
   const std::vector<int> order = nested_dissection(A, B);
   EXPECT_TRUE(is_permutation_of_iota(order));
-  EXPECT_EQ(order, nested_dissection(matrix(6, {{1, 0}, {2, 1}, {3, 2}, {4, 3}})));
-  EXPECT_THROW(nested_dissection(A, matrix(5, {})), std::logic_error);
+  EXPECT_EQ(order, nested_dissection(pattern(6, {{1, 0}, {2, 1}, {3, 2}, {4, 3}})));
+  EXPECT_THROW(nested_dissection(A, pattern(5, {})), std::logic_error);
 }
 
 // Two constraint sets on one mesh: the first computes the mesh's orderings (β = 0 at open,

@@ -2,6 +2,7 @@
 // server on loopback: a β slider's values leave the process's RSS within the budget plus a
 // constant, a β revisited after its eviction gives the same frame bits, and a deleted
 // session gives its memory back.
+#include "fixtures/sanitizers.h"
 #include "service_fixture.h"
 
 #include <unistd.h>
@@ -33,17 +34,7 @@ std::string positions_at(TestServer& t, const std::string& name, std::int64_t se
   return f.positions();
 }
 
-#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
-constexpr bool kMeasureRss = false;  // the sanitizers' allocators keep freed memory
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
-constexpr bool kMeasureRss = false;
-#else
-constexpr bool kMeasureRss = true;
-#endif
-#else
-constexpr bool kMeasureRss = true;
-#endif
+constexpr bool kMeasureRss = !HDEFORM_SANITIZED;  // the sanitizers' allocators keep freed memory
 
 TEST(ServiceMemoryBudget, SixtyDistinctBetasStayWithinTheCacheBudget) {
   hdeform::service::ServerOptions o;
