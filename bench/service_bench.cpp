@@ -151,9 +151,11 @@ struct Loopback {
   std::shared_ptr<grpc::Channel> channel;
   std::unique_ptr<pb::Deformation::Stub> stub;
 
-  explicit Loopback(const std::string& state_dir = g_state_dir) {
+  explicit Loopback(const std::string& state_dir = g_state_dir,
+                    std::size_t background_order_from = service::ServerOptions{}.background_order_from) {
     service::ServerOptions o;  // defaults of hdeform-server: 2 workers, 4 GiB cache
     o.listen_address = "127.0.0.1:0";
+    o.background_order_from = background_order_from;
     o.admin_token = kBenchToken;
     o.state_dir = state_dir;
     server = std::make_unique<service::Server>(o);
@@ -618,7 +620,76 @@ void BM_Restore(benchmark::State& state, int n) {
   state.counters["cold_over_kept"] = k > 0 ? c / k : 0;
 }
 
+// A session's first SetConstraints and first β > 0, with and without the background
+// orders (background_orders.h): upload a capsule, let the user "think" until the background
+// orders are done (with them off: as long as that took with them on, so both start from
+// idle cores), then time SetConstraints and SetBeta(0.5). A fresh server per iteration,
+// the two alternating.
+void BM_OrdersAfterOpen(benchmark::State& state, int n) {
+  const procedural::CapsuleCase capsule = procedural::capsule_case(n);
+  const std::string ply = ply_bytes(capsule.mesh);
+  std::vector<double> constrain_on, constrain_off, beta_on, beta_off, waited;
+  bool background = true;
+  double last_wait_ms = 0;
+  for (auto _ : state) {
+    Loopback lb("", background ? 1 : 0);
+    pb::Session s;
+    auto status = upload(*lb.stub, "capsule.ply", ply, &s);
+    if (!status.ok()) {
+      state.SkipWithError(status.error_message().c_str());
+      break;
+    }
+    const auto t_wait = Clock::now();
+    if (background) {
+      for (;;) {
+        const auto b = lb.server->background_orders();
+        if (b.computed + b.failed + b.no_room + b.superseded >= 2 && !b.busy && b.queued == 0)
+          break;
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      }
+      last_wait_ms = ms_since(t_wait);
+      waited.push_back(last_wait_ms);
+    } else {
+      std::this_thread::sleep_for(std::chrono::duration<double, std::milli>(last_wait_ms));
+    }
+    auto t0 = Clock::now();
+    status = constrain(*lb.stub, s.name(), capsule);
+    (background ? constrain_on : constrain_off).push_back(ms_since(t0));
+    grpc::ClientContext ctx;
+    authorize(ctx);
+    pb::SetBetaRequest req;
+    req.set_name(s.name());
+    req.mutable_beta()->set_value(0.5);
+    pb::Session out;
+    t0 = Clock::now();
+    if (status.ok()) status = lb.stub->SetBeta(&ctx, req, &out);
+    (background ? beta_on : beta_off).push_back(ms_since(t0));
+    if (!status.ok()) {
+      state.SkipWithError(status.error_message().c_str());
+      break;
+    }
+    background = !background;
+  }
+  auto report = [&](const char* name, const std::vector<double>& on,
+                    const std::vector<double>& off) {
+    const double a = percentile(on, 0.5), b = percentile(off, 0.5);
+    state.counters[std::string(name) + "_ms"] = b;            // the call computes its order
+    state.counters[std::string(name) + "_ordered_ms"] = a;    // the background computed it
+    state.counters[std::string(name) + "_ratio"] = b > 0 ? a / b : 0;
+  };
+  state.counters["vertices"] = n;
+  report("constrain", constrain_on, constrain_off);
+  report("beta_first", beta_on, beta_off);
+  state.counters["background_ms"] = percentile(waited, 0.5);  // upload → both orders adopted
+}
+
 void register_all() {
+  for (int n : g_smoke ? std::vector<int>{10000} : std::vector<int>{100000, 1000000})
+    benchmark::RegisterBenchmark(("OrdersAfterOpen/" + std::to_string(n)).c_str(),
+                                 BM_OrdersAfterOpen, n)
+        ->Iterations(g_smoke ? 2 : (n >= 1000000 ? 4 : 6))
+        ->Unit(benchmark::kMillisecond)
+        ->UseRealTime();
   for (int n : g_smoke ? std::vector<int>{10000} : std::vector<int>{100000, 1000000})
     benchmark::RegisterBenchmark(("Restore/" + std::to_string(n)).c_str(), BM_Restore, n)
         ->Iterations(g_smoke ? 2 : 6)

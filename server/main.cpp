@@ -107,6 +107,12 @@ int main(int argc, char** argv) {
   app.add_option("--cache-mb", cache_mb, "prepared meshes + factorizations cache budget (MiB)")
       ->envname("HDEFORM_CACHE_MB")
       ->capture_default_str();
+  std::size_t background_order_from = 20000;
+  app.add_option("--background-order-from", background_order_from,
+                 "compute a new mesh's beta > 0 ordering in the background, on idle cores, "
+                 "from this many vertices on, so its first beta > 0 skips METIS (0 = never)")
+      ->envname("HDEFORM_BACKGROUND_ORDER_FROM")
+      ->capture_default_str();
   app.add_option("--session-ttl", session_ttl, "idle session lifetime (seconds)")
       ->envname("HDEFORM_SESSION_TTL")
       ->check(CLI::PositiveNumber)
@@ -359,6 +365,7 @@ int main(int argc, char** argv) {
   options.max_upload_bytes = max_upload_mb << 20;
   options.cache_bytes = cache_mb << 20;
   options.session_ttl = std::chrono::seconds(session_ttl);
+  options.background_order_from = background_order_from;
   options.request = request;
   options.max_upload_inflight_bytes = max_upload_inflight_mb << 20;
   options.grpc_memory_bytes = grpc_memory_mb << 20;

@@ -78,6 +78,17 @@ void FactorBudget::charge(std::weak_ptr<const Owner> owner, std::weak_ptr<const 
   if (after_eviction_) after_eviction_();
 }
 
+bool FactorBudget::charge_if_room(std::weak_ptr<const Item> item, std::size_t bytes) {
+  const std::size_t other = other_bytes_ ? other_bytes_() : 0;  // before the lock, as above
+  std::lock_guard lock(mutex_);
+  prune_locked();
+  std::size_t total = other;
+  for (const Entry& e : entries_) total += e.bytes;
+  if (total > limit_ || bytes > limit_ - total) return false;
+  entries_.push_back({{}, std::move(item), bytes, /*pinned=*/true});
+  return true;
+}
+
 FactorBudget::Stats FactorBudget::stats() const {
   std::lock_guard lock(mutex_);
   prune_locked();

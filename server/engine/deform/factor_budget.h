@@ -48,6 +48,10 @@ class FactorBudget {
   // An item stops being charged when it is destroyed (the budget holds weak references).
   void charge(std::weak_ptr<const Owner> owner, std::weak_ptr<const Item> item,
               std::size_t bytes, bool pinned);
+  // Charges item's bytes, pinned, only if the bound then still holds; evicts nothing. For
+  // work that can wait or be skipped (a background order): it never costs a cached system.
+  // False: nothing was charged.
+  bool charge_if_room(std::weak_ptr<const Item> item, std::size_t bytes);
 
   struct Stats {
     std::size_t limit = 0, charged = 0, pinned = 0, items = 0;

@@ -19,6 +19,7 @@ Limits limits_from(const ServerOptions& o) {
   l.max_upload_bytes = o.max_upload_bytes;
   l.session_ttl = std::chrono::duration_cast<std::chrono::milliseconds>(o.session_ttl);
   l.request = o.request;
+  l.background_order_from = o.background_order_from;
   return l;
 }
 

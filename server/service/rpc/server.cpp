@@ -107,6 +107,10 @@ Server::MemoryStats Server::memory_stats() const {
   return {c.budget, c.bytes, f.charged, f.pinned, f.evictions};
 }
 
+BackgroundOrders::Stats Server::background_orders() const {
+  return impl_->service->sessions().background_orders();
+}
+
 std::size_t Server::restores_off_pool() const {
   return impl_->service->sessions().restores_off_pool();
 }

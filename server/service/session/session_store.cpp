@@ -15,7 +15,10 @@
 namespace hdeform::service {
 
 SessionStore::SessionStore(const Limits& limits, WorkerPool& pool, Cache& cache)
-    : limits_(limits), pool_(pool), cache_(cache) {}
+    : limits_(limits),
+      pool_(pool),
+      cache_(cache),
+      background_({.from_vertices = limits.background_order_from}, cache.factor_budget()) {}
 
 SessionStore::~SessionStore() { shutdown(); }
 
@@ -132,6 +135,7 @@ std::shared_ptr<Session> SessionStore::create(std::shared_ptr<const MeshRef> mes
   }
   spdlog::info("{}: created on mesh {} ({}, {} vertices)", s->name(), s->mesh_name(),
                s->mesh().hash, s->mesh().layout->vertex_count());
+  background_.enqueue(s->mesh_ref());
   return s;
 }
 
@@ -345,6 +349,7 @@ std::shared_ptr<Session> SessionStore::restore(const std::string& id) const {
                " sessions in memory): sessions/" + id + " cannot be restored now");
     sessions_.emplace(id, s);
   }
+  background_.enqueue(s->mesh_ref());
   spdlog::info("{}: restored from {} at version {} ({:.0f} ms)", s->name(),
                persistence_.backend->describe(), record.version(),
                std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
@@ -474,6 +479,7 @@ void SessionStore::end_streams() {
 }
 
 void SessionStore::shutdown() {
+  background_.stop();
   {
     std::lock_guard lock(sweeper_mutex_);
     stopping_ = true;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "service/infra/request_limits.h"
+#include "service/session/background_orders.h"
 #include "service/session/session.h"
 #include "service/session/ordering_store.h"
 #include "service/state/state_backend.h"
@@ -28,6 +29,9 @@ struct Limits {
   std::size_t max_upload_bytes = 256u << 20;
   std::chrono::milliseconds session_ttl{std::chrono::hours(1)};
   RequestLimits request;
+  // A new mesh's β > 0 order, computed in the background from this many vertices on
+  // (background_orders.h; --background-order-from); 0 = never.
+  std::size_t background_order_from = 20000;
 };
 
 // Durable state for a SessionStore.
@@ -57,6 +61,7 @@ class SessionStore {
   ~SessionStore();
 
   const Limits& limits() const { return limits_; }
+  BackgroundOrders::Stats background_orders() const { return background_.stats(); }
   // RESOURCE_EXHAUSTED when no session can be added.
   void check_capacity() const;
   // `id` (the {id} of sessions/{id}): empty → the server picks one; else it must be
@@ -161,6 +166,8 @@ class SessionStore {
   Limits limits_;
   WorkerPool& pool_;
   Cache& cache_;
+  // Stopped first at shutdown; mutable: a restore (in find) queues its mesh.
+  mutable BackgroundOrders background_;
   mutable std::mutex mutex_;
   // by id; mutable: find() publishes sessions it restores
   mutable std::map<std::string, std::shared_ptr<Session>> sessions_;

@@ -1,0 +1,285 @@
+// BackgroundOrders (server/service/session/background_orders.h): a new mesh's β = 0 and
+// β > 0 orders computed on an idle thread and adopted by the mesh, within its bounds (size
+// threshold, queue, budget), and dropped when nobody needs them; and a real server that
+// keeps both in its state before any SetConstraints or β > 0 change.
+#include "service_fixture.h"
+
+#include "engine/deform/factor_budget.h"
+#include "engine/io/mesh_io.h"
+#include "engine/solve/vertex_ordering.h"
+#include "fixtures/procedural.h"
+#include "service/infra/cache.h"
+#include "service/session/background_orders.h"
+#include "stored_session.pb.h"
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <sstream>
+#include <sched.h>
+#include <thread>
+
+using namespace hdeform;
+using namespace hdeform::service;
+using hdeform::testing::TempDir;
+namespace pb = hdeform::v1;
+
+namespace {
+
+std::shared_ptr<const MeshRef> ref_of(TriMesh mesh) {
+  auto r = std::make_shared<MeshRef>();
+  r->hash = mesh_hash(mesh);
+  r->prepared = PreparedMesh::create(std::move(mesh));
+  return r;
+}
+
+std::shared_ptr<const MeshRef> cactus() {
+  return ref_of(read_mesh(std::string(HDEFORM_TEST_DATA) + "/botsch-sorkine/cactus.off").mesh);
+}
+
+// Big enough that its order takes a while (≈ 0.1–0.3 s): the worker is busy meanwhile.
+std::shared_ptr<const MeshRef> capsule() {
+  return ref_of(procedural::capsule_case(40000).mesh);
+}
+
+std::shared_ptr<FactorBudget> roomy() { return std::make_shared<FactorBudget>(1ull << 40); }
+
+// Waits up to a minute for `done` (the worker runs at SCHED_IDLE: slow on a busy host).
+bool eventually(const std::function<bool()>& done) {
+  const auto until = std::chrono::steady_clock::now() + std::chrono::minutes(1);
+  while (!done()) {
+    if (std::chrono::steady_clock::now() > until) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return true;
+}
+
+// At the default CPU priority: a test must not wait for idle cores (ctest runs two
+// suites at once); the lowest priority has its own test.
+BackgroundOrders::Options from(std::size_t vertices, std::size_t max_queued = 16) {
+  return {.from_vertices = vertices, .max_queued = max_queued, .lowest_priority = false};
+}
+
+// The file's bytes; empty when it is not there (yet).
+std::string bytes_of(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  std::ostringstream out;
+  if (in) out << in.rdbuf();
+  return out.str();
+}
+
+}  // namespace
+
+TEST(BackgroundOrders, AQueuedMeshGetsTheOrdersItsFirstCallsWouldCompute) {
+  BackgroundOrders orders(from(1), roomy());
+  const auto mesh = cactus();
+  orders.enqueue(mesh);
+  ASSERT_TRUE(eventually([&] { return orders.stats().computed == 2; }));
+  const PreparedMesh& pm = *mesh->prepared;
+  ASSERT_TRUE(pm.has_order());
+  ASSERT_TRUE(pm.has_wide_order());
+  double ms = -1;
+  EXPECT_EQ(pm.order(&ms), nested_dissection(pm.L()));
+  EXPECT_EQ(ms, 0) << "SetConstraints takes it without a METIS call";
+  ms = -1;
+  EXPECT_EQ(pm.wide_order(&ms), nested_dissection(pm.L(), pm.Reg()));
+  EXPECT_EQ(ms, 0) << "a β > 0 takes it without a METIS call";
+  const auto s = orders.stats();
+  EXPECT_EQ(s.superseded + s.closed + s.no_room + s.queue_full + s.failed, 0u);
+}
+
+TEST(BackgroundOrders, TheWorkerRunsAtTheLowestPriority) {
+  BackgroundOrders::Options options = from(1);
+  options.lowest_priority = true;
+  BackgroundOrders orders(options, roomy());
+  const auto mesh = cactus();
+  orders.enqueue(mesh);
+  ASSERT_TRUE(eventually([&] { return orders.stats().computed == 2; }));
+  EXPECT_TRUE(orders.stats().idle_priority) << "SCHED_IDLE needs no privilege on Linux";
+  EXPECT_EQ(sched_getscheduler(0), SCHED_OTHER) << "the caller's own policy is untouched";
+}
+
+TEST(BackgroundOrders, SmallMeshesOrderedMeshesAndAZeroThresholdAreNotQueued) {
+  const auto mesh = cactus();
+  const auto n = static_cast<std::size_t>(mesh->prepared->n());
+  {
+    BackgroundOrders orders(from(n + 1), roomy());
+    orders.enqueue(mesh);
+    EXPECT_EQ(orders.stats().queued, 0u);
+  }
+  {
+    BackgroundOrders orders(from(0), roomy());
+    orders.enqueue(mesh);
+    EXPECT_EQ(orders.stats().queued, 0u);
+  }
+  EXPECT_FALSE(mesh->prepared->has_order());
+  EXPECT_FALSE(mesh->prepared->has_wide_order());
+  mesh->prepared->order();       // a SetConstraints came first
+  mesh->prepared->wide_order();  // and a β > 0
+  BackgroundOrders orders(from(n), roomy());
+  orders.enqueue(mesh);
+  orders.enqueue(nullptr);
+  EXPECT_EQ(orders.stats().queued, 0u);
+  orders.stop();
+  EXPECT_EQ(orders.stats().computed, 0u);
+}
+
+TEST(BackgroundOrders, AMeshEveryoneLetGoOfIsNotOrderedAndOneMeshIsQueuedOnce) {
+  BackgroundOrders orders(from(1), roomy());
+  const auto busy = capsule();
+  orders.enqueue(busy);
+  ASSERT_TRUE(eventually([&] { return orders.stats().busy; }));
+  auto closed = cactus();
+  const auto kept = cactus();
+  const PreparedMesh* closed_mesh = closed->prepared.get();
+  const auto closed_prepared = closed->prepared;  // the mesh outlives its last session here
+  orders.enqueue(closed);
+  orders.enqueue(kept);
+  orders.enqueue(kept);  // a second session on the same mesh
+  EXPECT_EQ(orders.stats().queued, 2u);
+  closed.reset();
+  ASSERT_TRUE(eventually([&] { return orders.stats().computed == 4; }));
+  const auto s = orders.stats();
+  EXPECT_EQ(s.closed, 1u);
+  EXPECT_EQ(s.queued, 0u);
+  EXPECT_FALSE(closed_mesh->has_order());
+  EXPECT_FALSE(closed_mesh->has_wide_order());
+  EXPECT_TRUE(kept->prepared->has_wide_order());
+  EXPECT_TRUE(busy->prepared->has_wide_order());
+}
+
+TEST(BackgroundOrders, AFullQueueDropsItsOldest) {
+  BackgroundOrders orders(from(1, /*max_queued=*/2), roomy());
+  std::vector<std::shared_ptr<const MeshRef>> meshes;
+  for (int i = 0; i < 4; ++i) meshes.push_back(cactus());
+  const auto busy = capsule();
+  orders.enqueue(busy);
+  ASSERT_TRUE(eventually([&] { return orders.stats().busy; }));
+  for (const auto& m : meshes) orders.enqueue(m);
+  EXPECT_EQ(orders.stats().queue_full, 2u);
+  EXPECT_EQ(orders.stats().queued, 2u);
+  ASSERT_TRUE(eventually([&] { return orders.stats().computed == 6; }));
+  EXPECT_FALSE(meshes[0]->prepared->has_wide_order());
+  EXPECT_FALSE(meshes[1]->prepared->has_wide_order());
+  EXPECT_TRUE(meshes[2]->prepared->has_wide_order());
+  EXPECT_TRUE(meshes[3]->prepared->has_wide_order());
+}
+
+TEST(BackgroundOrders, ABetaThatComesFirstSupersedesIt) {
+  BackgroundOrders orders(from(1), roomy());
+  const auto busy = capsule();
+  orders.enqueue(busy);
+  ASSERT_TRUE(eventually([&] { return orders.stats().busy; }));
+  const auto mesh = cactus();
+  orders.enqueue(mesh);
+  const std::vector<int> own = mesh->prepared->wide_order();  // the β > 0 change's METIS
+  ASSERT_TRUE(eventually([&] {
+    const auto s = orders.stats();
+    return s.computed == 3 && s.superseded == 1;  // the capsule's two, the cactus's β = 0
+  }));
+  EXPECT_EQ(mesh->prepared->wide_order(), own);
+}
+
+TEST(BackgroundOrders, NoRoomInTheBudgetSkipsTheOrderAndEvictsNothing) {
+  struct Cached : FactorBudget::Item {};
+  struct Owner : FactorBudget::Owner {
+    mutable int evicted = 0;
+    void evict(const FactorBudget::Item&) const override { ++evicted; }
+  };
+  const auto mesh = cactus();
+  const std::size_t need = BackgroundOrders::working_bytes(mesh->prepared->n());
+  ASSERT_GT(need, 0u);
+  // A cached system leaves one byte too few for the order's working memory.
+  const std::size_t cached_bytes = 1000;
+  auto budget = std::make_shared<FactorBudget>(cached_bytes + need - 1);
+  const auto owner = std::make_shared<const Owner>();
+  const auto cached = std::make_shared<const Cached>();
+  budget->charge(owner, cached, cached_bytes, /*pinned=*/false);
+  {
+    BackgroundOrders orders(from(1), budget);
+    orders.enqueue(mesh);
+    ASSERT_TRUE(eventually([&] { return orders.stats().no_room == 1; }));
+  }
+  EXPECT_FALSE(mesh->prepared->has_order());
+  EXPECT_FALSE(mesh->prepared->has_wide_order());
+  EXPECT_EQ(owner->evicted, 0);
+  EXPECT_EQ(budget->stats().evictions, 0u);
+  EXPECT_EQ(budget->stats().charged, cached_bytes) << "nothing left charged";
+
+  // With the byte back it runs, charged while it runs, and releases its charge after.
+  auto enough = std::make_shared<FactorBudget>(cached_bytes + need);
+  enough->charge(owner, cached, cached_bytes, /*pinned=*/false);
+  BackgroundOrders orders(from(1), enough);
+  orders.enqueue(mesh);
+  ASSERT_TRUE(eventually([&] { return orders.stats().computed == 2; }));
+  EXPECT_EQ(enough->stats().charged, cached_bytes);
+  EXPECT_EQ(owner->evicted, 0);
+}
+
+TEST(BackgroundOrders, StopDropsTheQueueAndWaitsForTheOrderInProgressOnly) {
+  const auto busy = capsule();
+  const auto queued = cactus();
+  BackgroundOrders orders(from(1), roomy());
+  orders.enqueue(busy);
+  ASSERT_TRUE(eventually([&] { return orders.stats().busy; }));
+  orders.enqueue(queued);
+  orders.stop();
+  const auto s = orders.stats();
+  EXPECT_FALSE(s.busy);
+  EXPECT_EQ(s.queued, 0u);
+  // The order in progress ends (β = 0, or β > 0 if the stop came after it), no other.
+  EXPECT_EQ(s.computed, busy->prepared->has_wide_order() ? 2u : 1u);
+  EXPECT_TRUE(busy->prepared->has_order());
+  EXPECT_FALSE(queued->prepared->has_order());
+  EXPECT_FALSE(queued->prepared->has_wide_order());
+  orders.enqueue(queued);  // after stop: ignored
+  EXPECT_EQ(orders.stats().queued, 0u);
+}
+
+// End to end: a server with a state folder keeps a new session's orders in its state
+// (DIR/derived/HASH.order) although no client set constraints or β > 0, so a restart,
+// another replica or a later session on the mesh skips those METIS calls.
+TEST(BackgroundOrders, AServerStoresANewMeshsOrdersBeforeAnyChange) {
+  TempDir dir;
+  ServerOptions options;
+  options.state_dir = (dir.path / "state").string();
+  options.background_order_from = 1;
+  hdeform::testing::TestServer t(options);
+  pb::Session created;
+  ASSERT_TRUE(t.create_library("cactus", &created).ok());
+  const auto file = dir.path / "state" / "derived" / (created.mesh_hash() + ".order");
+  state::StoredOrderings stored;
+  ASSERT_TRUE(eventually([&] {
+    return stored.ParseFromString(bytes_of(file)) &&
+           stored.wide_order_size() > 0;
+  })) << "no β > 0 order in " << file;
+  ASSERT_GT(stored.order_size(), 0) << "the β = 0 order is computed first";
+  const auto mesh = cactus();
+  ASSERT_EQ(mesh->hash, created.mesh_hash()) << "the library's cactus is the file's";
+  const PreparedMesh& pm = *mesh->prepared;
+  EXPECT_EQ(stored.vertices(), pm.n());
+  EXPECT_EQ(std::vector<int>(stored.order().begin(), stored.order().end()),
+            nested_dissection(pm.L()));
+  EXPECT_EQ(std::vector<int>(stored.wide_order().begin(), stored.wide_order().end()),
+            nested_dissection(pm.L(), pm.Reg()));
+}
+
+TEST(BackgroundOrders, AServerWithTheThresholdAtZeroOrdersNothingInTheBackground) {
+  TempDir dir;
+  ServerOptions options;
+  options.state_dir = (dir.path / "state").string();
+  options.background_order_from = 0;
+  pb::Session created;
+  {
+    hdeform::testing::TestServer t(options);
+    ASSERT_TRUE(t.create_library("cactus", &created).ok());
+  }  // a clean stop flushes what was computed
+  const auto file = dir.path / "state" / "derived" / (created.mesh_hash() + ".order");
+  state::StoredOrderings stored;
+  if (std::filesystem::exists(file)) {
+    ASSERT_TRUE(stored.ParseFromString(bytes_of(file)));
+  }
+  EXPECT_EQ(stored.order_size(), 0);
+  EXPECT_EQ(stored.wide_order_size(), 0);
+}
