@@ -148,4 +148,32 @@ TEST(FactorBudget, ChargeToNeedsASharedSet) {
 }
 
 }  // namespace
+// Work that may wait (a background order) is charged only where it fits, evicts nothing,
+// counts against later charges while it lives and stops counting when it is gone.
+TEST(FactorBudget, ChargeIfRoomNeverEvicts) {
+  struct Item : FactorBudget::Item {};
+  struct Owner : FactorBudget::Owner {
+    mutable int evicted = 0;
+    void evict(const FactorBudget::Item&) const override { ++evicted; }
+  };
+  std::size_t other = 10;
+  auto budget = std::make_shared<FactorBudget>(100, [&] { return other; });
+  const auto owner = std::make_shared<const Owner>();
+  const auto cached = std::make_shared<const Item>();
+  budget->charge(owner, cached, 50, /*pinned=*/false);
+  auto working = std::make_shared<const Item>();
+  EXPECT_FALSE(budget->charge_if_room(working, 41)) << "10 + 50 + 41 > 100";
+  EXPECT_EQ(budget->stats().charged, 50u);
+  EXPECT_TRUE(budget->charge_if_room(working, 40));
+  EXPECT_EQ(budget->stats().charged, 90u);
+  EXPECT_EQ(budget->stats().pinned, 40u);
+  EXPECT_FALSE(budget->charge_if_room(std::make_shared<const Item>(), 1)) << "full";
+  other = 200;  // the cache's own entries grew past the limit
+  working.reset();
+  EXPECT_FALSE(budget->charge_if_room(std::make_shared<const Item>(), 0)) << "over already";
+  EXPECT_EQ(owner->evicted, 0);
+  EXPECT_EQ(budget->stats().evictions, 0u);
+  EXPECT_EQ(budget->stats().charged, 50u) << "the working item's charge ends with it";
+}
+
 }  // namespace hdeform

@@ -67,6 +67,8 @@ class BackgroundOrders {
   // needs less), by the mesh's size: the bytes charged to the budget while a mesh's orders
   // are computed (engine_bench Memory/N wide_order_MB, docs/benchmarks.md).
   static std::size_t working_bytes(std::size_t vertices);
+  // Measured 449 / 453 bytes per vertex at 100K / 1M (the peak above the RSS before: a
+  // lower bound, freed heap is reused), charged with a third more.
   static constexpr std::size_t kWorkingBytesPerVertex = 600;
 
  private:
