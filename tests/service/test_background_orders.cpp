@@ -265,6 +265,45 @@ TEST(BackgroundOrders, AServerStoresANewMeshsOrdersBeforeAnyChange) {
             nested_dissection(pm.L(), pm.Reg()));
 }
 
+// A session restored after a restart queues its mesh too: the β > 0 order its first server
+// never computed (the session stayed at β = 0) is computed by the next and kept.
+TEST(BackgroundOrders, ARestoredSessionsMeshGetsTheOrderItLacks) {
+  TempDir dir;
+  ServerOptions options;
+  options.state_dir = (dir.path / "state").string();
+  options.background_order_from = 0;
+  pb::Session created;
+  {
+    hdeform::testing::TestServer a(options);
+    ASSERT_TRUE(a.create_library("cactus", &created).ok());
+    pb::Session constrained;
+    ASSERT_TRUE(a.set_constraints(created.name(), hdeform::testing::cactus_constraints(),
+                                  &constrained).ok());
+  }
+  const auto file = dir.path / "state" / "derived" / (created.mesh_hash() + ".order");
+  state::StoredOrderings stored;
+  ASSERT_TRUE(stored.ParseFromString(bytes_of(file)));
+  ASSERT_GT(stored.order_size(), 0) << "SetConstraints computed the β = 0 order";
+  ASSERT_EQ(stored.wide_order_size(), 0) << "no β > 0 yet";
+
+  options.background_order_from = 1;
+  hdeform::testing::TestServer b(options);
+  grpc::ClientContext ctx;
+  pb::GetSessionRequest get;
+  get.set_name(created.name());
+  pb::Session restored;
+  ASSERT_TRUE(b.stub->GetSession(&ctx, get, &restored).ok());
+  ASSERT_TRUE(eventually([&] {
+    return stored.ParseFromString(bytes_of(file)) && stored.wide_order_size() > 0;
+  })) << "no β > 0 order in " << file;
+  const auto mesh = cactus();
+  EXPECT_EQ(std::vector<int>(stored.wide_order().begin(), stored.wide_order().end()),
+            nested_dissection(mesh->prepared->L(), mesh->prepared->Reg()));
+  const auto s = b.server->background_orders();
+  EXPECT_EQ(s.computed, 1u) << "the β = 0 order came from the store";
+  EXPECT_EQ(s.superseded, 1u);
+}
+
 TEST(BackgroundOrders, AServerWithTheThresholdAtZeroOrdersNothingInTheBackground) {
   TempDir dir;
   ServerOptions options;
