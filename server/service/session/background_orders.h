@@ -41,7 +41,7 @@ class BackgroundOrders {
   struct Stats {
     std::uint64_t computed = 0;     // orders adopted by their mesh (two per mesh)
     std::uint64_t superseded = 0;   // orders a call computed first (or the store had)
-    std::uint64_t closed = 0;       // meshes no one held any more when their turn came
+    std::uint64_t closed = 0;       // meshes no session or cache entry held at their turn
     std::uint64_t no_room = 0;      // meshes the budget had no room for
     std::uint64_t queue_full = 0;   // meshes dropped from a full queue
     std::uint64_t failed = 0;       // orders METIS or an allocation failed (logged)
@@ -56,7 +56,8 @@ class BackgroundOrders {
   BackgroundOrders& operator=(const BackgroundOrders&) = delete;
 
   // After a session's open: queues the mesh if it is large enough and lacks an order.
-  // Holds it weakly, so a mesh whose sessions all close before its turn is never ordered.
+  // Holds it weakly: a mesh no session holds and the cache has evicted before its turn is
+  // never ordered (one still cached is: a later session on it takes the orders).
   // Cheap and non-blocking (a lock and a push).
   void enqueue(const std::shared_ptr<const MeshRef>& mesh);
   // Drops the queue and waits for the order in progress (METIS cannot be interrupted: at
