@@ -7,12 +7,13 @@
 #include "engine/deform/factor_budget.h"
 #include "engine/io/mesh_io.h"
 #include "engine/solve/vertex_ordering.h"
-#include "fixtures/procedural.h"
 #include "service/infra/cache.h"
 #include "service/session/background_orders.h"
 #include "stored_session.pb.h"
 
 #include <chrono>
+#include <condition_variable>
+#include <mutex>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -38,12 +39,29 @@ std::shared_ptr<const MeshRef> cactus() {
   return ref_of(read_mesh(std::string(HDEFORM_TEST_DATA) + "/botsch-sorkine/cactus.off").mesh);
 }
 
-// Big enough that its order takes a while (≈ 0.1–0.3 s): the worker is busy meanwhile.
-std::shared_ptr<const MeshRef> capsule() {
-  return ref_of(procedural::capsule_case(40000).mesh);
-}
-
 std::shared_ptr<FactorBudget> roomy() { return std::make_shared<FactorBudget>(1ull << 40); }
+
+// Holds the worker inside its first order until opened: the budget's other_bytes() is read
+// by charge_if_room at the start of each mesh's orders (busy is set by then). No timing.
+struct Gate {
+  std::mutex mutex;
+  std::condition_variable cv;
+  bool open = false;
+  void release() {
+    {
+      std::lock_guard lock(mutex);
+      open = true;
+    }
+    cv.notify_all();
+  }
+  std::shared_ptr<FactorBudget> budget() {
+    return std::make_shared<FactorBudget>(1ull << 40, [this]() -> std::size_t {
+      std::unique_lock lock(mutex);
+      cv.wait(lock, [&] { return open; });
+      return 0;
+    });
+  }
+};
 
 // Waits up to a minute for `done` (the worker runs at SCHED_IDLE: slow on a busy host).
 bool eventually(const std::function<bool()>& done) {
@@ -126,8 +144,9 @@ TEST(BackgroundOrders, SmallMeshesOrderedMeshesAndAZeroThresholdAreNotQueued) {
 }
 
 TEST(BackgroundOrders, AMeshEveryoneLetGoOfIsNotOrderedAndOneMeshIsQueuedOnce) {
-  BackgroundOrders orders(from(1), roomy());
-  const auto busy = capsule();
+  Gate gate;
+  BackgroundOrders orders(from(1), gate.budget());
+  const auto busy = cactus();
   orders.enqueue(busy);
   ASSERT_TRUE(eventually([&] { return orders.stats().busy; }));
   auto closed = cactus();
@@ -139,6 +158,7 @@ TEST(BackgroundOrders, AMeshEveryoneLetGoOfIsNotOrderedAndOneMeshIsQueuedOnce) {
   orders.enqueue(kept);  // a second session on the same mesh
   EXPECT_EQ(orders.stats().queued, 2u);
   closed.reset();
+  gate.release();
   ASSERT_TRUE(eventually([&] { return orders.stats().computed == 4; }));
   const auto s = orders.stats();
   EXPECT_EQ(s.closed, 1u);
@@ -150,15 +170,17 @@ TEST(BackgroundOrders, AMeshEveryoneLetGoOfIsNotOrderedAndOneMeshIsQueuedOnce) {
 }
 
 TEST(BackgroundOrders, AFullQueueDropsItsOldest) {
-  BackgroundOrders orders(from(1, /*max_queued=*/2), roomy());
+  Gate gate;
+  BackgroundOrders orders(from(1, /*max_queued=*/2), gate.budget());
   std::vector<std::shared_ptr<const MeshRef>> meshes;
   for (int i = 0; i < 4; ++i) meshes.push_back(cactus());
-  const auto busy = capsule();
+  const auto busy = cactus();
   orders.enqueue(busy);
   ASSERT_TRUE(eventually([&] { return orders.stats().busy; }));
   for (const auto& m : meshes) orders.enqueue(m);
   EXPECT_EQ(orders.stats().queue_full, 2u);
   EXPECT_EQ(orders.stats().queued, 2u);
+  gate.release();
   ASSERT_TRUE(eventually([&] { return orders.stats().computed == 6; }));
   EXPECT_FALSE(meshes[0]->prepared->has_wide_order());
   EXPECT_FALSE(meshes[1]->prepared->has_wide_order());
@@ -167,16 +189,18 @@ TEST(BackgroundOrders, AFullQueueDropsItsOldest) {
 }
 
 TEST(BackgroundOrders, ABetaThatComesFirstSupersedesIt) {
-  BackgroundOrders orders(from(1), roomy());
-  const auto busy = capsule();
+  Gate gate;
+  BackgroundOrders orders(from(1), gate.budget());
+  const auto busy = cactus();
   orders.enqueue(busy);
   ASSERT_TRUE(eventually([&] { return orders.stats().busy; }));
   const auto mesh = cactus();
   orders.enqueue(mesh);
   const std::vector<int> own = mesh->prepared->wide_order();  // the β > 0 change's METIS
+  gate.release();
   ASSERT_TRUE(eventually([&] {
     const auto s = orders.stats();
-    return s.computed == 3 && s.superseded == 1;  // the capsule's two, the cactus's β = 0
+    return s.computed == 3 && s.superseded == 1;  // the first mesh's two, this one's β = 0
   }));
   EXPECT_EQ(mesh->prepared->wide_order(), own);
 }
@@ -218,19 +242,24 @@ TEST(BackgroundOrders, NoRoomInTheBudgetSkipsTheOrderAndEvictsNothing) {
 }
 
 TEST(BackgroundOrders, StopDropsTheQueueAndWaitsForTheOrderInProgressOnly) {
-  const auto busy = capsule();
+  Gate gate;
+  const auto busy = cactus();
   const auto queued = cactus();
-  BackgroundOrders orders(from(1), roomy());
+  BackgroundOrders orders(from(1), gate.budget());
   orders.enqueue(busy);
   ASSERT_TRUE(eventually([&] { return orders.stats().busy; }));
   orders.enqueue(queued);
-  orders.stop();
+  std::thread stopper([&] { orders.stop(); });
+  // stop() empties the queue as it marks the stop, then waits for the worker.
+  ASSERT_TRUE(eventually([&] { return orders.stats().queued == 0; }));
+  EXPECT_TRUE(orders.stats().busy);
+  gate.release();
+  stopper.join();
   const auto s = orders.stats();
   EXPECT_FALSE(s.busy);
-  EXPECT_EQ(s.queued, 0u);
-  // The order in progress ends (β = 0, or β > 0 if the stop came after it), no other.
-  EXPECT_EQ(s.computed, busy->prepared->has_wide_order() ? 2u : 1u);
+  EXPECT_EQ(s.computed, 1u) << "the β = 0 order in progress ends; the β > 0 one never starts";
   EXPECT_TRUE(busy->prepared->has_order());
+  EXPECT_FALSE(busy->prepared->has_wide_order());
   EXPECT_FALSE(queued->prepared->has_order());
   EXPECT_FALSE(queued->prepared->has_wide_order());
   orders.enqueue(queued);  // after stop: ignored

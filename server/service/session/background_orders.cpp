@@ -12,6 +12,7 @@
 
 #include <chrono>
 #include <exception>
+#include <system_error>
 #include <utility>
 
 namespace hdeform::service {
@@ -63,7 +64,15 @@ void BackgroundOrders::enqueue(const std::shared_ptr<const MeshRef>& mesh) {
     ++stats_.queue_full;
   }
   queue_.push_back(mesh);
-  if (!thread_.joinable()) thread_ = std::thread([this] { run(); });
+  if (!thread_.joinable()) {
+    try {
+      thread_ = std::thread([this] { run(); });
+    } catch (const std::system_error& e) {  // the session is made: this must not fail it
+      spdlog::warn("background orders: no thread ({}); the first calls compute them", e.what());
+      queue_.clear();
+      return;
+    }
+  }
   cv_.notify_one();
 }
 
@@ -96,7 +105,7 @@ void BackgroundOrders::run() {
   for (;;) {
     cv_.wait(lock, [&] { return stopping_ || !queue_.empty(); });
     if (stopping_) return;
-    const std::shared_ptr<const MeshRef> mesh = queue_.front().lock();
+    std::shared_ptr<const MeshRef> mesh = queue_.front().lock();
     queue_.pop_front();
     if (!mesh) {
       ++stats_.closed;
@@ -105,6 +114,7 @@ void BackgroundOrders::run() {
     stats_.busy = true;
     lock.unlock();
     order(*mesh);
+    mesh.reset();  // possibly the last reference: a large mesh is freed outside the lock
     lock.lock();
     stats_.busy = false;
   }
