@@ -135,7 +135,7 @@ void BackgroundOrders::order(const MeshRef& mesh) {
     return count(&Stats::no_room);
   }
   for (const bool wide : {false, true}) {
-    if (wide && stopping()) return;  // a stop waits for one order, not two
+    if (stopping()) return;  // a stop waits for the order in progress, no other
     if (wide ? pm.has_wide_order() : pm.has_order()) {
       count(&Stats::superseded);
       continue;

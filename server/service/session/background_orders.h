@@ -60,8 +60,8 @@ class BackgroundOrders {
   // never ordered (one still cached is: a later session on it takes the orders).
   // Cheap and non-blocking (a lock and a push).
   void enqueue(const std::shared_ptr<const MeshRef>& mesh);
-  // Drops the queue and waits for the order in progress (METIS cannot be interrupted: at
-  // most one order's time, ≈ 4 s at 1M vertices on this project's 2-core machines).
+  // Drops the queue, starts no other order and waits for the one in progress (METIS cannot
+  // be interrupted: at most one order's time, ≈ 4–6 s at 1M vertices on 2 cores).
   void stop();
   Stats stats() const;
   // Working memory of the wide order (Reg, METIS's graph and its copies; the β = 0 one
