@@ -45,8 +45,10 @@ tests=(
   # the container suite (scripts/container-test.sh): podman with runc, a base image made by
   # debootstrap, the compose file run by podman-compose; netavark and aardvark-dns so the
   # containers find each other by name (podman's CNI fallback has no DNS: "redis" and
-  # "hdeform-1" did not resolve on a machine without them)
-  podman buildah runc debootstrap podman-compose netavark aardvark-dns
+  # "hdeform-1" did not resolve on a machine without them); iptables, which netavark runs to
+  # set up a network (without it every container stays "Created": "netavark: No such file
+  # or directory")
+  podman buildah runc debootstrap podman-compose netavark aardvark-dns iptables
 )
 
 case "${1:-all}" in
