@@ -151,8 +151,9 @@ struct Loopback {
   std::shared_ptr<grpc::Channel> channel;
   std::unique_ptr<pb::Deformation::Stub> stub;
 
-  explicit Loopback(const std::string& state_dir = g_state_dir,
-                    std::size_t background_order_from = service::ServerOptions{}.background_order_from) {
+  explicit Loopback(
+      const std::string& state_dir = g_state_dir,
+      std::size_t background_order_from = service::ServerOptions{}.background_order_from) {
     service::ServerOptions o;  // defaults of hdeform-server: 2 workers, 4 GiB cache
     o.listen_address = "127.0.0.1:0";
     o.background_order_from = background_order_from;

@@ -186,8 +186,8 @@ Connection::Connection(const GlobalOptions& options) : options_(options) {
 #if HDEFORM_CLI_IN_PROCESS
     service::ServerOptions so;  // the defaults: no durable state, no TLS, no operator token
     so.listen_address = "";
-    // A batch job that sets β > 0 computes its order when it needs it; one in the background
-    // would only delay the job's exit (a stop waits for the order in progress).
+    // A batch job computes its orders when it needs them; one in the background would only
+    // delay the job's exit (a stop waits for the order in progress).
     so.background_order_from = 0;
     server_ = std::make_shared<service::Server>(so);
     channel_ = server_->in_process_channel();

@@ -109,8 +109,9 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   std::size_t background_order_from = 20000;
   app.add_option("--background-order-from", background_order_from,
-                 "compute a new mesh's beta > 0 ordering in the background, on idle cores, "
-                 "from this many vertices on, so its first beta > 0 skips METIS (0 = never)")
+                 "compute a new mesh's orderings (beta = 0 and > 0) in the background, on idle "
+                 "cores, from this many vertices on, so its first SetConstraints and beta > 0 "
+                 "skip METIS (0 = never)")
       ->envname("HDEFORM_BACKGROUND_ORDER_FROM")
       ->capture_default_str();
   app.add_option("--session-ttl", session_ttl, "idle session lifetime (seconds)")

@@ -87,6 +87,19 @@ std::string bytes_of(const std::filesystem::path& file) {
   return out.str();
 }
 
+// A server keeping its state in dir (SQLite), with background orders from `from` vertices.
+ServerOptions durable(const TempDir& dir, std::size_t from) {
+  ServerOptions options;
+  options.state_dir = (dir.path / "state").string();
+  options.background_order_from = from;
+  return options;
+}
+
+// Where that server keeps a mesh's orders (sqlite_state: DIR/derived/HASH.order).
+std::filesystem::path orders_file(const TempDir& dir, const std::string& mesh_hash) {
+  return dir.path / "state" / "derived" / (mesh_hash + ".order");
+}
+
 }  // namespace
 
 TEST(BackgroundOrders, AQueuedMeshGetsTheOrdersItsFirstCallsWouldCompute) {
@@ -288,13 +301,11 @@ TEST(BackgroundOrders, StopDropsTheQueueAndStartsNoOrder) {
 // another replica or a later session on the mesh skips those METIS calls.
 TEST(BackgroundOrders, AServerStoresANewMeshsOrdersBeforeAnyChange) {
   TempDir dir;
-  ServerOptions options;
-  options.state_dir = (dir.path / "state").string();
-  options.background_order_from = 1;
+  ServerOptions options = durable(dir, 1);
   hdeform::testing::TestServer t(options);
   pb::Session created;
   ASSERT_TRUE(t.create_library("cactus", &created).ok());
-  const auto file = dir.path / "state" / "derived" / (created.mesh_hash() + ".order");
+  const auto file = orders_file(dir, created.mesh_hash());
   state::StoredOrderings stored;
   ASSERT_TRUE(eventually([&] {
     return stored.ParseFromString(bytes_of(file)) &&
@@ -315,9 +326,7 @@ TEST(BackgroundOrders, AServerStoresANewMeshsOrdersBeforeAnyChange) {
 // never computed (the session stayed at β = 0) is computed by the next and kept.
 TEST(BackgroundOrders, ARestoredSessionsMeshGetsTheOrderItLacks) {
   TempDir dir;
-  ServerOptions options;
-  options.state_dir = (dir.path / "state").string();
-  options.background_order_from = 0;
+  ServerOptions options = durable(dir, 0);
   pb::Session created;
   {
     hdeform::testing::TestServer a(options);
@@ -326,7 +335,7 @@ TEST(BackgroundOrders, ARestoredSessionsMeshGetsTheOrderItLacks) {
     ASSERT_TRUE(a.set_constraints(created.name(), hdeform::testing::cactus_constraints(),
                                   &constrained).ok());
   }
-  const auto file = dir.path / "state" / "derived" / (created.mesh_hash() + ".order");
+  const auto file = orders_file(dir, created.mesh_hash());
   state::StoredOrderings stored;
   ASSERT_TRUE(stored.ParseFromString(bytes_of(file)));
   ASSERT_GT(stored.order_size(), 0) << "SetConstraints computed the β = 0 order";
@@ -354,15 +363,13 @@ TEST(BackgroundOrders, ARestoredSessionsMeshGetsTheOrderItLacks) {
 
 TEST(BackgroundOrders, AServerWithTheThresholdAtZeroOrdersNothingInTheBackground) {
   TempDir dir;
-  ServerOptions options;
-  options.state_dir = (dir.path / "state").string();
-  options.background_order_from = 0;
+  ServerOptions options = durable(dir, 0);
   pb::Session created;
   {
     hdeform::testing::TestServer t(options);
     ASSERT_TRUE(t.create_library("cactus", &created).ok());
   }  // a clean stop flushes what was computed
-  const auto file = dir.path / "state" / "derived" / (created.mesh_hash() + ".order");
+  const auto file = orders_file(dir, created.mesh_hash());
   state::StoredOrderings stored;
   if (std::filesystem::exists(file)) {
     ASSERT_TRUE(stored.ParseFromString(bytes_of(file)));

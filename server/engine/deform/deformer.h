@@ -58,8 +58,8 @@ class PreparedMesh {
   // Nested dissection of L's pattern (β = 0) and of L ∪ Reg's (β > 0), each computed on
   // its first call (thread-safe; METIS, on two threads from kSplitOrderFrom vertices) and
   // kept: every constraint set on this mesh orders its K_FF by it (vertex_ordering.h). ms:
-  // the time the call spent computing it (0 when it was already there). reg: Reg() if the caller has it at hand (else wide_order
-  // assembles it when it needs it).
+  // the time the call spent computing it (0 when it was already there). reg: Reg() if the
+  // caller has it at hand (else wide_order assembles it when it needs it).
   const std::vector<int>& order(double* ms = nullptr) const;
   const std::vector<int>& wide_order(double* ms = nullptr, const SparseMatrix* reg = nullptr) const;
   // Whether order() / wide_order() is there (its next call returns at once).

@@ -40,8 +40,7 @@ void FactorBudget::charge(std::weak_ptr<const Owner> owner, std::weak_ptr<const 
     std::lock_guard lock(mutex_);
     entries_.push_back({std::move(owner), std::move(item), bytes, pinned});
     prune_locked();
-    std::size_t total = other;
-    for (const Entry& e : entries_) total += e.bytes;
+    std::size_t total = other + charged_locked();
     if (total <= limit_) return;
     struct Candidate {
       std::uint64_t last_use;
@@ -82,11 +81,16 @@ bool FactorBudget::charge_if_room(std::weak_ptr<const Item> item, std::size_t by
   const std::size_t other = other_bytes_ ? other_bytes_() : 0;  // before the lock, as above
   std::lock_guard lock(mutex_);
   prune_locked();
-  std::size_t total = other;
-  for (const Entry& e : entries_) total += e.bytes;
+  const std::size_t total = other + charged_locked();
   if (total > limit_ || bytes > limit_ - total) return false;
   entries_.push_back({{}, std::move(item), bytes, /*pinned=*/true});
   return true;
+}
+
+std::size_t FactorBudget::charged_locked() const {
+  std::size_t total = 0;
+  for (const Entry& e : entries_) total += e.bytes;
+  return total;
 }
 
 FactorBudget::Stats FactorBudget::stats() const {

@@ -67,6 +67,7 @@ class FactorBudget {
     bool pinned = false;
   };
   void prune_locked() const;  // drops entries whose item is gone
+  std::size_t charged_locked() const;  // bytes of every entry
 
   const std::size_t limit_;
   const std::function<std::size_t()> other_bytes_;

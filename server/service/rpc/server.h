@@ -25,8 +25,9 @@ struct ServerOptions {
   std::size_t cache_bytes = 4ull << 30;  // prepared meshes + factorizations (LRU)
   std::chrono::seconds session_ttl{3600};
   RequestLimits request;  // per-request caps (request_limits.h)
-  // A new mesh's β > 0 order is computed in the background, at the lowest CPU priority,
-  // from this many vertices on (--background-order-from; 0 = never): background_orders.h.
+  // A new mesh's β = 0 and β > 0 orders are computed in the background, at the lowest CPU
+  // priority, from this many vertices on (--background-order-from; 0 = never):
+  // background_orders.h.
   std::size_t background_order_from = 20000;
   // Upload bytes held by unfinished CreateSession calls, all clients together
   // (--max-upload-inflight-mb); a new upload beyond it gets RESOURCE_EXHAUSTED.
@@ -69,7 +70,7 @@ class Server {
     std::uint64_t factor_evictions = 0;
   };
   MemoryStats memory_stats() const;
-  // The background β > 0 orders (background_orders.h): computed, skipped, queued, busy.
+  // The background orders (background_orders.h): computed, skipped, queued, busy.
   BackgroundOrders::Stats background_orders() const;
   // Session restores that ran outside the worker pool (on a gRPC thread): should stay 0.
   std::size_t restores_off_pool() const;
