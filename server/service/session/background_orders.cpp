@@ -39,7 +39,7 @@ bool lower_priority() {
 BackgroundOrders::BackgroundOrders(const Options& options, std::shared_ptr<FactorBudget> budget)
     : options_(options), budget_(std::move(budget)) {}
 
-BackgroundOrders::~BackgroundOrders() { stop(); }
+BackgroundOrders::~BackgroundOrders() { join(); }
 
 std::size_t BackgroundOrders::working_bytes(std::size_t vertices) {
   return vertices * kWorkingBytesPerVertex;
@@ -83,7 +83,13 @@ void BackgroundOrders::stop() {
     queue_.clear();
   }
   cv_.notify_all();
-  if (thread_.joinable()) thread_.join();
+}
+
+void BackgroundOrders::join() {
+  stop();  // after it no enqueue starts the thread: thread_ is read without the lock
+  if (!thread_.joinable()) return;
+  if (stats().busy) spdlog::info("background orders: waiting for the order in progress to end");
+  thread_.join();
 }
 
 bool BackgroundOrders::stopping() const {

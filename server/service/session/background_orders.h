@@ -51,7 +51,7 @@ class BackgroundOrders {
   };
 
   BackgroundOrders(const Options& options, std::shared_ptr<FactorBudget> budget);
-  ~BackgroundOrders();  // stop()
+  ~BackgroundOrders();  // join()
   BackgroundOrders(const BackgroundOrders&) = delete;
   BackgroundOrders& operator=(const BackgroundOrders&) = delete;
 
@@ -60,9 +60,12 @@ class BackgroundOrders {
   // never ordered (one still cached is: a later session on it takes the orders).
   // Cheap and non-blocking (a lock and a push).
   void enqueue(const std::shared_ptr<const MeshRef>& mesh);
-  // Drops the queue, starts no other order and waits for the one in progress (METIS cannot
-  // be interrupted: at most one order's time, ≈ 4–6 s at 1M vertices on 2 cores).
+  // Drops the queue and starts no other order; returns at once. The order in progress, if
+  // any, runs on (METIS cannot be interrupted): a server stores its sessions meanwhile.
   void stop();
+  // stop(), then waits for the order in progress: at most one order's time, ≈ 4–6 s at 1M
+  // vertices on 2 idle cores, longer on busy ones (it runs at SCHED_IDLE).
+  void join();
   Stats stats() const;
   // Working memory of the wide order (Reg, METIS's graph and its copies; the β = 0 one
   // needs less), by the mesh's size: the bytes charged to the budget while a mesh's orders
