@@ -477,11 +477,12 @@ int main(int argc, char** argv) {
   sigwait(&signals, &sig);
   spdlog::info("signal {}: shutting down", sig);
   // Long work stops cooperatively (parsing, sweeps, automatic β poll the stop flag), but a
-  // single CHOLMOD factorization cannot be interrupted: never let one hold the process
-  // longer than this after SIGTERM. A second signal exits at once.
+  // single CHOLMOD factorization or METIS order cannot be interrupted: never let one hold
+  // the process longer than this after SIGTERM (the state is flushed before a background
+  // order is waited for). A second signal exits at once.
   std::thread([] {
     std::this_thread::sleep_for(std::chrono::seconds(5));
-    spdlog::warn("shutdown took over 5 s (a factorization still running); exiting");
+    spdlog::warn("shutdown took over 5 s (a factorization or an order still running); exiting");
     std::_Exit(0);
   }).detach();
   std::thread([signals] {
