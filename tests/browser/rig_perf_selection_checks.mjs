@@ -196,8 +196,19 @@ export async function perfChecks({ context, base, log, check, sleep, shot, watch
     const next = start + (moves * 1000) / 60;
     if (next > Date.now()) await sleep(next - Date.now());
   }
-  const during = await page.evaluate(() => window.hdeform.perfSummary());
-  const text = await page.evaluate(() => window.hdeform.perfText());
+  // The overlay counts the frames of its last 2 s; on a loaded host the answer to the drag's
+  // last moves can come later than that, so read it once one of this page's frames is in the window.
+  await page
+    .waitForFunction(
+      () => {
+        const s = window.hdeform.perfSummary();
+        return s.frames > 0 && s.latencyMedianMs !== null && /update→frame\s+[\d.]+ ms/.test(window.hdeform.perfText());
+      },
+      null,
+      { timeout: 60_000, polling: 50 },
+    )
+    .catch(() => log("perf: no frame of this page's drag was applied within 60 s of its end"));
+  const [during, text] = await page.evaluate(() => [window.hdeform.perfSummary(), window.hdeform.perfText()]);
   await page.mouse.up();
   await waitIdle(page);
   await shot(page, "perf-overlay-100k");
