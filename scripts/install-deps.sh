@@ -10,6 +10,8 @@ set -euo pipefail
 
 build=(
   build-essential cmake pkg-config
+  # a compile cache (CMakeLists.txt; the container suite lends the host's to the image build)
+  ccache
   # engine
   libeigen3-dev libsuitesparse-dev libmetis-dev libopenblas0-pthread libblas-dev liblapack-dev
   libtinygltf-dev libstb-dev
