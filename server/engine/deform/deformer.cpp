@@ -7,6 +7,7 @@
 #include "engine/operators/operator_assembly.h"
 #include "engine/operators/sparse_times3.h"
 #include "engine/operators/system_blocks.h"
+#include "engine/runtime/elapsed_ms.h"
 #include "engine/runtime/serial_openmp.h"
 #include "engine/runtime/two_threads.h"
 #include "engine/solve/permutation.h"
@@ -163,7 +164,7 @@ std::shared_ptr<const PreparedMesh> PreparedMesh::create(TriMesh mesh) {
   auto t0 = Clock::now();
   auto lap = [&t0] {  // ms since the previous lap
     const auto now = Clock::now();
-    const double ms = std::chrono::duration<double, std::milli>(now - t0).count();
+    const double ms = elapsed_ms(t0, now);
     t0 = now;
     return ms;
   };
@@ -194,16 +195,10 @@ std::shared_ptr<const PreparedMesh> PreparedMesh::create(TriMesh mesh) {
 SparseMatrix PreparedMesh::Reg() const {
   const auto t0 = std::chrono::steady_clock::now();
   SparseMatrix reg = assemble_regularizer(mesh_.F, grads_, edges_, vertex_triangles_);
-  const std::chrono::duration<double, std::milli> took = std::chrono::steady_clock::now() - t0;
-  reg_ms_.store(took.count(), std::memory_order_relaxed);
+  reg_ms_.store(elapsed_ms(t0), std::memory_order_relaxed);
   return reg;
 }
 
-namespace {
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-}  // namespace
 
 // Computes `order` once under `once` (the first caller pays and gets the time in *ms).
 template <class Compute>
@@ -215,7 +210,7 @@ const std::vector<int>& PreparedMesh::lazy_order(std::once_flag& once, std::vect
     const auto t0 = std::chrono::steady_clock::now();
     order = compute();
     ready.store(true, std::memory_order_release);
-    if (ms) *ms = ms_since(t0);
+    if (ms) *ms = elapsed_ms(t0);
   });
   return order;
 }
@@ -363,8 +358,7 @@ ConstraintSet::ConstraintSet(std::shared_ptr<const PreparedMesh> mesh, Constrain
     centroids_[j] = c / static_cast<double>(constraints_.handles[j].size());
   }
 
-  open_timings_.checks_ms = std::chrono::duration<double, std::milli>(
-                              std::chrono::steady_clock::now() - open_start).count();
+  open_timings_.checks_ms = elapsed_ms(open_start);
 
   // β = 0 is always needed: its factorization of L_FF also yields the harmonic basis.
   const auto sys0 = system(0.0);
@@ -372,8 +366,7 @@ ConstraintSet::ConstraintSet(std::shared_ptr<const PreparedMesh> mesh, Constrain
   const auto basis_start = std::chrono::steady_clock::now();
   basis_ = hdeform::harmonic_basis(mesh_->L(), *sys0->factor, free_, constrained_, block_index_,
                           region_of_, k);
-  open_timings_.basis_ms = std::chrono::duration<double, std::milli>(
-                               std::chrono::steady_clock::now() - basis_start).count();
+  open_timings_.basis_ms = elapsed_ms(basis_start);
 }
 
 ConstraintSet::~ConstraintSet() = default;
@@ -443,9 +436,7 @@ void ConstraintSet::evict(const FactorBudget::Item& item) const {
 
 std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_beta) const {
   using Clock = std::chrono::steady_clock;
-  auto ms = [](Clock::time_point t0) {
-    return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-  };
+  const auto ms = [](Clock::time_point t0) { return elapsed_ms(t0); };
   const auto nF = static_cast<Eigen::Index>(free_.size());
   const auto nC = static_cast<Eigen::Index>(constrained_.size());
   auto sys = std::make_shared<BetaSystem>();
@@ -541,7 +532,7 @@ std::vector<int> ConstraintSet::free_order(bool wide, BuildTimings& timings) con
   const auto& order = wide ? mesh_->wide_order(&order_ms) : mesh_->order(&order_ms);
   auto perm = restrict_order(order, free_);
   timings.ordering_ms += order_ms;  // build_system_locked may have paid it already
-  timings.restrict_ms = ms_since(t0) - order_ms;
+  timings.restrict_ms = elapsed_ms(t0) - order_ms;
   return perm;
 }
 

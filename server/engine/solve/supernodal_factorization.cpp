@@ -1,6 +1,7 @@
 #include "engine/solve/supernodal_factorization.h"
 
 #include "engine/mesh/mesh.h"
+#include "engine/runtime/elapsed_ms.h"
 #include "engine/runtime/serial_openmp.h"
 #include "engine/solve/supernodal_solve.h"
 
@@ -93,11 +94,6 @@ std::size_t CholmodLLT::factor_nnz() const {
 
 // An empty K_FF (every vertex constrained) is legal: the answer is the targets. CHOLMOD
 // is never called with it (it returns a null factor that a later solve dereferences).
-namespace {
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-}  // namespace
 
 SupernodalFactorization::SupernodalFactorization(const SparseMatrix& K_FF, bool keep_analysis,
                                                  const std::vector<int>* order)
@@ -115,7 +111,7 @@ SupernodalFactorization::SupernodalFactorization(const SparseMatrix& K_FF, bool 
   if (llt_.factor()->is_super)
     plan_ = std::make_shared<const SupernodalFactorPlan>(*llt_.factor());
   plan_owner_ = plan_ != nullptr;
-  timings_.analysis_ms = ms_since(t0);
+  timings_.analysis_ms = elapsed_ms(t0);
   factorize_numeric(K_FF);
   finish();
 }
@@ -130,7 +126,7 @@ SupernodalFactorization::SupernodalFactorization(const SupernodalFactorization& 
     throw std::logic_error("SupernodalFactorization: the analysis was built without keep_analysis");
   llt_.adopt_analysis(analysis.analysis_);  // analysis_ is immutable: no lock needed
   plan_ = analysis.plan_;
-  timings_.analysis_ms = ms_since(t0);       // the copy of the symbolic factor
+  timings_.analysis_ms = elapsed_ms(t0);       // the copy of the symbolic factor
   factorize_numeric(K_FF);
   finish();
 }
@@ -153,13 +149,13 @@ void SupernodalFactorization::factorize_numeric(const SparseMatrix& K_FF) {
   else
     llt_.factorize(K_FF);  // CHOLMOD chose a simplicial factor (tiny systems)
   check("factorization");
-  timings_.factor_ms = ms_since(t0);
+  timings_.factor_ms = elapsed_ms(t0);
 }
 
 void SupernodalFactorization::finish() {
   const auto t0 = std::chrono::steady_clock::now();
   if (supernodal_solvable(llt_.factor())) schedule_ = SupernodalSchedule(*llt_.factor());
-  timings_.schedule_ms = ms_since(t0);
+  timings_.schedule_ms = elapsed_ms(t0);
 }
 
 const float* SupernodalFactorization::values_float() const {

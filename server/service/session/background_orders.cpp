@@ -1,6 +1,7 @@
 #include "service/session/background_orders.h"
 
 #include "engine/deform/factor_budget.h"
+#include "engine/runtime/elapsed_ms.h"
 #include "engine/solve/vertex_ordering.h"
 
 #include <spdlog/spdlog.h>
@@ -155,8 +156,7 @@ void BackgroundOrders::order(const MeshRef& mesh) {
       }
       spdlog::info("mesh {} ({} vertices): its β {} order computed in the background in {:.0f} ms",
                    mesh.hash, pm.n(), wide ? "> 0" : "= 0",
-                   std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
-                       .count());
+                   elapsed_ms(t0));
       count(&Stats::computed);
     } catch (const std::exception& e) {
       spdlog::warn("mesh {}: its background β {} order failed ({}); the first use computes it",

@@ -4,6 +4,7 @@
 #include "service/session/session.h"
 
 #include "engine/deform/auto_beta.h"
+#include "engine/runtime/elapsed_ms.h"
 #include "service/infra/service_error.h"
 #include "service/session/convert.h"
 #include "service/session/session_detail.h"
@@ -28,10 +29,6 @@ std::int64_t steady_ns() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(
              std::chrono::steady_clock::now().time_since_epoch())
       .count();
-}
-
-double ms_between(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 }  // namespace
 
@@ -117,9 +114,7 @@ std::shared_ptr<const ConstraintSet> Session::constraint_set_for(const Constrain
         cs->charge_to(cache_.factor_budget());
         spdlog::info("{}: constraint set {} built in {:.1f} ms ({} fixed, {} handle(s))", name_,
                      key,
-                     std::chrono::duration<double, std::milli>(
-                         std::chrono::steady_clock::now() - t0)
-                         .count(),
+                     elapsed_ms(t0),
                      c.fixed.size(), c.handles.size());
         return cs;
   };
@@ -182,7 +177,7 @@ void Session::pick_beta(SessionBeta& beta, const ConstraintSet& cs,
   if (beta.has_local()) beta.field = make_field(*beta.local_max, beta.uniform);
   spdlog::info("{}: automatic beta picked {} ({}) from {} samples in {:.1f} ms", name_,
                r.beta.value, beta.uniform.units == BetaUnits::raw ? "raw" : "area",
-               r.samples.size(), ms_between(t0));
+               r.samples.size(), elapsed_ms(t0));
 }
 
 void Session::prepare_beta(const ConstraintSet& cs, const SessionBeta& beta) {

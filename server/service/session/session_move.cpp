@@ -2,6 +2,7 @@
 // move that changes β or the pose goes through the store step before it is committed.
 #include "service/session/session.h"
 
+#include "engine/runtime/elapsed_ms.h"
 #include "engine/runtime/warm_cores.h"
 #include "service/frames/frame_encoding.h"
 #include "service/infra/service_error.h"
@@ -188,8 +189,7 @@ std::shared_ptr<pb::Frame> Session::update(const Update& given) {
     out->set_version(version_);
     if (step_made) recorded = record_locked(std::move(*step_made));
   }
-  out->set_solve_ms(
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+  out->set_solve_ms(elapsed_ms(t0));
   if (beta_changed) broadcast_state();
   if (recorded.id() != 0) broadcast_step(recorded);
   if (observers_.watchers() > 0) {

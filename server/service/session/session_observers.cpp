@@ -2,6 +2,7 @@
 // they authorized, the events broadcast to watchers, presence and handle grabs.
 #include "service/session/session.h"
 
+#include "engine/runtime/elapsed_ms.h"
 #include "service/frames/frame_encoding.h"
 #include "service/infra/service_error.h"
 #include "service/session/convert.h"
@@ -79,8 +80,7 @@ void Session::broadcast_frame(const std::string& client_id) {
   out->set_client_id(client_id);
   for (const auto& t : transforms) to_proto(t, out->add_transforms());
   beta_to_proto(beta, out->mutable_beta(), false);
-  out->set_solve_ms(
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+  out->set_solve_ms(elapsed_ms(t0));
   {
     std::lock_guard lock(mutex_);
     if (version == version_ && cs == cs_) {

@@ -1,5 +1,6 @@
 #include "service/session/session_store.h"
 
+#include "engine/runtime/elapsed_ms.h"
 #include "service/infra/release_memory.h"
 #include "service/infra/service_error.h"
 #include "service/infra/worker_pool.h"
@@ -38,10 +39,6 @@ void SessionStore::check_capacity() const {
 
 namespace {
 using Clock = std::chrono::steady_clock;
-
-double ms_between(Clock::time_point a, Clock::time_point b) {
-  return std::chrono::duration<double, std::milli>(b - a).count();
-}
 
 void check_id_format(const std::string& id) {
   if (id.size() > 64)
@@ -311,17 +308,17 @@ std::shared_ptr<Session> SessionStore::restore(const std::string& id) const {
   double record_ms = 0, mesh_ms = 0, constraints_ms = 0;
   try {
     auto t = Clock::now();
-    record_ms = ms_between(t0, t);
+    record_ms = elapsed_ms(t0, t);
     auto mesh = persistence_.load_mesh(record.snapshot(), record.mesh_key());
     if (orderings_) orderings_->prime(*mesh);
     s = std::make_shared<Session>(id, std::move(mesh), pool_, cache_, limits_.request);
-    mesh_ms = ms_between(t, Clock::now());
+    mesh_ms = elapsed_ms(t, Clock::now());
     t = Clock::now();
     // Re-applying the stored state is not a change to store: the gate comes after it (with
     // it, the restore's SetConstraints would write a record without the mesh key, at the
     // wrong version, over the one it restores).
     s->restore(record.snapshot());
-    constraints_ms = ms_between(t, Clock::now());
+    constraints_ms = elapsed_ms(t, Clock::now());
     s->adopt_snapshots(record.snapshots());
     gate(*s);
   } catch (const StateError& e) {
@@ -367,7 +364,7 @@ std::shared_ptr<Session> SessionStore::restore(const std::string& id) const {
   spdlog::info("{}: restored from {} at version {} ({:.0f} ms: record {:.0f}, mesh {:.0f}, "
                "constraints {:.0f})",
                s->name(), persistence_.backend->describe(), record.version(),
-               ms_between(t0, Clock::now()), record_ms, mesh_ms, constraints_ms);
+               elapsed_ms(t0, Clock::now()), record_ms, mesh_ms, constraints_ms);
   return s;
 }
 
