@@ -436,7 +436,6 @@ void ConstraintSet::evict(const FactorBudget::Item& item) const {
 
 std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_beta) const {
   using Clock = std::chrono::steady_clock;
-  const auto ms = [](Clock::time_point t0) { return elapsed_ms(t0); };
   const auto nF = static_cast<Eigen::Index>(free_.size());
   const auto nC = static_cast<Eigen::Index>(constrained_.size());
   auto sys = std::make_shared<BetaSystem>();
@@ -455,7 +454,7 @@ std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_
       b = split(mesh_->L(), nullptr, BlockLayout{region_of_, block_index_, nF, nC});
       b.GtW_F = free_rows_gta(mesh_->mesh().F, mesh_->gradients(), mesh_->areas(),
                               mesh_->vertex_triangles(), free_);
-      timings.blocks_ms = ms(t0);
+      timings.blocks_ms = elapsed_ms(t0);
     };
     auto order = [&] { perm = free_order(/*wide=*/false, timings); };
     if (mesh_->has_order() || static_cast<std::size_t>(mesh_->n()) >= kSplitOrderFrom) {
@@ -492,10 +491,10 @@ std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_
       mesh_->wide_order(&order_ms, &Reg);  // the mesh's first β > 0 pays METIS here
       timings.ordering_ms = order_ms;
     }
-    timings.blocks_ms = ms(t0) - timings.ordering_ms;
+    timings.blocks_ms = elapsed_ms(t0) - timings.ordering_ms;
     t0 = Clock::now();
     sys->K_FF = combine(1.0 - raw_beta, wide_->area.FF, raw_beta, wide_->reg_FF);
-    timings.K_FF_ms = ms(t0);
+    timings.K_FF_ms = elapsed_ms(t0);
     // The factorization (two threads) and the right-hand side's blocks need nothing from each
     // other: the blocks are built on the other core meanwhile.
     run_beside([&] { sys->factor = factor_wide(sys->K_FF, timings); },
@@ -509,7 +508,7 @@ std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_
                  sys->GtW_F = assemble_wide_free_rows(pm.mesh().F, pm.gradients(), pm.areas(),
                                                       pm.edges(), pm.vertex_triangles(), free_,
                                                       1.0 - raw_beta, raw_beta);
-                 timings.rest_ms = ms(t1);
+                 timings.rest_ms = elapsed_ms(t1);
                });
   }
   const Factorization::Timings& f = sys->factor->timings();

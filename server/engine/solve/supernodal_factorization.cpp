@@ -126,7 +126,7 @@ SupernodalFactorization::SupernodalFactorization(const SupernodalFactorization& 
     throw std::logic_error("SupernodalFactorization: the analysis was built without keep_analysis");
   llt_.adopt_analysis(analysis.analysis_);  // analysis_ is immutable: no lock needed
   plan_ = analysis.plan_;
-  timings_.analysis_ms = elapsed_ms(t0);       // the copy of the symbolic factor
+  timings_.analysis_ms = elapsed_ms(t0);  // the copy of the symbolic factor
   factorize_numeric(K_FF);
   finish();
 }
