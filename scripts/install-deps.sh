@@ -60,6 +60,12 @@ case "${1:-all}" in
   *) echo "usage: install-deps.sh [build|web|all]" >&2; exit 2 ;;
 esac
 
+# The kernel's userspace headers come with the machine, often older than the mirror's, which
+# the image's build stage gets: one differing <linux/version.h> made all 46 service, gateway and
+# CLI objects miss the host's ccache in the image build (measured). When apt runs, take the mirror's.
+track_mirror=()
+[ "${1:-all}" = web ] || track_mirror=(linux-libc-dev)
+
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -72,6 +78,6 @@ if [ ${#missing[@]} -gt 0 ]; then
   fi
   export DEBIAN_FRONTEND=noninteractive
   apt-get update -qq
-  apt-get install -y -qq --no-install-recommends "${missing[@]}"
+  apt-get install -y -qq --no-install-recommends "${missing[@]}" "${track_mirror[@]}"
 fi
 echo "install-deps: all packages present (${1:-all})"
