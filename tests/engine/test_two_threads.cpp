@@ -2,11 +2,16 @@
 // late or never; for_chunks' chunks are fixed by n alone. In kernel_tests, so that
 // scripts/tsan.sh race-checks the helper's join-or-close handshake.
 #include "engine/runtime/two_threads.h"
+#include "engine/runtime/warm_cores.h"
 #include "engine/solve/supernodal_factorization.h"
 #include "fixtures.h"
 #include "helper_busy.h"
 
 #include <gtest/gtest.h>
+
+#include <pthread.h>
+#include <sched.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <chrono>
@@ -117,6 +122,39 @@ TEST(TwoThreads, RunAlwaysRunsBothParts) {
         &ctx));
     ASSERT_EQ(parts.load(), 2);
   }
+}
+
+// The helper never shares its caller's CPU. The service's case: spinners on every CPU (warm
+// cores: no CPU is idle, so the scheduler would wake the helper where it last ran) and a
+// caller that moves between CPUs (frames run on whichever worker thread is free). Without
+// Helper::keep_off_caller_cpu about half of these calls ran both parts on one CPU.
+TEST(TwoThreads, TheHelperRunsOffItsCallersCpu) {
+  cpu_set_t process;
+  ASSERT_EQ(sched_getaffinity(getpid(), sizeof process, &process), 0);
+  std::vector<int> cpus;
+  for (int c = 0; c < CPU_SETSIZE; ++c)
+    if (CPU_ISSET(c, &process)) cpus.push_back(c);
+  if (cpus.size() < 2) GTEST_SKIP() << "one CPU: the helper has nowhere else to run";
+  // A first call reads the process's CPUs before this thread (the main one) is pinned. Calls
+  // that found the helper busy (earlier tests) leave its placement free for a while.
+  ASSERT_TRUE(Helper::instance().run([](void*, int) {}, nullptr));
+  std::this_thread::sleep_for(std::chrono::nanoseconds(Helper::kSharedForNs));
+  WarmCores warm(static_cast<int>(cpus.size()), std::chrono::seconds(60));
+  warm.extend();
+  cpu_set_t mine;
+  ASSERT_EQ(pthread_getaffinity_np(pthread_self(), sizeof mine, &mine), 0);
+  for (int rep = 0; rep < 40; ++rep) {
+    cpu_set_t one;
+    CPU_ZERO(&one);
+    CPU_SET(cpus[static_cast<std::size_t>(rep) % 2], &one);
+    ASSERT_EQ(pthread_setaffinity_np(pthread_self(), sizeof one, &one), 0);
+    std::atomic<int> where[2] = {-1, -1};
+    ASSERT_TRUE(Helper::instance().run(
+        [](void* p, int tid) { static_cast<std::atomic<int>*>(p)[tid].store(sched_getcpu()); },
+        where));
+    EXPECT_NE(where[0].load(), where[1].load()) << "call " << rep << ": both parts on one CPU";
+  }
+  pthread_setaffinity_np(pthread_self(), sizeof mine, &mine);
 }
 
 // The scheduled solve's phases are claimed (Claims): on two threads, in both precisions, the

@@ -93,11 +93,13 @@ class Claims {
 class Helper {
  public:
   static Helper& instance();
+  // How long after a caller found the helper busy its placement is left to the scheduler.
+  static constexpr std::int64_t kSharedForNs = 1'000'000'000;
   // A team of two: fn(ctx, 1) on the helper and fn(ctx, 0) on the caller, both always run
   // (fn may use a Barrier2). false (nothing run) if the helper is busy.
   bool run(void (*fn)(void*, int), void* ctx) {
     const Taken taken(*this);
-    if (!taken) return false;
+    if (!taken) return contended(), false;
     const unsigned g = start(fn, ctx);
     fn(ctx, 0);
     await_value(done_, g);
@@ -110,7 +112,7 @@ class Helper {
   // fn must not throw.
   void offer(void (*fn)(void*, int), void* ctx) {
     const Taken taken(*this);
-    if (!taken) return fn(ctx, 0);
+    if (!taken) return contended(), fn(ctx, 0);
     const unsigned g = start(fn, ctx);
     fn(ctx, 0);
     std::uint64_t open = 2 * std::uint64_t{g};
@@ -150,6 +152,7 @@ class Helper {
   // 2g + 1, offer() closes it with 0. Callers hold busy_.
   unsigned start(void (*fn)(void*, int), void* ctx) {
     if (!thread_.joinable()) thread_ = std::thread([this] { loop(); });
+    keep_off_caller_cpu();
     fn_ = fn;
     ctx_ = ctx;
     const unsigned g = go_.load(std::memory_order_relaxed) + 1;
@@ -172,6 +175,20 @@ class Helper {
       done_.notify_one();
     }
   }
+  // Before each wake, when no other caller wanted the helper for kSharedForNs: the helper's
+  // CPUs become the process's minus the caller's. Why: while warm cores spin no CPU is idle,
+  // so the scheduler wakes the helper on its last CPU, and when that was the caller's (the
+  // service's frames alternate between worker threads on both CPUs) the frame's two halves
+  // shared one CPU: 1.7-1.9× the frame. With other callers (sessions under load), the mask
+  // would only move the helper onto a CPU that another frame is using, which measured worse
+  // (docs/benchmarks.md "The helper on the caller's CPU"); the scheduler places it then.
+  // A syscall only when the caller's CPU or the mode changes.
+  void keep_off_caller_cpu();
+  void contended();  // a caller found the helper busy: the machine is shared
+  std::atomic<std::int64_t> contended_ns_{0};  // steady clock; written only by contended()
+  // The CPU the helper's mask leaves out (the last caller's), kAnyCpu or kUnset; under busy_.
+  static constexpr int kAnyCpu = -1, kUnset = -2;
+  int off_cpu_ = kUnset;
   std::atomic<bool> busy_{false};
   std::thread thread_;
   std::atomic<unsigned> go_{0}, done_{0};
