@@ -494,6 +494,13 @@ TEST(MeshIo, ErrorsNameFileAndLine) {
   EXPECT_NE(msg("solid", "m.dae").find("m.dae: unknown mesh format '.dae'"), std::string::npos);
   EXPECT_NE(msg("not json", "j.gltf").find("j.gltf: invalid glTF"), std::string::npos);
   EXPECT_NE(msg("nope", "j.glb").find("j.glb: invalid GLB"), std::string::npos);
+  // A GLB on which tinygltf itself throws (std::out_of_range), found by fuzz_glb.
+  const std::string thrown =
+      read_all(kData + "/../tests/fuzz/corpus/fuzz_glb/regress-parser-throws.glb");
+  ASSERT_FALSE(thrown.empty());
+  EXPECT_NE(msg(thrown, "f.glb").find("f.glb: invalid GLB: the file is malformed"),
+            std::string::npos)
+      << msg(thrown, "f.glb");
 
   const std::string missing = error_of([] { read_mesh("/nonexistent/dir/cube.off"); });
   EXPECT_NE(missing.find("/nonexistent/dir/cube.off: cannot open file"), std::string::npos) << missing;

@@ -18,6 +18,7 @@
 #include <cctype>
 #include <cstdint>
 #include <cstring>
+#include <exception>
 #include <limits>
 #include <unordered_map>
 
@@ -124,14 +125,25 @@ LoadedMesh read_gltf(std::string_view bytes, ReadContext& ctx, bool binary,
   std::string err, warn;
   if (bytes.size() > std::numeric_limits<unsigned int>::max()) fail(name + ": file too large");
   if (binary) check_glb_bin_chunk(bytes, name);
-  const bool ok =
-      binary ? loader.LoadBinaryFromMemory(&model, &err, &warn,
-                                           reinterpret_cast<const unsigned char*>(bytes.data()),
-                                           static_cast<unsigned int>(bytes.size()),
-                                           base_dir ? *base_dir : std::string())
-             : loader.LoadASCIIFromString(&model, &err, &warn, bytes.data(),
-                                          static_cast<unsigned int>(bytes.size()),
-                                          base_dir ? *base_dir : std::string());
+  bool ok = false;
+  try {
+    ok = binary ? loader.LoadBinaryFromMemory(&model, &err, &warn,
+                                              reinterpret_cast<const unsigned char*>(bytes.data()),
+                                              static_cast<unsigned int>(bytes.size()),
+                                              base_dir ? *base_dir : std::string())
+                : loader.LoadASCIIFromString(&model, &err, &warn, bytes.data(),
+                                             static_cast<unsigned int>(bytes.size()),
+                                             base_dir ? *base_dir : std::string());
+  } catch (const InvalidInput&) {
+    throw;
+  } catch (const ReadCancelled&) {
+    throw;
+  } catch (const std::exception& e) {
+    // tinygltf throws on some malformed files (a std::vector::at past a buffer, found by
+    // fuzz_glb: tests/fuzz/corpus/fuzz_glb/regress-parser-throws.glb): a bad upload, not a bug.
+    fail(name + ": invalid " + (binary ? "GLB" : "glTF") + ": the file is malformed (" +
+         e.what() + ")");
+  }
   if (!ok) fail(name + ": invalid " + (binary ? "GLB" : "glTF") + ": " + trim(err.empty() ? warn : err));
   // Required extensions that change how geometry is stored (hdeform's own --glb-compression
   // output among them): refused by name rather than misread. Others (materials, textures)
