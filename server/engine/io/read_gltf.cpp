@@ -20,6 +20,7 @@
 #include <cstring>
 #include <exception>
 #include <limits>
+#include <new>
 #include <unordered_map>
 
 namespace hdeform::detail {
@@ -138,6 +139,8 @@ LoadedMesh read_gltf(std::string_view bytes, ReadContext& ctx, bool binary,
     throw;
   } catch (const ReadCancelled&) {
     throw;
+  } catch (const std::bad_alloc&) {
+    throw;  // out of memory is the server's state, not the file's fault
   } catch (const std::exception& e) {
     // tinygltf throws on some malformed files (a std::vector::at past a buffer, found by
     // fuzz_glb: tests/fuzz/corpus/fuzz_glb/regress-parser-throws.glb): a bad upload, not a bug.

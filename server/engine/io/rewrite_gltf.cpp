@@ -9,6 +9,7 @@
 #include <cstring>
 #include <limits>
 #include <map>
+#include <new>
 #include <sstream>
 
 namespace hdeform {
@@ -104,8 +105,17 @@ std::string rewrite_gltf(std::string_view original, const std::string& filename,
   std::string err, warn;
   const auto* p = reinterpret_cast<const unsigned char*>(original.data());
   const auto n = static_cast<unsigned int>(original.size());
-  const bool ok = binary ? loader.LoadBinaryFromMemory(&model, &err, &warn, p, n, "")
-                         : loader.LoadASCIIFromString(&model, &err, &warn, original.data(), n, "");
+  bool ok = false;
+  try {
+    ok = binary ? loader.LoadBinaryFromMemory(&model, &err, &warn, p, n, "")
+                : loader.LoadASCIIFromString(&model, &err, &warn, original.data(), n, "");
+  } catch (const std::bad_alloc&) {
+    throw;
+  } catch (const std::exception& e) {
+    // read_gltf accepted these bytes, so this should not happen; if tinygltf throws anyway
+    // (it does on some malformed files), the file is at fault, as in read_gltf.
+    err = e.what();
+  }
   if (!ok) throw InvalidInput(filename + ": cannot read it again to write its glTF: " + err);
   if (model.buffers.empty()) model.buffers.emplace_back();
   model.buffers[0].uri.clear();  // the GLB's binary chunk

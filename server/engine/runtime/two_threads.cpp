@@ -1,10 +1,9 @@
 #include "engine/runtime/two_threads.h"
+#include "engine/runtime/elapsed_ms.h"
 
 #include <pthread.h>
 #include <sched.h>
 #include <unistd.h>
-
-#include <chrono>
 
 namespace hdeform {
 
@@ -30,12 +29,6 @@ const cpu_set_t& process_cpus() {
   return cpus;
 }
 
-std::int64_t steady_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::steady_clock::now().time_since_epoch())
-      .count();
-}
-
 }  // namespace
 
 void Helper::contended() { contended_ns_.store(steady_ns(), std::memory_order_relaxed); }
@@ -47,11 +40,8 @@ void Helper::keep_off_caller_cpu() {
   if (off < 0 || off >= CPU_SETSIZE) off = kAnyCpu;
   if (off == off_cpu_) return;
   cpu_set_t set = process_cpus();
-  if (off != kAnyCpu) {
-    CPU_CLR(off, &set);
-    if (CPU_COUNT(&set) == 0) return;  // one CPU: nowhere else to go
-  }
-  if (CPU_COUNT(&set) == 0) return;  // the process's CPUs are unknown
+  if (off != kAnyCpu) CPU_CLR(off, &set);
+  if (CPU_COUNT(&set) == 0) return;  // one CPU, or the process's CPUs unknown: nowhere to go
   // A failure (a sandbox that forbids it) leaves the placement to the scheduler, as before.
   pthread_setaffinity_np(thread_.native_handle(), sizeof set, &set);
   off_cpu_ = off;

@@ -1,4 +1,5 @@
 #include "engine/runtime/warm_cores.h"
+#include "engine/runtime/elapsed_ms.h"
 
 #include <charconv>
 #include <fstream>
@@ -13,12 +14,6 @@
 namespace hdeform {
 
 namespace {
-
-std::int64_t now_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             WarmCores::Clock::now().time_since_epoch())
-      .count();
-}
 
 std::string read_file(const char* path) {
   std::ifstream in(path);
@@ -78,7 +73,7 @@ WarmCores& WarmCores::instance() {
 void WarmCores::extend() {
   const std::int64_t window = window_ms_.load(std::memory_order_relaxed);
   if (window <= 0 || threads_.empty()) return;
-  const std::int64_t deadline = now_ns() + window * 1'000'000;
+  const std::int64_t deadline = steady_ns() + window * 1'000'000;
   std::int64_t old = deadline_ns_.load(std::memory_order_relaxed);
   while (old < deadline &&
          !deadline_ns_.compare_exchange_weak(old, deadline, std::memory_order_relaxed)) {
@@ -126,14 +121,14 @@ void WarmCores::spin_loop() {
   unsigned seen = wakes_.load(std::memory_order_acquire);
   for (;;) {
     if (stop_.load(std::memory_order_relaxed)) return;
-    if (now_ns() >= deadline_ns_.load(std::memory_order_relaxed)) {
+    if (steady_ns() >= deadline_ns_.load(std::memory_order_relaxed)) {
       wakes_.wait(seen, std::memory_order_acquire);
       seen = wakes_.load(std::memory_order_acquire);
       continue;
     }
     spinning_.fetch_add(1, std::memory_order_relaxed);
     while (!stop_.load(std::memory_order_relaxed) &&
-           now_ns() < deadline_ns_.load(std::memory_order_relaxed)) {
+           steady_ns() < deadline_ns_.load(std::memory_order_relaxed)) {
       for (int i = 0; i < 64; ++i) {
 #if defined(__x86_64__) || defined(__i386__)
         __builtin_ia32_pause();

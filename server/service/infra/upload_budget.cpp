@@ -1,4 +1,5 @@
 #include "service/infra/upload_budget.h"
+#include "engine/runtime/elapsed_ms.h"
 
 #include <spdlog/spdlog.h>
 
@@ -6,20 +7,12 @@
 
 namespace hdeform::service {
 
-namespace {
-std::int64_t now_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::steady_clock::now().time_since_epoch())
-      .count();
-}
-}  // namespace
-
 UploadBudget::Ticket::Ticket(UploadBudget& budget, grpc::CallbackServerContext* ctx)
-    : budget_(budget), ctx_(ctx), last_ns_(now_ns()) {}
+    : budget_(budget), ctx_(ctx), last_ns_(steady_ns()) {}
 
 UploadBudget::Ticket::~Ticket() { detach(); }
 
-void UploadBudget::Ticket::touch() { last_ns_.store(now_ns()); }
+void UploadBudget::Ticket::touch() { last_ns_.store(steady_ns()); }
 
 bool UploadBudget::Ticket::charge(std::size_t bytes) {
   std::size_t current = budget_.bytes_.load();
@@ -74,7 +67,7 @@ void UploadBudget::watch() {
     for (auto& w : tickets_)
       if (auto t = w.lock()) live.push_back(std::move(t));
     lock.unlock();
-    const std::int64_t limit = now_ns() - std::chrono::nanoseconds(stall_timeout_).count();
+    const std::int64_t limit = steady_ns() - std::chrono::nanoseconds(stall_timeout_).count();
     for (auto& t : live) {
       if (t->last_ns_.load() > limit || t->stalled_ || t->received_all_) continue;
       std::lock_guard ticket_lock(t->mutex_);

@@ -1,4 +1,5 @@
 // A session's core: construction, the version and queue checks, β parsing, the solves and
+#include "engine/runtime/elapsed_ms.h"
 // the description every answer carries. The commands that change a session are in
 // session_change.cpp (and the files named after them); see docs/architecture.md.
 #include "service/session/session.h"
@@ -23,14 +24,6 @@ std::int64_t unix_ms_now() {
              std::chrono::system_clock::now().time_since_epoch())
       .count();
 }
-
-namespace {
-std::int64_t steady_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::steady_clock::now().time_since_epoch())
-      .count();
-}
-}  // namespace
 
 namespace detail {
 std::shared_ptr<const LocalBeta> make_field(const Eigen::VectorXd& local_max, const Beta& uniform) {
