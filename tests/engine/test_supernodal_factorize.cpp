@@ -8,9 +8,12 @@
 
 #include <gtest/gtest.h>
 
+#include <dlfcn.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <string>
@@ -104,6 +107,23 @@ TEST(SupernodalFactorize, MatchesCholmodOnProceduralCapsules) {
     const test::Benchmark b = test::capsule_benchmark(n);
     check_model(*b.mesh, b.constraints);
   }
+}
+
+// The kernel calls BLAS from its own two threads; OpenBLAS's pool beside them made the
+// factorization 7× slower (one_blas_thread.h). Fails with OpenBLAS's default on a 2-core host.
+TEST(SupernodalFactorize, LeavesOpenBlasOnOneThread) {
+  using GetThreads = int (*)();
+  const auto get = reinterpret_cast<GetThreads>(::dlsym(RTLD_DEFAULT, "openblas_get_num_threads"));
+  if (!get) GTEST_SKIP() << "the BLAS loaded is not OpenBLAS";
+  if (std::getenv("OPENBLAS_NUM_THREADS")) GTEST_SKIP() << "a user's OPENBLAS_NUM_THREADS is kept";
+  const int before = get();
+  const test::Benchmark b = test::capsule_benchmark(3000);
+  const SparseMatrix K = k_ff(*b.mesh, b.constraints, 0.0);
+  Pair p;
+  analyse(p, K, 0);
+  p.ours.factorize_supernodal(K, *p.plan, 2);
+  ASSERT_EQ(p.ours.info(), Eigen::Success);
+  EXPECT_EQ(get(), 1) << "OpenBLAS ran " << before << " threads before the factorization";
 }
 
 // The default plan splits a large factor; print where the work goes (the bench measures it).

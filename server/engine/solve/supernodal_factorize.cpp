@@ -1,5 +1,6 @@
 #include "engine/solve/supernodal_factorize.h"
 
+#include "engine/runtime/one_blas_thread.h"
 #include "engine/runtime/two_threads.h"
 
 #include <cblas.h>
@@ -313,6 +314,7 @@ int supernodal_factorize(cholmod_factor& L, const cholmod_sparse& A,
       A.nrow != L.n || A.ncol != L.n || A.itype != CHOLMOD_INT || A.xtype != CHOLMOD_REAL ||
       plan.super_of_.size() != L.n || plan.part_of_.size() != L.nsuper)
     throw std::logic_error("supernodal_factorize: preconditions not met");
+  use_one_blas_thread();
   const int n = static_cast<int>(L.n);
   const int nsuper = static_cast<int>(L.nsuper);
   if (n == 0) {

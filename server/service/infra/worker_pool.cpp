@@ -2,7 +2,6 @@
 
 #include <spdlog/spdlog.h>
 
-#include <dlfcn.h>
 #include <strings.h>
 #include <omp.h>
 
@@ -31,20 +30,13 @@ void run_guarded(const WorkerPool::Task& task) {
 // encodings) runs inside the workers. When OpenMP waits passively (the server sets that up:
 // process_environment.h), every worker's team gets all the cores and idle teams sleep;
 // with spinning waits, oversubscribed teams only fight each other, so the workers split the
-// cores. OpenBLAS (the factorization's large blocks) gets one thread: its pthread pool spins
-// and costs more than it gives on the blocks of these systems.
+// cores. (OpenBLAS gets one thread from the factorization itself: one_blas_thread.h.)
 static bool openmp_waits_passively() {
   const char* policy = std::getenv("OMP_WAIT_POLICY");
   return policy != nullptr && ::strcasecmp(policy, "passive") == 0;
 }
 
-static int limit_library_threads(int workers) {
-  static std::once_flag once;
-  std::call_once(once, [] {
-    using SetThreads = void (*)(int);
-    if (auto f = reinterpret_cast<SetThreads>(::dlsym(RTLD_DEFAULT, "openblas_set_num_threads")))
-      f(1);
-  });
+static int openmp_threads_per_worker(int workers) {
   const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   const int plan = openmp_waits_passively() ? cores : std::max(1, cores / std::max(1, workers));
   return std::min(plan, omp_get_max_threads());  // never above a user's OMP_NUM_THREADS
@@ -52,7 +44,7 @@ static int limit_library_threads(int workers) {
 
 WorkerPool::WorkerPool(int threads) {
   if (threads < 1) threads = 1;
-  const int omp_threads = limit_library_threads(threads);
+  const int omp_threads = openmp_threads_per_worker(threads);
   threads_.reserve(threads);
   for (int i = 0; i < threads; ++i)
     threads_.emplace_back([this, omp_threads] {
