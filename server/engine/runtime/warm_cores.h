@@ -17,8 +17,6 @@ namespace hdeform {
 
 class WarmCores {
  public:
-  using Clock = std::chrono::steady_clock;
-
   // threads: spinners while warm (0: never spins; the process's instance() uses one per
   // core). window: how long one extend() keeps them spinning (0: never).
   WarmCores(int threads, std::chrono::milliseconds window);
@@ -43,7 +41,7 @@ class WarmCores {
 
  private:
   void spin_loop();
-  std::atomic<std::int64_t> deadline_ns_{0};  // Clock's epoch; the spinners stop past it
+  std::atomic<std::int64_t> deadline_ns_{0};  // a steady_ns() time; the spinners stop past it
   std::atomic<std::int64_t> window_ms_;
   std::atomic<unsigned> wakes_{0};  // bumped by every extend(): what a sleeping spinner waits on
   std::atomic<int> spinning_{0};

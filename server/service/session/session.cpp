@@ -1,5 +1,4 @@
 // A session's core: construction, the version and queue checks, β parsing, the solves and
-#include "engine/runtime/elapsed_ms.h"
 // the description every answer carries. The commands that change a session are in
 // session_change.cpp (and the files named after them); see docs/architecture.md.
 #include "service/session/session.h"
