@@ -2,6 +2,7 @@
 // the web viewer). Every flag also reads an HDEFORM_* environment variable.
 #include "common/ready_file.h"
 #include "engine/runtime/process_environment.h"
+#include "engine/runtime/run_beside.h"
 #include "engine/runtime/warm_cores.h"
 #include "service/access/access.h"
 #include "service/rpc/server.h"
@@ -121,6 +122,14 @@ int main(int argc, char** argv) {
   app.add_option("--workers", workers, "solver threads")
       ->envname("HDEFORM_WORKERS")
       ->check(CLI::Range(1, 256))
+      ->capture_default_str();
+  int beside_threads = -1;
+  app.add_option("--beside-threads", beside_threads,
+                 "threads that requests may start at once beside their worker (the second "
+                 "half of a large mesh's ordering, a constraint set's blocks); beyond it a "
+                 "request does both parts on its worker, in turn (-1 = the machine's cores)")
+      ->envname("HDEFORM_BESIDE_THREADS")
+      ->check(CLI::Range(-1, 256))
       ->capture_default_str();
   int warm_cores_ms = -1;
   app.add_option("--warm-cores-ms", warm_cores_ms,
@@ -414,6 +423,9 @@ int main(int argc, char** argv) {
       return 1;
     }
   }
+
+  if (beside_threads >= 0) hdeform::set_beside_thread_limit(beside_threads);
+  spdlog::info("at most {} threads beside the workers", hdeform::beside_threads().limit);
 
   auto& warm = hdeform::WarmCores::instance();
   if (warm_cores_ms >= 0) warm.set_window(std::chrono::milliseconds(warm_cores_ms));

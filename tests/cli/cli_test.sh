@@ -334,8 +334,14 @@ remote)
   "$SERVER_BIN" --warm-cores-ms 20000 >"$TMP/out" 2>"$TMP/err" && fail "--warm-cores-ms 20000 accepted"
   grep -q -- '--warm-cores-ms: Value 20000 not in range -1 to 10000' "$TMP/err" ||
     fail "--warm-cores-ms 20000: '$(cat "$TMP/err")'"
+  # The budget of threads beside the workers: the same, and its limit named in the log.
+  "$SERVER_BIN" --beside-threads 300 >"$TMP/out" 2>"$TMP/err" && fail "--beside-threads 300 accepted"
+  grep -q -- '--beside-threads: Value 300 not in range -1 to 256' "$TMP/err" ||
+    fail "--beside-threads 300: '$(cat "$TMP/err")'"
   start_server
   echo "server at $ADDR"
+  grep -Eq "at most [1-9][0-9]* threads beside the workers" "$TMP/server.out" ||
+    fail "no beside-threads line in the server log: $(head -5 "$TMP/server.out")"
   grep -Eq 'cores kept warm for 250 ms after each drag move|cores not kept warm between drag moves \(the cgroup has a CPU quota\)' \
     "$TMP/server.out" || fail "no warm-cores line in the server log: $(head -5 "$TMP/server.out")"
   "$HDEFORM" --server "$ADDR" deform cactus --sel "$BS/cactus.sel" --def "$BS/cactus.def" \

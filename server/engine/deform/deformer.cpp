@@ -8,7 +8,7 @@
 #include "engine/operators/sparse_times3.h"
 #include "engine/operators/system_blocks.h"
 #include "engine/runtime/elapsed_ms.h"
-#include "engine/runtime/serial_openmp.h"
+#include "engine/runtime/run_beside.h"
 #include "engine/runtime/two_threads.h"
 #include "engine/solve/permutation.h"
 #include "engine/solve/solver.h"
@@ -18,8 +18,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <exception>
-#include <future>
 #include <limits>
 #include <numeric>
 #include <string>
@@ -88,26 +86,6 @@ Sparse combine(double a, const Sparse& x, double b, const std::vector<double>& y
 #pragma omp parallel for schedule(static)
   for (Eigen::Index k = 0; k < nnz; ++k) o[k] = a * xv[k] + b * yv[k];
   return out;
-}
-
-// Runs `side` on a thread of its own while `main` runs on the caller, each on one OpenMP
-// thread; rethrows main's exception, else side's. Not OpenMP sections: CHOLMOD's calls
-// (METIS, analysis) must not be nested in a parallel region (nested, LLVM's libomp leaked
-// 176 bytes per region: scripts/sanitize.sh).
-template <class Main, class Side>
-void run_beside(Main&& main, Side&& side) {
-  auto beside = std::async(std::launch::async, [&side] {
-    SerialOpenMP serial;
-    side();
-  });
-  try {
-    SerialOpenMP serial;
-    main();
-  } catch (...) {
-    beside.wait();
-    throw;
-  }
-  beside.get();
 }
 
 // The largest |value| a pass saw, and whether every value passed its check.

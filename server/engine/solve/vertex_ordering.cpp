@@ -1,5 +1,7 @@
 #include "engine/solve/vertex_ordering.h"
 
+#include "engine/runtime/run_beside.h"
+
 #include <Eigen/CholmodSupport>
 #include <metis.h>
 #include <pthread.h>
@@ -8,12 +10,10 @@
 #include <csignal>
 #include <cstdint>
 #include <cstdlib>
-#include <future>
 #include <mutex>
 #include <numeric>
 #include <stdexcept>
 #include <string>
-#include <system_error>
 
 // METIS 5.1 (Debian's build) draws its random numbers through GKlib's gk_randinit,
 // gk_randint32 and gk_randint64, which call libc's srand / rand: one stream for the whole
@@ -233,20 +233,9 @@ std::vector<int> metis_order(cholmod_sparse* A, cholmod_common* c) {
     cholmod_free_sparse(&graph, c);
     throw;
   }
-  std::future<std::vector<idx_t>> second;
-  try {
-    second = std::async(std::launch::async, [&] { return node_nd(half[1]); });
-  } catch (const std::system_error&) {  // no thread to be had: both halves here, in turn
-  }
-  std::vector<idx_t> first;
-  try {
-    first = node_nd(half[0]);
-  } catch (...) {
-    if (second.valid()) second.wait();
-    throw;
-  }
-  const std::vector<idx_t> perm[2] = {std::move(first),
-                                      second.valid() ? second.get() : node_nd(half[1])};
+  // The second half on a thread of the budget (run_beside.h), else after the first.
+  std::vector<idx_t> perm[2];
+  run_beside([&] { perm[0] = node_nd(half[0]); }, [&] { perm[1] = node_nd(half[1]); });
   std::size_t k = 0;
   for (int side : {0, 1})
     for (idx_t i : perm[side]) order[k++] = ids[side][static_cast<std::size_t>(i)];

@@ -14,15 +14,15 @@
 namespace hdeform {
 
 // From this many vertices on, nested_dissection splits the graph once (METIS's vertex
-// separator) and orders the two halves on two threads; below it, one METIS call (through
-// CHOLMOD) on the caller's thread.
+// separator) and orders the two halves on two threads (run_beside.h); below it, one METIS
+// call (through CHOLMOD) on the caller's thread.
 inline constexpr std::size_t kSplitOrderFrom = 20000;
 
 // METIS nested dissection of the symmetric pattern of A, n × n, read from its lower
 // triangle: order[k] = the vertex eliminated k-th. Deterministic, also with concurrent
 // calls, which run at once (each thread has its own METIS random stream:
 // vertex_ordering.cpp). Two threads from kSplitOrderFrom vertices on (the caller's and one
-// it starts and joins), else serial.
+// from the budget of run_beside.h; the caller alone when it is spent), else serial.
 std::vector<int> nested_dissection(const SparseMatrix& A);
 // The same for the union of the patterns of A and B (both n × n, symmetric).
 std::vector<int> nested_dissection(const SparseMatrix& A, const SparseMatrix& B);
