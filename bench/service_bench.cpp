@@ -438,6 +438,7 @@ void BM_Burst(benchmark::State& state, int n, int updates, int interval_us,
   Case* c = get_case(n, state);
   if (!c) return;
   std::vector<double> frames_v, fps_v, coalesced_v, last_ms_v, send_ms_v, lat, server, over;
+  std::vector<double> plain;  // Frame.solve_ms of drag frames without measures
   bool newest_answered = true;
   for (auto _ : state) {
     grpc::ClientContext ctx;
@@ -458,6 +459,7 @@ void BM_Burst(benchmark::State& state, int n, int updates, int interval_us,
         last_seq = frame.sequence();
         last_frame = now;
         server.push_back(frame.solve_ms());
+        if (!frame.exact() && !frame.has_measures()) plain.push_back(frame.solve_ms());
         const std::int64_t i = frame.sequence() - base;
         if (i >= 0 && i < updates) {
           const auto sent = Clock::time_point(Clock::duration(sent_ns[i].load()));
@@ -509,6 +511,11 @@ void BM_Burst(benchmark::State& state, int n, int updates, int interval_us,
   state.counters["lat_p99_ms"] = percentile(lat, 0.99);
   state.counters["server_p50_ms"] = percentile(server, 0.5);  // Frame.solve_ms
   state.counters["over_p50_ms"] = percentile(over, 0.5);  // latency − solve_ms, per frame
+  // A drag frame has measures at most every 100 ms (at 20 Hz about three frames in five go
+  // without): those are engine_bench's Update/N/beta:B/drag work (the drag solve, normals)
+  // plus the service's encode, so the two compare like for like.
+  state.counters["plain_frames"] = static_cast<double>(plain.size());
+  state.counters["server_plain_p50_ms"] = percentile(plain, 0.5);
 }
 
 // K sessions on a fresh server; each: CreateSession (upload) + SetConstraints + one
