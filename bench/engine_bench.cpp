@@ -315,6 +315,7 @@ struct PhaseMedians {
   void add(const ConstraintSet::OpenTimings& t) {
     add("checks", t.checks_ms);
     add("split", t.system.blocks_ms);
+    add("GtA_beside", t.system.rest_ms);  // (GᵀA)_F, beside the order and factorization
     add("ordering", t.system.ordering_ms);
     add("restrict", t.system.restrict_ms);
     add("analysis", t.system.analysis_ms);

@@ -420,32 +420,28 @@ std::shared_ptr<const BetaSystem> ConstraintSet::build_system_locked(double raw_
   BuildTimings timings;
   if (raw_beta == 0.0) {
     // The Laplacian's own narrow pattern (SPEC: factoring β = 0 on the wide one is slower).
-    // The blocks and the ordering (METIS; the mesh's first constraint set pays it) need
-    // nothing from each other: one core each while METIS is serial. Once the mesh has its
-    // order, or when METIS takes both cores itself (kSplitOrderFrom), the blocks take both
-    // cores and the order follows (beside the two-thread order, the blocks took 111–153 ms
-    // instead of 7 at 100K: docs/benchmarks.md "Nested dissection on two threads").
-    Blocks b;
-    std::vector<int> perm;
-    auto blocks = [&] {
-      const auto t0 = Clock::now();
-      b = split(mesh_->L(), nullptr, BlockLayout{region_of_, block_index_, nF, nC});
-      b.GtW_F = free_rows_gta(mesh_->mesh().F, mesh_->gradients(), mesh_->areas(),
-                              mesh_->vertex_triangles(), free_);
-      timings.blocks_ms = elapsed_ms(t0);
-    };
-    auto order = [&] { perm = free_order(/*wide=*/false, timings); };
-    if (mesh_->has_order() || static_cast<std::size_t>(mesh_->n()) >= kSplitOrderFrom) {
-      blocks();
-      order();
-    } else {
-      run_beside(order, blocks);
-    }
-    // Its symbolic analysis is never reused (β > 0 has its own, wider pattern): not kept.
-    sys->factor = factorize(b.FF, {.keep_analysis = false, .order = &perm});
+    // K_FF and K_FC first, on both cores; then the right-hand side's (GᵀA)_F on one core
+    // beside what needs nothing of it: the order (METIS, paid by the mesh's first constraint
+    // set), CHOLMOD's serial analysis and the two-thread factorization. At 1M vertices
+    // (GᵀA)_F is ≈ 175 MB of fresh pages, the analysis ≈ 0.3 s of one core
+    // (docs/benchmarks.md "The right-hand side beside the β = 0 factorization").
+    const auto t0 = Clock::now();
+    Blocks b = split(mesh_->L(), nullptr, BlockLayout{region_of_, block_index_, nF, nC});
+    timings.blocks_ms = elapsed_ms(t0);
+    run_beside(
+        [&] {
+          const std::vector<int> perm = free_order(/*wide=*/false, timings);
+          // Its symbolic analysis is never reused (β > 0 has its own, wider pattern): not kept.
+          sys->factor = factorize(b.FF, {.keep_analysis = false, .order = &perm});
+        },
+        [&] {
+          const auto t1 = Clock::now();
+          sys->GtW_F = free_rows_gta(mesh_->mesh().F, mesh_->gradients(), mesh_->areas(),
+                                     mesh_->vertex_triangles(), free_);
+          timings.rest_ms = elapsed_ms(t1);
+        });
     sys->K_FF = std::move(b.FF);
     sys->K_FC = std::move(b.FC);
-    sys->GtW_F = std::move(b.GtW_F);
   } else {
     auto t0 = Clock::now();
     if (!wide_) {

@@ -262,10 +262,12 @@ class ConstraintSet final : public std::enable_shared_from_this<ConstraintSet>,
   // Drops a cached β factorization (β = 0 stays: the harmonic basis came from it). Only
   // for benchmarks and tests: a shared set's other users would have to rebuild it.
   void drop_factorization(Beta beta);
-  // Where the last system build went (ms, wall; docs/benchmarks.md "β change"): the β > 0
-  // blocks (first β > 0 only), K_FF's values for β, the mesh's nested dissection (0 unless
-  // this build computed it: once per mesh and pattern) and its restriction to F, the
-  // factorization (symbolic analysis, numeric, schedule), K_FC and (Gᵀ W_β)_F.
+  // Where the last system build went (ms, wall; docs/benchmarks.md "β change"): the blocks
+  // (β = 0: K_FF and K_FC; β > 0: the wide ones, first β > 0 only), K_FF's values for β, the
+  // mesh's nested dissection (0 unless this build computed it: once per mesh and pattern)
+  // and its restriction to F, the factorization (symbolic analysis, numeric, schedule), and
+  // rest_ms: what was built beside the factorization (β = 0: (GᵀA)_F; β > 0: K_FC and
+  // (Gᵀ W_β)_F).
   struct BuildTimings {
     double blocks_ms = 0, K_FF_ms = 0, ordering_ms = 0, restrict_ms = 0, analysis_ms = 0,
            factor_ms = 0, schedule_ms = 0, rest_ms = 0;
