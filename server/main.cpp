@@ -126,8 +126,9 @@ int main(int argc, char** argv) {
   int beside_threads = -1;
   app.add_option("--beside-threads", beside_threads,
                  "threads that requests may start at once beside their worker (the second "
-                 "half of a large mesh's ordering, a constraint set's blocks); beyond it a "
-                 "request does both parts on its worker, in turn (-1 = the machine's cores)")
+                 "half of a large mesh's ordering, a system's right-hand side blocks); beyond "
+                 "it a request does both parts on its worker, in turn (-1 = the machine's "
+                 "cores)")
       ->envname("HDEFORM_BESIDE_THREADS")
       ->check(CLI::Range(-1, 256))
       ->capture_default_str();

@@ -1,6 +1,6 @@
 // Two independent parts of one call on two threads: the caller's and one started for the
-// call (the second half of a nested dissection, a constraint set's blocks beside its order or
-// its factorization's right-hand side). Those threads come from one process-wide budget, so
+// call (the second half of a nested dissection, a system's right-hand side blocks beside its
+// order and factorization). Those threads come from one process-wide budget, so
 // that requests at once cannot multiply them: when the budget is spent (or no thread can be
 // made) the caller runs both parts itself, in turn, with the same result, only later.
 #pragma once
