@@ -48,8 +48,11 @@ void run_beside(Main&& main, Side&& side) {
         SerialOpenMP serial;
         side();
       });
-    } catch (const std::system_error&) {
+    } catch (const std::system_error&) {  // no thread to be had: both parts here
       detail::return_beside_thread(/*made=*/false);
+    } catch (...) {  // std::bad_alloc: the call fails, and its thread goes back
+      detail::return_beside_thread(/*made=*/false);
+      throw;
     }
   }
   if (!beside.valid()) {
