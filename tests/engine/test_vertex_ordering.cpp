@@ -52,7 +52,8 @@ void check_model(const char* name, const PreparedMesh& pm, const Constraints& c,
   const std::vector<int>& order = pm.order();
   ASSERT_EQ(order.size(), static_cast<std::size_t>(pm.n()));
   EXPECT_TRUE(is_permutation_of_iota(order));
-  EXPECT_EQ(nested_dissection(pm.L()), order) << "METIS is deterministic";
+  EXPECT_EQ(nested_dissection(validate_mesh(pm.mesh()).edges), order)
+      << "METIS is deterministic";
   for (double beta : {0.0, 0.4}) {
     const SparseMatrix K = k_ff(pm, c, beta);
     const auto perm = restrict_order(beta == 0 ? pm.order() : pm.wide_order(), free);
@@ -102,6 +103,83 @@ TEST(VertexOrdering, SplitOrderKeepsMetisFill) {
   c.handles = {cc.cap};
   check_model("capsule 30K", *pm, c, 1.08);
   EXPECT_EQ(nested_dissection(pm->L(), pm->Reg()), pm->wide_order());
+}
+
+// validate_mesh's edge graph is L's pattern without the diagonal, plus the edges whose
+// cotangent weights cancel (L drops exact zeros: bar's right triangles have them). METIS
+// gives it one order, whoever asks: one call below kSplitOrderFrom, the split order above;
+// a mesh with a border and a vertex no triangle uses (an empty column) included.
+TEST(VertexOrdering, EdgeGraphIsLsPatternWithItsZeros) {
+  auto check = [](const char* name, TriMesh mesh, bool zeros) {
+    SCOPED_TRACE(name);
+    const EdgePattern edges = validate_mesh(mesh).edges;
+    ASSERT_EQ(edges.start.size(), static_cast<std::size_t>(mesh.num_vertices()) + 1);
+    const auto pm = PreparedMesh::create(std::move(mesh), PrepareOrder::on_first_use);
+    ASSERT_FALSE(pm->has_order());
+    const SparseMatrix& L = pm->L();
+    const auto& V = pm->mesh().V;
+    const auto& F = pm->mesh().F;
+    std::size_t cancelled = 0;
+    for (int v = 0; v < pm->n(); ++v) {
+      std::vector<int> in_L;
+      for (SparseMatrix::InnerIterator it(L, v); it; ++it)
+        if (it.row() > v) in_L.push_back(static_cast<int>(it.row()));
+      const std::vector<int> graph(edges.rows.begin() + edges.start[v],
+                                   edges.rows.begin() + edges.start[v + 1]);
+      ASSERT_TRUE(std::includes(graph.begin(), graph.end(), in_L.begin(), in_L.end()))
+          << "column " << v;
+      for (int w : graph) {
+        if (std::binary_search(in_L.begin(), in_L.end(), w)) continue;
+        // An edge L lacks: the cotangents of its opposite angles sum to zero.
+        ++cancelled;
+        double cot_sum = 0;
+        for (int l = 0; l < F.rows(); ++l) {
+          int iv = -1, iw = -1;
+          for (int k = 0; k < 3; ++k) {
+            if (F(l, k) == v) iv = k;
+            if (F(l, k) == w) iw = k;
+          }
+          if (iv < 0 || iw < 0) continue;
+          const Eigen::RowVector3d o = V.row(F(l, 3 - iv - iw));
+          const Eigen::RowVector3d a = V.row(v) - o, b = V.row(w) - o;
+          cot_sum += a.dot(b) / a.cross(b).norm();
+        }
+        EXPECT_NEAR(cot_sum, 0.0, 1e-12) << "edge " << v << "–" << w;
+      }
+    }
+    EXPECT_EQ(cancelled > 0, zeros);
+    const std::vector<int> order = nested_dissection(edges);
+    EXPECT_EQ(pm->order(), order) << "order() orders the same graph";
+    if (!zeros) {
+      EXPECT_EQ(order, nested_dissection(L)) << "the graph is L's pattern";
+    }
+  };
+  check("cactus", read_mesh(test::data_path("botsch-sorkine/cactus.off")).mesh, false);
+  check("bar", read_mesh(test::data_path("botsch-sorkine/bar.off")).mesh, true);
+  procedural::CapsuleCase small = procedural::capsule_case(8000);
+  small.mesh.V.conservativeResize(small.mesh.V.rows() + 1, 3);
+  small.mesh.V.row(small.mesh.V.rows() - 1) = Eigen::RowVector3d(9, 9, 9);  // unreferenced
+  check("capsule 8K + 1", std::move(small.mesh), false);
+  procedural::CapsuleCase large = procedural::capsule_case(30000);
+  ASSERT_GE(static_cast<std::size_t>(large.mesh.num_vertices()), kSplitOrderFrom);
+  check("capsule 30K", std::move(large.mesh), false);
+  EXPECT_THROW(nested_dissection(EdgePattern{{0, 2}, {1}}), std::logic_error);
+}
+
+// create() orders the edge graph beside the operators (PrepareOrder::with_operators, its
+// default): the order is there when it returns, the one order() computes on first use.
+TEST(VertexOrdering, CreateOrdersBesideTheOperators) {
+  for (int n : {8000, 30000}) {
+    procedural::CapsuleCase cc = procedural::capsule_case(n);
+    const auto now = PreparedMesh::create(cc.mesh);
+    const auto later = PreparedMesh::create(std::move(cc.mesh), PrepareOrder::on_first_use);
+    ASSERT_TRUE(now->has_order());
+    EXPECT_GT(now->build_timings().order_ms, 0.0);
+    ASSERT_FALSE(later->has_order());
+    EXPECT_EQ(now->order(), later->order());
+    EXPECT_FALSE(now->adopt_order(later->order(), false)) << "already there";
+    EXPECT_EQ(now->L().nonZeros(), later->L().nonZeros());
+  }
 }
 
 // A symmetric n × n matrix with the given edges (i, j) off the diagonal, each once.
@@ -265,7 +343,8 @@ TEST(VertexOrdering, GraphIsTheUnionOfTheLowerPatterns) {
 // the wide one at its first β > 0), the second none. Their deformations are the engine's
 // usual ones (test_thesis_table.cpp checks the benchmark's through this same path).
 TEST(VertexOrdering, ConstraintSetsShareTheMeshOrder) {
-  const test::Benchmark b = test::load_benchmark("cactus");
+  test::Benchmark b = test::load_benchmark("cactus");
+  b.mesh = PreparedMesh::create(b.mesh->mesh(), PrepareOrder::on_first_use);
   ConstraintSet first(b.mesh, b.constraints);
   EXPECT_GT(first.open_timings().system.ordering_ms, 0.0);
   first.prepare(Beta{0.3});
@@ -289,7 +368,7 @@ namespace {
 TEST(VertexOrdering, AnAdoptedOrderIsTakenAsItIsAndABadOneIsRefused) {
   const test::Benchmark b = test::load_benchmark("bar");
   const PreparedMesh& computed = *b.mesh;
-  auto fresh = [&] { return PreparedMesh::create(computed.mesh()); };
+  auto fresh = [&] { return PreparedMesh::create(computed.mesh(), PrepareOrder::on_first_use); };
 
   const auto refused = fresh();
   std::vector<int> shorter(computed.order().begin(), computed.order().end() - 1);

@@ -20,7 +20,7 @@ std::shared_ptr<MeshRef> cactus_ref() {
   auto r = std::make_shared<MeshRef>();
   TriMesh mesh = read_mesh(std::string(HDEFORM_TEST_DATA) + "/botsch-sorkine/cactus.off").mesh;
   r->hash = mesh_hash(mesh);
-  r->prepared = PreparedMesh::create(std::move(mesh));
+  r->prepared = PreparedMesh::create(std::move(mesh), PrepareOrder::on_first_use);  // as load_mesh
   return r;
 }
 

@@ -137,7 +137,7 @@ std::string fmt_result_error(int handle, const HandleTransform& t) {
 }  // namespace
 
 // ---------------------------------------------------------------------------------------
-std::shared_ptr<const PreparedMesh> PreparedMesh::create(TriMesh mesh) {
+std::shared_ptr<const PreparedMesh> PreparedMesh::create(TriMesh mesh, PrepareOrder order) {
   using Clock = std::chrono::steady_clock;
   auto t0 = Clock::now();
   auto lap = [&t0] {  // ms since the previous lap
@@ -146,27 +146,58 @@ std::shared_ptr<const PreparedMesh> PreparedMesh::create(TriMesh mesh) {
     t0 = now;
     return ms;
   };
-  const ValidationResult checked = validate_mesh(mesh);
+  ValidationResult checked = validate_mesh(mesh);
   std::shared_ptr<PreparedMesh> pm(new PreparedMesh());
-  pm->unreferenced_ = checked.unreferenced;
+  pm->unreferenced_ = std::move(checked.unreferenced);
   pm->mesh_ = std::move(mesh);
-  const Vertices& V = pm->mesh_.V;
-  const Triangles& F = pm->mesh_.F;
   BuildTimings& timings = pm->timings_;
   timings.validate_ms = lap();
 
-  pm->areas_ = triangle_areas(V, F);
-  pm->total_area_ = pm->areas_.sum();
-  pm->normals_ = triangle_normals(V, F);
-  pm->grads_ = hat_gradients(V, F);
-  timings.geometry_ms = lap();
-  pm->vertex_triangles_ = VertexTriangles::build(pm->n(), F);
-  pm->edges_ = interior_edges(V, F, pm->vertex_triangles_);
-  timings.edges_ms = lap();
-  pm->L_ = assemble_laplacian(F, pm->grads_, pm->areas_, pm->vertex_triangles_);
-  timings.laplacian_ms = lap();
-  pm->component_ = vertex_components(pm->n(), F, pm->num_components_);
-  timings.components_ms = lap();
+  auto operators = [&pm, &lap] {
+    const Vertices& V = pm->mesh_.V;
+    const Triangles& F = pm->mesh_.F;
+    BuildTimings& timings = pm->timings_;
+    pm->areas_ = triangle_areas(V, F);
+    pm->total_area_ = pm->areas_.sum();
+    pm->normals_ = triangle_normals(V, F);
+    pm->grads_ = hat_gradients(V, F);
+    timings.geometry_ms = lap();
+    pm->vertex_triangles_ = VertexTriangles::build(pm->n(), F);
+    pm->edges_ = interior_edges(V, F, pm->vertex_triangles_);
+    timings.edges_ms = lap();
+    pm->L_ = assemble_laplacian(F, pm->grads_, pm->areas_, pm->vertex_triangles_);
+    timings.laplacian_ms = lap();
+    pm->component_ = vertex_components(pm->n(), F, pm->num_components_);
+    timings.components_ms = lap();
+  };
+  if (order == PrepareOrder::on_first_use) {
+    operators();
+    pm->edge_graph_bytes_ =
+        (checked.edges.start.capacity() + checked.edges.rows.capacity()) * sizeof(int);
+    pm->edge_graph_ = std::move(checked.edges);
+    return pm;
+  }
+  // The same graph, so the same order, as order() computes on first use. A failed METIS
+  // call (out of memory) fails no open: the graph is kept and order() tries again.
+  const auto start = Clock::now();
+  std::vector<int> computed;
+  run_beside(operators, [&computed, &checked, &pm] {
+    const auto t = Clock::now();
+    try {
+      computed = nested_dissection(checked.edges);
+    } catch (const std::exception&) {
+      computed.clear();
+    }
+    pm->timings_.order_ms = elapsed_ms(t);
+  });
+  timings.beside_ms = elapsed_ms(start);
+  if (!computed.empty()) {
+    pm->adopt_order(std::move(computed), /*wide=*/false);
+  } else {
+    pm->edge_graph_bytes_ =
+        (checked.edges.start.capacity() + checked.edges.rows.capacity()) * sizeof(int);
+    pm->edge_graph_ = std::move(checked.edges);
+  }
   return pm;
 }
 
@@ -194,7 +225,12 @@ const std::vector<int>& PreparedMesh::lazy_order(std::once_flag& once, std::vect
 }
 
 const std::vector<int>& PreparedMesh::order(double* ms) const {
-  return lazy_order(order_once_, order_, order_ready_, [this] { return nested_dissection(L_); },
+  return lazy_order(order_once_, order_, order_ready_,
+                    [this] {
+                      auto order = nested_dissection(edge_graph_);
+                      edge_graph_ = EdgePattern{};
+                      return order;
+                    },
                     ms);
 }
 
@@ -211,6 +247,7 @@ bool PreparedMesh::adopt_order(std::vector<int> order, bool wide) const {
   bool taken = false;
   std::call_once(wide ? wide_order_once_ : order_once_, [&] {
     (wide ? wide_order_ : order_) = std::move(order);
+    if (!wide) edge_graph_ = EdgePattern{};
     (wide ? wide_order_ready_ : order_ready_).store(true, std::memory_order_release);
     taken = true;
   });
@@ -247,7 +284,8 @@ std::size_t PreparedMesh::memory_bytes() const {
          static_cast<std::size_t>(areas_.size() + normals_.size()) * sizeof(double) +
          edges_.size() * sizeof(InteriorEdge) + component_.size() * sizeof(int) +
          vertex_triangles_.memory_bytes() +
-         (order_ready_.load(std::memory_order_acquire) ? order_.size() * sizeof(int) : 0) +
+         (order_ready_.load(std::memory_order_acquire) ? order_.size() * sizeof(int)
+                                                        : edge_graph_bytes_) +
          (wide_order_ready_.load(std::memory_order_acquire) ? wide_order_.size() * sizeof(int)
                                                              : 0);
 }

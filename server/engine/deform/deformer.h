@@ -7,6 +7,7 @@
 #include "engine/deform/measures.h"
 #include "engine/mesh/mesh.h"
 #include "engine/mesh/transform.h"
+#include "engine/mesh/validate.h"
 #include "engine/mesh/vertex_normals.h"
 #include "engine/operators/operators.h"
 
@@ -30,13 +31,26 @@ struct Beta {
   BetaUnits units = BetaUnits::area;
 };
 
+// When PreparedMesh::create computes order() (β = 0's nested dissection).
+enum class PrepareOrder {
+  // Beside the operators, on a thread of run_beside's budget, from validation's edge graph:
+  // for a caller that factors next (the CLI, a restore without a stored order). At 1M
+  // vertices METIS's first separator would otherwise hold one core while the other idles.
+  with_operators,
+  // On order()'s first call, or never if adopt_order() gives it: for a caller that may
+  // have it stored, or whose user picks regions first (the service's open).
+  on_first_use,
+};
+
 // Rest-pose operators of one mesh. Immutable after create(): share it freely.
 class PreparedMesh {
  public:
   // Validates the mesh (throws InvalidInput naming the problem) and builds the per-triangle
   // gradients, areas and normals, the interior edges, L and the regularizer, straight into
-  // compressed storage on all OpenMP threads (operator_assembly.h). Cost O(m).
-  static std::shared_ptr<const PreparedMesh> create(TriMesh mesh);
+  // compressed storage on all OpenMP threads (operator_assembly.h), and β = 0's order when
+  // asked. Cost O(m), plus METIS's with the order.
+  static std::shared_ptr<const PreparedMesh> create(
+      TriMesh mesh, PrepareOrder order = PrepareOrder::with_operators);
 
   const TriMesh& mesh() const { return mesh_; }
   int n() const { return mesh_.num_vertices(); }
@@ -55,7 +69,8 @@ class PreparedMesh {
   // time). Not kept: only a constraint set's first β > 0 (its wide blocks) and a local β
   // field need it, and at 1M it would hold ≈ 0.23 GB for as long as the mesh lives.
   SparseMatrix Reg() const;
-  // Nested dissection of L's pattern (β = 0) and of L ∪ Reg's (β > 0), each computed on
+  // Nested dissection of the edge graph (β = 0: L's pattern, with the edges whose cotangent
+  // weights cancel, which L leaves out) and of L ∪ Reg's (β > 0), each computed on
   // its first call (thread-safe; METIS, on two threads from kSplitOrderFrom vertices) and
   // kept: every constraint set on this mesh orders its K_FF by it (vertex_ordering.h). ms:
   // the time the call spent computing it (0 when it was already there). reg: Reg() if the
@@ -87,10 +102,12 @@ class PreparedMesh {
   // Where create() spent its time (ms, wall; docs/benchmarks.md "Session open and memory"):
   // validation, per-triangle geometry (areas, normals, gradients), the vertex→triangle
   // table and interior edges, L, the connected components; and Reg's last build (0 until
-  // the first Reg() call, which is not part of create()).
+  // the first Reg() call, which is not part of create()). order_ms: the order computed beside
+  // those four (PrepareOrder::with_operators; else 0), its own time on its thread, and
+  // beside_ms the four and the order together (0 without it).
   struct BuildTimings {
     double validate_ms = 0, geometry_ms = 0, edges_ms = 0, laplacian_ms = 0,
-           regularizer_ms = 0, components_ms = 0;
+           regularizer_ms = 0, components_ms = 0, order_ms = 0, beside_ms = 0;
   };
   BuildTimings build_timings() const;
 
@@ -103,6 +120,10 @@ class PreparedMesh {
   mutable std::once_flag order_once_, wide_order_once_;
   mutable std::vector<int> order_, wide_order_;  // written once, under their once_flag
   mutable std::atomic<bool> order_ready_{false}, wide_order_ready_{false};
+  // Validation's edge graph, what order() orders; freed (under order_once_) once the
+  // order is there, computed or adopted. Its bytes are counted until then.
+  mutable EdgePattern edge_graph_;
+  std::size_t edge_graph_bytes_ = 0;
   template <class Compute>
   const std::vector<int>& lazy_order(std::once_flag& once, std::vector<int>& order,
                                      std::atomic<bool>& ready, Compute compute,

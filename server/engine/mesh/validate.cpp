@@ -136,6 +136,11 @@ ValidationResult validate_mesh(const TriMesh& mesh) {
   auto next = [](int h) { return 3 * (h / 3) + (h % 3 + 1) % 3; };
   size_t too_many = 0, misoriented = 0;
   std::string first_too_many, first_misoriented;
+  ValidationResult result;
+  EdgePattern& edges = result.edges;
+  edges.start.reserve(static_cast<size_t>(n) + 1);
+  edges.start.push_back(0);
+  edges.rows.reserve(H / 2 + H / 8);  // closed: H / 2 edges; a border adds its own
   for (int v = 0; v < n; ++v) {
     auto b = bucket.begin() + start[static_cast<size_t>(v)];
     auto e = bucket.begin() + start[static_cast<size_t>(v) + 1];
@@ -145,6 +150,7 @@ ValidationResult validate_mesh(const TriMesh& mesh) {
       auto ge = g;
       while (ge != e && ge->first == other) ++ge;
       const size_t k = static_cast<size_t>(ge - g);
+      edges.rows.push_back(other);
       if (k > 2) {
         if (too_many++ == 0) {
           std::vector<int> tris;
@@ -167,6 +173,7 @@ ValidationResult validate_mesh(const TriMesh& mesh) {
       }
       g = ge;
     }
+    edges.start.push_back(static_cast<int>(edges.rows.size()));
   }
   // A face written twice shows as a non-manifold or misoriented edge: name it for what it is
   // (only then is the sort paid for).
@@ -218,7 +225,6 @@ ValidationResult validate_mesh(const TriMesh& mesh) {
                          " triangles forming more than one fan (first: " + first + (bad > kShow ? ", …" : "") + ")");
   }
 
-  ValidationResult result;
   for (int v = 0; v < n; ++v)
     if (fans[static_cast<size_t>(v)] == 0) result.unreferenced.push_back(v);
   if (!result.unreferenced.empty()) {

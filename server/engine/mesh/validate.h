@@ -14,9 +14,19 @@ namespace hdeform {
 // the triangles validate_mesh refuses as zero-area.
 inline constexpr double kZeroAreaScale = 1e-14;
 
+// The mesh's edge graph as the lower triangle of a symmetric n × n pattern, by columns:
+// column v lists the vertices w > v that share an edge with v, ascending, in
+// rows[start[v] .. start[v + 1]). It is L's pattern without its diagonal, so METIS orders it
+// as it orders L (vertex_ordering.h), before L exists.
+struct EdgePattern {
+  std::vector<int> start;  // n + 1 offsets into rows
+  std::vector<int> rows;
+};
+
 struct ValidationResult {
   std::vector<int> unreferenced;      // vertex ids no triangle uses (kept, pinned at rest)
   std::vector<std::string> warnings;  // human-readable, one per issue
+  EdgePattern edges;                  // read off the edge check's sorted buckets: no extra pass
 };
 
 // Throws InvalidInput naming the first problem class found and how many elements it

@@ -252,6 +252,26 @@ std::vector<int> nested_dissection(const SparseMatrix& A) {
   return metis_order(&a, &common.c);
 }
 
+std::vector<int> nested_dissection(const EdgePattern& lower) {
+  const std::size_t n = lower.start.empty() ? 0 : lower.start.size() - 1;
+  if (lower.start.empty() || static_cast<std::size_t>(lower.start.back()) != lower.rows.size())
+    throw std::logic_error("nested_dissection: malformed edge pattern");
+  Common common;
+  // A view, as viewAsCholmod makes one of L: CHOLMOD reads the arrays and never writes them.
+  cholmod_sparse a{};
+  a.nrow = a.ncol = n;
+  a.nzmax = lower.rows.size();
+  a.p = const_cast<int*>(lower.start.data());
+  a.i = const_cast<int*>(lower.rows.data());
+  a.stype = -1;  // the lower triangle of a symmetric pattern
+  a.itype = CHOLMOD_INT;
+  a.xtype = CHOLMOD_PATTERN;
+  a.dtype = CHOLMOD_DOUBLE;
+  a.sorted = 1;
+  a.packed = 1;
+  return metis_order(&a, &common.c);
+}
+
 std::vector<int> nested_dissection(const SparseMatrix& A, const SparseMatrix& B) {
   if (A.rows() != B.rows() || A.cols() != B.cols())
     throw std::logic_error("nested_dissection: the two patterns differ in size");

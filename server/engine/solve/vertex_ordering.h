@@ -6,6 +6,7 @@
 // (docs/benchmarks.md "Orderings shared per mesh").
 #pragma once
 
+#include "engine/mesh/validate.h"
 #include "engine/operators/operators.h"
 
 #include <cstddef>
@@ -26,6 +27,9 @@ inline constexpr std::size_t kSplitOrderFrom = 20000;
 std::vector<int> nested_dissection(const SparseMatrix& A);
 // The same for the union of the patterns of A and B (both n × n, symmetric).
 std::vector<int> nested_dissection(const SparseMatrix& A, const SparseMatrix& B);
+// The same for the mesh's edge graph (validate_mesh's): the order of L's pattern, the same
+// permutation as nested_dissection(L) (VertexOrdering.EdgePatternGivesLsOrder), without L.
+std::vector<int> nested_dissection(const EdgePattern& lower);
 
 // The permutation of a block whose row i is vertex free[i]: perm[k] = i of the k-th free
 // vertex in `order` (a permutation of 0..n−1). free: distinct vertex ids in [0, n).

@@ -95,7 +95,8 @@ std::shared_ptr<const MeshRef> load_mesh(std::shared_ptr<const std::string> byte
                                          const std::string& filename,
                                          const std::string& library_name, Cache& cache,
                                          const ReadLimits& limits,
-                                         const std::optional<RepairOptions>& repair) {
+                                         const std::optional<RepairOptions>& repair,
+                                         PrepareOrder order) {
   std::string ext = fs::path(filename).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
@@ -129,7 +130,7 @@ std::shared_ptr<const MeshRef> load_mesh(std::shared_ptr<const std::string> byte
     auto make_prepared = [&]() -> std::shared_ptr<const PreparedMesh> {
       spdlog::info("preparing mesh {} ({} vertices, {} triangles)", r->hash,
                    loaded.mesh.num_vertices(), loaded.mesh.num_triangles());
-      return PreparedMesh::create(loaded.mesh);
+      return PreparedMesh::create(loaded.mesh, order);
     };
     r->prepared = cache.get_or_create<PreparedMesh>(
         "mesh/" + r->hash, make_prepared, [](const PreparedMesh& pm) { return pm.memory_bytes(); });

@@ -64,12 +64,15 @@ std::string default_mesh_dir();
 // Parses a mesh file, enforces the vertex limit while parsing (LimitExceeded →
 // RESOURCE_EXHAUSTED), polls limits' cancellation (ReadCancelled → CANCELLED), repairs it
 // when asked (repair_loaded_mesh) and finds or builds its MeshRef / PreparedMesh in the
-// cache. Throws InvalidInput for a bad mesh.
+// cache. Throws InvalidInput for a bad mesh. order: when a PreparedMesh built here orders
+// its β = 0 system (a session's open leaves it to the background orders while its user
+// picks regions; a restore that factors at once and has no stored order asks for it now).
 std::shared_ptr<const MeshRef> load_mesh(std::shared_ptr<const std::string> bytes,
                                          const std::string& filename,
                                          const std::string& library_name, Cache& cache,
                                          const ReadLimits& limits,
-                                         const std::optional<RepairOptions>& repair = {});
+                                         const std::optional<RepairOptions>& repair = {},
+                                         PrepareOrder order = PrepareOrder::on_first_use);
 
 std::string read_file(const std::string& path);  // throws ServiceError NOT_FOUND
 
