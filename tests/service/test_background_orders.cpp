@@ -360,6 +360,47 @@ TEST(BackgroundOrders, ARestoredSessionsMeshGetsTheOrderItLacks) {
   EXPECT_EQ(s.superseded, 1u);
 }
 
+// A restore that factors at once (its session has constraints) and finds no stored β = 0
+// order has its mesh ordered beside the operators (PrepareOrder::with_operators); one that
+// finds it takes it, and no METIS runs in the open.
+TEST(BackgroundOrders, ARestoreWithoutItsStoredOrderOrdersBesideTheOperators) {
+  TempDir dir;
+  ServerOptions options = durable(dir, 0);
+  pb::Session created;
+  {
+    hdeform::testing::TestServer a(options);
+    ASSERT_TRUE(a.create_library("cactus", &created).ok());
+    pb::Session constrained;
+    ASSERT_TRUE(a.set_constraints(created.name(), hdeform::testing::cactus_constraints(),
+                                  &constrained).ok());
+  }
+  const auto file = orders_file(dir, created.mesh_hash());
+  ASSERT_TRUE(std::filesystem::exists(file));
+  const std::string kept = bytes_of(file);
+  auto restore = [&](bool with_orders) {
+    if (with_orders) {
+      std::ofstream(file, std::ios::binary) << kept;
+    } else {
+      std::filesystem::remove(file);
+    }
+    hdeform::testing::TestServer b(options);
+    grpc::ClientContext ctx;
+    pb::GetSessionRequest get;
+    get.set_name(created.name());
+    pb::Session restored;
+    EXPECT_TRUE(b.stub->GetSession(&ctx, get, &restored).ok());
+    const auto pm = b.server->prepared_mesh(created.mesh_hash());
+    EXPECT_TRUE(pm && pm->has_order());
+    return pm ? pm->build_timings() : PreparedMesh::BuildTimings{};
+  };
+  const auto cold = restore(false);
+  EXPECT_GT(cold.order_ms, 0.0) << "ordered in the open, beside the operators";
+  EXPECT_GT(cold.beside_ms, 0.0);
+  const auto warm = restore(true);
+  EXPECT_EQ(warm.order_ms, 0.0) << "the stored order was taken";
+  EXPECT_EQ(warm.beside_ms, 0.0);
+}
+
 TEST(BackgroundOrders, AServerWithTheThresholdAtZeroOrdersNothingInTheBackground) {
   TempDir dir;
   ServerOptions options = durable(dir, 0);

@@ -68,11 +68,12 @@ std::optional<RepairOptions> repair_options(const v1::MeshRepair* repair) {
   return RepairOptions{t};
 }
 
-std::shared_ptr<const MeshRef> DeformService::load_library_mesh(const std::string& name) {
+std::shared_ptr<const MeshRef> DeformService::load_library_mesh(const std::string& name,
+                                                                PrepareOrder order) {
   auto entry = library_.find(name);
   if (!entry) fail(grpc::StatusCode::NOT_FOUND, "no mesh '" + name + "' in the library");
   auto bytes = std::make_shared<const std::string>(read_file(entry->path));
-  return load_mesh(bytes, entry->path, entry->name, cache_, read_limits());
+  return load_mesh(bytes, entry->path, entry->name, cache_, read_limits(), {}, order);
 }
 
 std::shared_ptr<const MeshRef> DeformService::load_upload(std::shared_ptr<const std::string> bytes,
@@ -99,24 +100,25 @@ void DeformService::open_state() {
     p.purge_meshes = true;  // this server is the folder's only user (its lock)
   }
   p.backend = state_;
-  p.load_mesh = [this](const v1::Snapshot& snap, const std::string& key) {
-    return load_stored_mesh(snap, key);
+  p.load_mesh = [this](const v1::Snapshot& snap, const std::string& key, PrepareOrder order) {
+    return load_stored_mesh(snap, key, order);
   };
   spdlog::info("session state: {}", state_->describe());
   store_.attach(std::move(p));
 }
 
 std::shared_ptr<const MeshRef> DeformService::load_stored_mesh(const v1::Snapshot& snap,
-                                                               const std::string& key) {
+                                                               const std::string& key,
+                                                               PrepareOrder order) {
   std::shared_ptr<const MeshRef> mesh;
   if (!snap.library_mesh().empty()) {
-    mesh = load_library_mesh(snap.library_mesh());
+    mesh = load_library_mesh(snap.library_mesh(), order);
   } else {
     auto bytes = state_->get_mesh(key);
     if (!bytes) throw StateError("its mesh " + key + " is missing from " + state_->describe());
     mesh = load_mesh(std::make_shared<const std::string>(std::move(*bytes)), snap.filename(), "",
                      cache_, read_limits(),
-                     repair_options(snap.has_repair() ? &snap.repair() : nullptr));
+                     repair_options(snap.has_repair() ? &snap.repair() : nullptr), order);
   }
   if (!snap.mesh_hash().empty() && snap.mesh_hash() != mesh->hash)
     fail(grpc::StatusCode::FAILED_PRECONDITION,

@@ -156,7 +156,8 @@ class DeformService final : public v1::Deformation::CallbackService {
                                       const char* op);
 
   // Blocking helpers used by the reactors (run on the pool).
-  std::shared_ptr<const MeshRef> load_library_mesh(const std::string& name);
+  std::shared_ptr<const MeshRef> load_library_mesh(
+      const std::string& name, PrepareOrder order = PrepareOrder::on_first_use);
   // `repair` (optional): CreateSessionHeader.repair / Snapshot.repair.
   std::shared_ptr<const MeshRef> load_upload(std::shared_ptr<const std::string> bytes,
                                              const std::string& filename,
@@ -200,7 +201,8 @@ class DeformService final : public v1::Deformation::CallbackService {
   // Durable state from the options (none, SQLite folder, Redis); throws StateError.
   void open_state();
   std::shared_ptr<const MeshRef> load_stored_mesh(const v1::Snapshot& snapshot,
-                                                  const std::string& mesh_key);
+                                                  const std::string& mesh_key,
+                                                  PrepareOrder order);
 
   ServerOptions options_;
   // Everything the workers read is built before pool_ starts them (declaration order is

@@ -115,6 +115,10 @@ std::size_t Server::restores_off_pool() const {
   return impl_->service->sessions().restores_off_pool();
 }
 
+std::shared_ptr<const PreparedMesh> Server::prepared_mesh(const std::string& mesh_hash) const {
+  return impl_->service->cache().find<PreparedMesh>("mesh/" + mesh_hash);
+}
+
 std::shared_ptr<grpc::Channel> Server::in_process_channel() {
   grpc::ChannelArguments args;
   args.SetMaxReceiveMessageSize(-1);

@@ -74,6 +74,9 @@ class Server {
   BackgroundOrders::Stats background_orders() const;
   // Session restores that ran outside the worker pool (on a gRPC thread): should stay 0.
   std::size_t restores_off_pool() const;
+  // The prepared mesh the cache holds for a mesh hash (nullptr: none): its build timings
+  // and orders, for tests and tools.
+  std::shared_ptr<const PreparedMesh> prepared_mesh(const std::string& mesh_hash) const;
   std::shared_ptr<grpc::Channel> in_process_channel();
   void shutdown(std::chrono::milliseconds deadline = std::chrono::milliseconds(2000));
   void wait();

@@ -16,17 +16,25 @@ unsigned computed(const PreparedMesh& pm) {
 }
 }  // namespace
 
+std::optional<std::string> OrderingStore::read(const std::string& mesh_hash) {
+  if (mesh_hash.empty()) return std::nullopt;
+  try {
+    return backend_.get_derived(mesh_hash);
+  } catch (const StateError& e) {
+    spdlog::warn("mesh {}: its orderings could not be read ({}); computing them", mesh_hash,
+                 e.what());
+    return std::nullopt;
+  }
+}
+
 void OrderingStore::prime(const MeshRef& mesh) {
+  if (computed(*mesh.prepared) == (kOrder | kWide)) return;
+  prime(mesh, read(mesh.hash));
+}
+
+void OrderingStore::prime(const MeshRef& mesh, const std::optional<std::string>& bytes) {
   const PreparedMesh& pm = *mesh.prepared;
   if (computed(pm) == (kOrder | kWide)) return;
-  std::optional<std::string> bytes;
-  try {
-    bytes = backend_.get_derived(mesh.hash);
-  } catch (const StateError& e) {
-    spdlog::warn("mesh {}: its orderings could not be read ({}); computing them", mesh.hash,
-                 e.what());
-    return;
-  }
   if (!bytes) return;
   const auto stored = parse_orderings(*bytes, mesh.hash, pm.n());
   if (!stored) {

@@ -11,6 +11,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -23,6 +24,11 @@ class OrderingStore {
   // Before a new or restored session's first factorization (on the pool: it reads the
   // store): adopts the orderings kept for `mesh`, if any. Never throws; a failure is logged.
   void prime(const MeshRef& mesh);
+  // The same in two steps, for a restore that asks before its mesh is prepared (whether
+  // create() should order it: PrepareOrder): the stored bytes for a mesh hash (nullopt:
+  // none, or unreadable, logged), then their orderings adopted by the mesh.
+  std::optional<std::string> read(const std::string& mesh_hash);
+  void prime(const MeshRef& mesh, const std::optional<std::string>& bytes);
   // Writes the orderings computed since they were last kept, for the meshes in use (the
   // flusher's job; the others are forgotten here, not in the store). Never throws: a failed
   // write is logged and tried again at the next call.

@@ -381,4 +381,7 @@ class Session : public std::enable_shared_from_this<Session> {
 
 std::int64_t unix_ms_now();
 
+// Whether a snapshot's restore builds a constraint set (and so factors at once).
+bool snapshot_has_constraints(const pb::Snapshot& snapshot);
+
 }  // namespace hdeform::service

@@ -137,6 +137,11 @@ const std::string& Session::mesh_name() const {
   return mesh_->library_name.empty() ? upload_name_ : mesh_->library_name;
 }
 
+bool snapshot_has_constraints(const pb::Snapshot& s) {
+  return s.has_constraints() &&
+         (s.constraints().fixed().selectors_size() > 0 || s.constraints().handles_size() > 0);
+}
+
 void Session::restore(const pb::Snapshot& s) {
   name_upload(s.filename());
   // An automatic β keeps the snapshot's pick (`value`): the restored session deforms exactly
@@ -146,10 +151,7 @@ void Session::restore(const pb::Snapshot& s) {
     std::lock_guard lock(mutex_);
     beta_ = std::move(beta);
   }
-  const bool has_constraints =
-      s.has_constraints() &&
-      (s.constraints().fixed().selectors_size() > 0 || s.constraints().handles_size() > 0);
-  if (!has_constraints) {
+  if (!snapshot_has_constraints(s)) {
     if (s.transforms_size() > 0)
       throw InvalidInput("snapshot has transforms but no constraints");
     return;

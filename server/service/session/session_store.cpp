@@ -309,8 +309,16 @@ std::shared_ptr<Session> SessionStore::restore(const std::string& id) const {
   try {
     auto t = Clock::now();
     record_ms = elapsed_ms(t0, t);
-    auto mesh = persistence_.load_mesh(record.snapshot(), record.mesh_key());
-    if (orderings_) orderings_->prime(*mesh);
+    // A restore with constraints factors at once: without a stored order, its mesh is
+    // ordered beside its operators (PrepareOrder), not after them.
+    const auto& snap = record.snapshot();
+    std::optional<std::string> stored_orders;
+    if (orderings_) stored_orders = orderings_->read(snap.mesh_hash());
+    auto mesh = persistence_.load_mesh(
+        snap, record.mesh_key(),
+        snapshot_has_constraints(snap) && !stored_orders ? PrepareOrder::with_operators
+                                                         : PrepareOrder::on_first_use);
+    if (orderings_) orderings_->prime(*mesh, stored_orders);
     s = std::make_shared<Session>(id, std::move(mesh), pool_, cache_, limits_.request);
     mesh_ms = elapsed_ms(t, Clock::now());
     t = Clock::now();

@@ -37,9 +37,10 @@ struct Limits {
 // Durable state for a SessionStore.
 struct Persistence {
   std::shared_ptr<StateBackend> backend;
-  // The mesh of a stored session: by library name, or the upload stored under mesh_key.
-  std::function<std::shared_ptr<const MeshRef>(const pb::Snapshot& snapshot,
-                                               const std::string& mesh_key)>
+  // The mesh of a stored session: by library name, or the upload stored under mesh_key;
+  // a PreparedMesh built for it orders its β = 0 system as `order` says (load_mesh).
+  std::function<std::shared_ptr<const MeshRef>(
+      const pb::Snapshot& snapshot, const std::string& mesh_key, PrepareOrder order)>
       load_mesh;
   // Handle moves are saved at most this late (a drag's last moves lost on kill -9)...
   std::chrono::milliseconds flush_period{100};
