@@ -1,6 +1,8 @@
 // The per-mesh nested dissection (vertex_ordering.h) restricted to a constraint set's free
 // vertices, against METIS run on K_FF itself: the same solutions, a comparable fill, and
 // the constraint set's factorizations built from it.
+#include "engine/runtime/run_beside.h"
+#include "engine/runtime/serial_openmp.h"
 #include "engine/solve/supernodal_factorization.h"
 #include "engine/solve/vertex_ordering.h"
 #include "fixtures.h"
@@ -362,6 +364,39 @@ TEST(VertexOrdering, ConstraintSetsShareTheMeshOrder) {
 
 namespace hdeform {
 namespace {
+
+// An order that fails in create() (memory running out in it) fails no open: the mesh keeps
+// its edge graph and order() orders it on first use. With no beside thread and serial
+// loops the order runs on this thread right after the operators, and the allocations
+// before it are the same in every run: the next one is made to fail.
+TEST(VertexOrdering, AnOrderThatFailsInCreateIsComputedOnFirstUse) {
+#if HDEFORM_SANITIZED
+  GTEST_SKIP() << "the sanitizers' malloc cannot be made to fail";
+#else
+  const TriMesh mesh = procedural::capsule_case(8000).mesh;
+  const int limit = beside_threads().limit;
+  set_beside_thread_limit(0);
+  SerialOpenMP serial;
+  constexpr long kMany = 1L << 40;
+  mallocs_until_failure = kMany;
+  PreparedMesh::create(mesh, PrepareOrder::on_first_use);  // validation and operators alone
+  const long before_order = kMany - mallocs_until_failure;
+  mallocs_until_failure = before_order;
+  std::shared_ptr<const PreparedMesh> pm;
+  try {
+    pm = PreparedMesh::create(mesh, PrepareOrder::with_operators);
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << "the open failed: " << e.what();
+  }
+  const bool failed = mallocs_until_failure == -1;
+  mallocs_until_failure = -1;
+  set_beside_thread_limit(limit);
+  ASSERT_TRUE(failed) << "no allocation failed";
+  ASSERT_TRUE(pm);
+  EXPECT_FALSE(pm->has_order()) << "the failed order is not there";
+  EXPECT_EQ(pm->order(), nested_dissection(validate_mesh(mesh).edges));
+#endif
+}
 
 // An order kept from an earlier process (the service's state store) is taken as it is, a
 // bad one is refused, and the same order gives the same frame bits as the METIS call did.
