@@ -100,6 +100,15 @@ std::filesystem::path orders_file(const TempDir& dir, const std::string& mesh_ha
   return dir.path / "state" / "derived" / (mesh_hash + ".order");
 }
 
+// A session on the cactus with constraints (β = 0), stored by a server that has stopped.
+void stored_constrained_cactus(const ServerOptions& options, pb::Session* created) {
+  hdeform::testing::TestServer a(options);
+  ASSERT_TRUE(a.create_library("cactus", created).ok());
+  pb::Session constrained;
+  ASSERT_TRUE(a.set_constraints(created->name(), hdeform::testing::cactus_constraints(),
+                                &constrained).ok());
+}
+
 }  // namespace
 
 TEST(BackgroundOrders, AQueuedMeshGetsTheOrdersItsFirstCallsWouldCompute) {
@@ -327,13 +336,7 @@ TEST(BackgroundOrders, ARestoredSessionsMeshGetsTheOrderItLacks) {
   TempDir dir;
   ServerOptions options = durable(dir, 0);
   pb::Session created;
-  {
-    hdeform::testing::TestServer a(options);
-    ASSERT_TRUE(a.create_library("cactus", &created).ok());
-    pb::Session constrained;
-    ASSERT_TRUE(a.set_constraints(created.name(), hdeform::testing::cactus_constraints(),
-                                  &constrained).ok());
-  }
+  ASSERT_NO_FATAL_FAILURE(stored_constrained_cactus(options, &created));
   const auto file = orders_file(dir, created.mesh_hash());
   state::StoredOrderings stored;
   ASSERT_TRUE(stored.ParseFromString(bytes_of(file)));
@@ -367,13 +370,7 @@ TEST(BackgroundOrders, ARestoreWithoutItsStoredOrderOrdersBesideTheOperators) {
   TempDir dir;
   ServerOptions options = durable(dir, 0);
   pb::Session created;
-  {
-    hdeform::testing::TestServer a(options);
-    ASSERT_TRUE(a.create_library("cactus", &created).ok());
-    pb::Session constrained;
-    ASSERT_TRUE(a.set_constraints(created.name(), hdeform::testing::cactus_constraints(),
-                                  &constrained).ok());
-  }
+  ASSERT_NO_FATAL_FAILURE(stored_constrained_cactus(options, &created));
   const auto file = orders_file(dir, created.mesh_hash());
   ASSERT_TRUE(std::filesystem::exists(file));
   const std::string kept = bytes_of(file);
