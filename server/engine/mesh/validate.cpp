@@ -114,21 +114,19 @@ ValidationResult validate_mesh(const TriMesh& mesh) {
   // Edges: halfedge h = 3t + k runs from F(t, k) to F(t, (k + 1) % 3). Bucket the halfedges
   // by their smaller endpoint (counting sort), then sort each bucket by the larger one.
   const size_t H = 3 * static_cast<size_t>(m);
-  std::vector<int> from(H), to(H);  // halfedge endpoints, plain arrays for the hot loops
-  for (int t = 0; t < m; ++t)
-    for (int k = 0; k < 3; ++k) {
-      from[3 * static_cast<size_t>(t) + static_cast<size_t>(k)] = F(t, k);
-      to[3 * static_cast<size_t>(t) + static_cast<size_t>(k)] = F(t, (k + 1) % 3);
-    }
+  // F is row-major, so halfedge h starts at F's h-th entry: read in place, not copied
+  // (two copies were ≈ 48 MB of fresh pages at 1M vertices).
+  const int* from = F.data();
+  auto to = [from](size_t h) { return from[h - h % 3 + (h % 3 + 1) % 3]; };
   std::vector<int> start(static_cast<size_t>(n) + 1, 0);
-  for (size_t h = 0; h < H; ++h) ++start[static_cast<size_t>(std::min(from[h], to[h])) + 1];
+  for (size_t h = 0; h < H; ++h) ++start[static_cast<size_t>(std::min(from[h], to(h))) + 1];
   for (int i = 0; i < n; ++i) start[static_cast<size_t>(i) + 1] += start[static_cast<size_t>(i)];
   // Bucket entries (larger endpoint, halfedge); sorting a bucket groups each edge's halfedges.
   std::vector<std::pair<int, int>> bucket(H);
   {
     std::vector<int> fill(start.begin(), start.end() - 1);
     for (size_t h = 0; h < H; ++h) {
-      const int lo = std::min(from[h], to[h]), hi = std::max(from[h], to[h]);
+      const int lo = std::min(from[h], to(h)), hi = std::max(from[h], to(h));
       bucket[static_cast<size_t>(fill[static_cast<size_t>(lo)]++)] = {hi, static_cast<int>(h)};
     }
   }
