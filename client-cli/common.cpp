@@ -189,6 +189,9 @@ Connection::Connection(const GlobalOptions& options) : options_(options) {
     // A batch job computes its orders when it needs them; one in the background would only
     // delay the job's exit (a stop waits for the order in progress).
     so.background_order_from = 0;
+    // It sets constraints right after the open: the mesh's order is computed beside its
+    // operators, where one core would otherwise idle (ServerOptions::order_on_open).
+    so.order_on_open = true;
     server_ = std::make_shared<service::Server>(so);
     channel_ = server_->in_process_channel();
     spdlog::debug("started the in-process service");

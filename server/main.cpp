@@ -115,6 +115,11 @@ int main(int argc, char** argv) {
                  "skip METIS (0 = never)")
       ->envname("HDEFORM_BACKGROUND_ORDER_FROM")
       ->capture_default_str();
+  bool order_on_open = false;
+  app.add_flag("--order-on-open", order_on_open,
+               "order a new session's mesh (beta = 0) beside its operators: the open answers "
+               "later, its first SetConstraints sooner (for batch clients)")
+      ->envname("HDEFORM_ORDER_ON_OPEN");
   app.add_option("--session-ttl", session_ttl, "idle session lifetime (seconds)")
       ->envname("HDEFORM_SESSION_TTL")
       ->check(CLI::PositiveNumber)
@@ -377,6 +382,7 @@ int main(int argc, char** argv) {
   options.cache_bytes = cache_mb << 20;
   options.session_ttl = std::chrono::seconds(session_ttl);
   options.background_order_from = background_order_from;
+  options.order_on_open = order_on_open;
   options.request = request;
   options.max_upload_inflight_bytes = max_upload_inflight_mb << 20;
   options.grpc_memory_bytes = grpc_memory_mb << 20;

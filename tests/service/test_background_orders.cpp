@@ -398,6 +398,25 @@ TEST(BackgroundOrders, ARestoreWithoutItsStoredOrderOrdersBesideTheOperators) {
   EXPECT_EQ(warm.beside_ms, 0.0);
 }
 
+// --order-on-open (the in-process CLI's setting): a CreateSession's mesh has its β = 0 order
+// when the call answers, computed beside its operators; without it the order waits for its
+// first use (no background orders here).
+TEST(BackgroundOrders, OrderOnOpenOrdersTheNewMeshBesideItsOperators) {
+  for (bool on : {false, true}) {
+    SCOPED_TRACE(on ? "--order-on-open" : "default");
+    ServerOptions options;
+    options.background_order_from = 0;
+    options.order_on_open = on;
+    hdeform::testing::TestServer t(options);
+    pb::Session created;
+    ASSERT_TRUE(t.create_library("cactus", &created).ok());
+    const auto pm = t.server->prepared_mesh(created.mesh_hash());
+    ASSERT_TRUE(pm);
+    EXPECT_EQ(pm->has_order(), on);
+    EXPECT_EQ(pm->build_timings().order_ms > 0, on);
+  }
+}
+
 TEST(BackgroundOrders, AServerWithTheThresholdAtZeroOrdersNothingInTheBackground) {
   TempDir dir;
   ServerOptions options = durable(dir, 0);

@@ -146,9 +146,10 @@ class CreateSessionReactor final : public grpc::ServerReadReactor<v1::CreateSess
             svc_->sessions().check_capacity();
             std::shared_ptr<const MeshRef> mesh =
                 header_.has_library_mesh()
-                    ? svc_->load_library_mesh(header_.library_mesh())
+                    ? svc_->load_library_mesh(header_.library_mesh(), svc_->open_order())
                     : svc_->load_upload(bytes, header_.filename(),
-                                        header_.has_repair() ? &header_.repair() : nullptr);
+                                        header_.has_repair() ? &header_.repair() : nullptr,
+                                        svc_->open_order());
             // The client left while its mesh was parsed: create nothing nobody will own.
             if (ctx_->IsCancelled())
               fail(grpc::StatusCode::CANCELLED, "upload cancelled by the client");

@@ -78,11 +78,13 @@ std::shared_ptr<const MeshRef> DeformService::load_library_mesh(const std::strin
 
 std::shared_ptr<const MeshRef> DeformService::load_upload(std::shared_ptr<const std::string> bytes,
                                                           const std::string& filename,
-                                                          const v1::MeshRepair* repair) {
+                                                          const v1::MeshRepair* repair,
+                                                          PrepareOrder order) {
   if (bytes->size() > options_.max_upload_bytes)
     fail(grpc::StatusCode::RESOURCE_EXHAUSTED,
          "upload exceeds the limit of " + std::to_string(options_.max_upload_bytes) + " bytes");
-  return load_mesh(std::move(bytes), filename, "", cache_, read_limits(), repair_options(repair));
+  return load_mesh(std::move(bytes), filename, "", cache_, read_limits(), repair_options(repair),
+                   order);
 }
 
 

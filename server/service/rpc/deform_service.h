@@ -158,10 +158,15 @@ class DeformService final : public v1::Deformation::CallbackService {
   // Blocking helpers used by the reactors (run on the pool).
   std::shared_ptr<const MeshRef> load_library_mesh(
       const std::string& name, PrepareOrder order = PrepareOrder::on_first_use);
+  // How a CreateSession prepares a new mesh (ServerOptions::order_on_open).
+  PrepareOrder open_order() const {
+    return options_.order_on_open ? PrepareOrder::with_operators : PrepareOrder::on_first_use;
+  }
   // `repair` (optional): CreateSessionHeader.repair / Snapshot.repair.
   std::shared_ptr<const MeshRef> load_upload(std::shared_ptr<const std::string> bytes,
                                              const std::string& filename,
-                                             const v1::MeshRepair* repair = nullptr);
+                                             const v1::MeshRepair* repair = nullptr,
+                                             PrepareOrder order = PrepareOrder::on_first_use);
 
  private:
   using Work = std::function<void()>;

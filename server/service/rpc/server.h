@@ -29,6 +29,10 @@ struct ServerOptions {
   // priority, from this many vertices on (--background-order-from; 0 = never):
   // background_orders.h.
   std::size_t background_order_from = 20000;
+  // A CreateSession's new mesh is ordered (β = 0) beside its operators, so the open answers
+  // later and its first SetConstraints sooner (--order-on-open): for batch clients that
+  // set constraints at once (the in-process CLI). Off: its user picks regions meanwhile.
+  bool order_on_open = false;
   // Upload bytes held by unfinished CreateSession calls, all clients together
   // (--max-upload-inflight-mb); a new upload beyond it gets RESOURCE_EXHAUSTED.
   std::size_t max_upload_inflight_bytes = 1ull << 30;
