@@ -170,11 +170,14 @@ std::shared_ptr<const PreparedMesh> PreparedMesh::create(TriMesh mesh, PrepareOr
     pm->component_ = vertex_components(pm->n(), F, pm->num_components_);
     timings.components_ms = lap();
   };
-  if (order == PrepareOrder::on_first_use) {
-    operators();
+  auto keep_graph = [&pm, &checked] {  // for order() to order on first use
     pm->edge_graph_bytes_ =
         (checked.edges.start.capacity() + checked.edges.rows.capacity()) * sizeof(int);
     pm->edge_graph_ = std::move(checked.edges);
+  };
+  if (order == PrepareOrder::on_first_use) {
+    operators();
+    keep_graph();
     return pm;
   }
   // The same graph, so the same order, as order() computes on first use. A failed METIS
@@ -191,12 +194,10 @@ std::shared_ptr<const PreparedMesh> PreparedMesh::create(TriMesh mesh, PrepareOr
     pm->timings_.order_ms = elapsed_ms(t);
   });
   timings.beside_ms = elapsed_ms(start);
-  if (!computed.empty()) {
-    pm->adopt_order(std::move(computed), /*wide=*/false);
+  if (computed.empty()) {
+    keep_graph();
   } else {
-    pm->edge_graph_bytes_ =
-        (checked.edges.start.capacity() + checked.edges.rows.capacity()) * sizeof(int);
-    pm->edge_graph_ = std::move(checked.edges);
+    pm->adopt_order(std::move(computed), /*wide=*/false);
   }
   return pm;
 }
