@@ -16,8 +16,9 @@ inline constexpr double kZeroAreaScale = 1e-14;
 
 // The mesh's edge graph as the lower triangle of a symmetric n × n pattern, by columns:
 // column v lists the vertices w > v that share an edge with v, ascending, in
-// rows[start[v] .. start[v + 1]). It is L's pattern without its diagonal, so METIS orders it
-// as it orders L (vertex_ordering.h), before L exists.
+// rows[start[v] .. start[v + 1]). It is L's pattern without its diagonal, plus the edges
+// whose cotangent weights cancel (L drops those zeros): what β = 0's order orders
+// (vertex_ordering.h), known before L exists.
 struct EdgePattern {
   std::vector<int> start;  // n + 1 offsets into rows
   std::vector<int> rows;

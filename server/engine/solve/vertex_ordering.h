@@ -27,8 +27,9 @@ inline constexpr std::size_t kSplitOrderFrom = 20000;
 std::vector<int> nested_dissection(const SparseMatrix& A);
 // The same for the union of the patterns of A and B (both n × n, symmetric).
 std::vector<int> nested_dissection(const SparseMatrix& A, const SparseMatrix& B);
-// The same for the mesh's edge graph (validate_mesh's): the order of L's pattern, the same
-// permutation as nested_dissection(L) (VertexOrdering.EdgePatternGivesLsOrder), without L.
+// The same for the mesh's edge graph (validate_mesh's): the β = 0 order, known without L.
+// Where no cotangent weights cancel it is nested_dissection(L)
+// (VertexOrdering.EdgeGraphIsLsPatternWithItsZeros).
 std::vector<int> nested_dissection(const EdgePattern& lower);
 
 // The permutation of a block whose row i is vertex free[i]: perm[k] = i of the k-th free
